@@ -1,0 +1,209 @@
+//! Captures: the reference images of a scene, each lit by one directional light.
+//!
+//! A [`Capture`] lists, per image, where its samples come from, the light vector
+//! (unit, toward the light, in the light frame of the [conventions](crate)) and the
+//! light's RGB intensity, which is divided out when the image is loaded. Captures
+//! come from RTI `.lp` files ([`lp`]), from relit's JSON manifest ([`manifest`]), or
+//! from memory (the built-in renderers).
+
+pub mod lp;
+pub mod manifest;
+
+use crate::camera::Projection;
+use crate::color::Encoding;
+use crate::image::{self, ImageRgb};
+use crate::sphere::Vec3;
+use crate::{Error, ErrorKind, Result};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// Where one reference image's samples come from.
+#[derive(Clone, Debug)]
+pub enum ImageSource {
+    /// A file, decoded on demand; `encoding` overrides the format's default.
+    File { path: PathBuf, encoding: Option<Encoding> },
+    /// A linear image already in memory.
+    Memory(Arc<ImageRgb>),
+}
+
+/// One reference image and the light it was taken under.
+#[derive(Clone, Debug)]
+pub struct CapturedLight {
+    pub image: ImageSource,
+    /// Unit light vector, toward the light.
+    pub direction: Vec3,
+    /// RGB intensity of the light (divided out on loading).
+    pub intensity: [f32; 3],
+}
+
+/// A set of reference images from one fixed viewpoint.
+#[derive(Clone, Debug)]
+pub struct Capture {
+    pub lights: Vec<CapturedLight>,
+    pub width: usize,
+    pub height: usize,
+    pub projection: Projection,
+    /// Depth per pixel (distance along the view ray), if known.
+    pub depth: Option<Arc<Vec<f32>>>,
+    /// Mask per pixel (> 0.5 inside), if known; evaluation restricts linear PSNR to it.
+    pub mask: Option<Arc<Vec<f32>>>,
+    /// Where the capture was read from, for messages.
+    pub origin: String,
+}
+
+impl Capture {
+    /// Read a capture from an RTI `.lp` file or a relit JSON manifest (`.json`).
+    ///
+    /// Every image is checked to exist and to share one size before this returns, so a
+    /// bad capture fails before any work is done.
+    pub fn open(path: &Path) -> Result<Capture> {
+        let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
+        match ext.as_deref() {
+            Some("json") => manifest::read(path),
+            _ => lp::read(path),
+        }
+    }
+
+    /// A capture from images in memory (linear, unit intensity).
+    pub fn from_memory(images: Vec<ImageRgb>, directions: &[Vec3], projection: Projection) -> Result<Capture> {
+        if images.is_empty() || images.len() != directions.len() {
+            return Err(Error::invalid("a capture needs one direction per image and at least one image"));
+        }
+        let (width, height) = (images[0].width, images[0].height);
+        let mut lights = Vec::with_capacity(images.len());
+        for (i, (img, d)) in images.into_iter().zip(directions).enumerate() {
+            if (img.width, img.height) != (width, height) {
+                return Err(Error::invalid(format!(
+                    "image {i} is {}×{} but image 0 is {width}×{height}",
+                    img.width, img.height
+                )));
+            }
+            let direction = d.normalized().ok_or_else(|| Error::invalid(format!("light {i} has no direction")))?;
+            lights.push(CapturedLight { image: ImageSource::Memory(Arc::new(img)), direction, intensity: [1.0; 3] });
+        }
+        Ok(Capture { lights, width, height, projection, depth: None, mask: None, origin: "memory".into() })
+    }
+
+    /// The number of reference images.
+    pub fn len(&self) -> usize {
+        self.lights.len()
+    }
+
+    /// Whether the capture has no images.
+    pub fn is_empty(&self) -> bool {
+        self.lights.is_empty()
+    }
+
+    /// The light vectors in capture order.
+    pub fn directions(&self) -> Vec<Vec3> {
+        self.lights.iter().map(|l| l.direction).collect()
+    }
+
+    /// A short name for image `index` (its file name, or its number).
+    pub fn image_name(&self, index: usize) -> String {
+        match &self.lights[index].image {
+            ImageSource::File { path, .. } => {
+                path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| path.display().to_string())
+            }
+            ImageSource::Memory(_) => format!("#{index}"),
+        }
+    }
+
+    /// Image `index` in linear RGB with its light intensity divided out.
+    pub fn load(&self, index: usize) -> Result<ImageRgb> {
+        let light = &self.lights[index];
+        let mut img = self.load_raw(index)?;
+        if light.intensity != [1.0; 3] {
+            let inv = light.intensity.map(|v| 1.0 / v);
+            for px in img.data.chunks_exact_mut(3) {
+                px[0] *= inv[0];
+                px[1] *= inv[1];
+                px[2] *= inv[2];
+            }
+        }
+        Ok(img)
+    }
+
+    /// Image `index` in linear RGB as recorded (intensity not divided out).
+    pub fn load_raw(&self, index: usize) -> Result<ImageRgb> {
+        let img = match &self.lights[index].image {
+            ImageSource::File { path, encoding } => image::load_linear(path, *encoding)?,
+            ImageSource::Memory(img) => (**img).clone(),
+        };
+        if (img.width, img.height) != (self.width, self.height) {
+            return Err(Error::new(
+                ErrorKind::InvalidInput,
+                format!(
+                    "{} is {}×{} but the capture is {}×{}",
+                    self.image_name(index),
+                    img.width,
+                    img.height,
+                    self.width,
+                    self.height
+                ),
+            ));
+        }
+        Ok(img)
+    }
+
+    /// The capture restricted to the images at `keep` (in that order).
+    pub fn subset(&self, keep: &[usize]) -> Capture {
+        let mut sub = self.clone();
+        sub.lights = keep.iter().map(|&i| self.lights[i].clone()).collect();
+        sub
+    }
+}
+
+/// Check that every file of `lights` exists and has the size of the first; returns it.
+/// `line_of` names where each image was declared, for messages.
+pub(crate) fn check_images(lights: &[CapturedLight], line_of: &dyn Fn(usize) -> String) -> Result<(usize, usize)> {
+    let mut size = None;
+    for (i, light) in lights.iter().enumerate() {
+        let ImageSource::File { path, .. } = &light.image else { continue };
+        if !path.is_file() {
+            return Err(Error::new(ErrorKind::InvalidInput, format!("{}: image {} not found", line_of(i), path.display())));
+        }
+        let dims = image::dimensions(path).map_err(|e| {
+            Error::new(ErrorKind::Image, format!("{}: cannot read the size of {}", line_of(i), path.display())).with_source(e)
+        })?;
+        match size {
+            None => size = Some((dims, i)),
+            Some(((w, h), first)) if (w, h) != dims => {
+                return Err(Error::new(
+                    ErrorKind::InvalidInput,
+                    format!(
+                        "{}: {} is {}×{} but {} ({}) is {w}×{h}; all images of a capture must share one size",
+                        line_of(i),
+                        path.display(),
+                        dims.0,
+                        dims.1,
+                        match &lights[first].image {
+                            ImageSource::File { path, .. } => path.display().to_string(),
+                            ImageSource::Memory(_) => "the first image".into(),
+                        },
+                        line_of(first)
+                    ),
+                ))
+            }
+            Some(_) => {}
+        }
+    }
+    size.map(|(d, _)| d).ok_or_else(|| Error::invalid("the capture lists no images"))
+}
+
+/// Resolve an image name from a capture file relative to the file's folder. Names
+/// written on another machine (absolute Windows paths, say) fall back to their last
+/// component when the full path does not exist here.
+pub(crate) fn resolve_image_path(folder: &Path, name: &str) -> PathBuf {
+    let direct = folder.join(name);
+    if direct.exists() {
+        return direct;
+    }
+    let last = name.rsplit(['/', '\\']).next().unwrap_or(name);
+    let fallback = folder.join(last);
+    if fallback.exists() {
+        fallback
+    } else {
+        direct
+    }
+}

@@ -1,0 +1,266 @@
+//! Fidelity against real held-out captures.
+//!
+//! Hold out some reference images, fit on the rest, relight at each held-out light and
+//! compare with the real image. Two figures per hold-out:
+//!
+//! * **8-bit sRGB PSNR over the whole frame**: `20·log10(255) − 10·log10(MSE)` over all
+//!   `W×H×3` samples of the 8-bit sRGB encodings — the protocol of
+//!   `shared/reference/peer_baseline.md`, so relit's numbers sit beside relight-cli's.
+//! * **Linear PSNR inside the mask** (the whole frame without one): peak 1, the white of
+//!   8/16-bit inputs.
+//!
+//! By default each held-out image gets its own fit on the other N−1 images, as the peer
+//! baseline was made; `joint` fits once without all held-out images. The maps are
+//! rounded to the storage precision before relighting, so the figures are those of the
+//! stored file.
+
+use crate::capture::Capture;
+use crate::codec::Storage;
+use crate::engine::{self, RelightOptions};
+use crate::fit::{self, psnr, FitOptions};
+use crate::light::{Light, LightRig};
+use crate::progress::Progress;
+use crate::{Error, Result};
+use serde::Serialize;
+use std::str::FromStr;
+
+/// Which images to hold out.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Holdout {
+    /// Every n-th image: 0, n, 2n, …
+    Every(usize),
+    /// These indices (in capture order).
+    List(Vec<usize>),
+    /// `n` indices spread evenly: `round(i·(N−1)/(n−1))`; `spread:5` is the peer protocol.
+    Spread(usize),
+}
+
+impl FromStr for Holdout {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Holdout> {
+        let s = s.trim();
+        let bad = || Error::parse(format!("bad hold-out `{s}`: expected `every:N`, `spread:N` or indices like `0,12,24`"));
+        if let Some(n) = s.strip_prefix("every:") {
+            let n: usize = n.trim().parse().map_err(|_| bad())?;
+            return if n == 0 { Err(bad()) } else { Ok(Holdout::Every(n)) };
+        }
+        if let Some(n) = s.strip_prefix("spread:") {
+            let n: usize = n.trim().parse().map_err(|_| bad())?;
+            return if n == 0 { Err(bad()) } else { Ok(Holdout::Spread(n)) };
+        }
+        let list: Vec<usize> = s.split(',').map(|p| p.trim().parse().map_err(|_| bad())).collect::<Result<_>>()?;
+        if list.is_empty() {
+            return Err(bad());
+        }
+        Ok(Holdout::List(list))
+    }
+}
+
+impl Holdout {
+    /// The held-out indices for a capture of `n` images (sorted, distinct).
+    pub fn indices(&self, n: usize) -> Result<Vec<usize>> {
+        let mut idx: Vec<usize> = match self {
+            Holdout::Every(step) => (0..n).step_by(*step).collect(),
+            Holdout::List(list) => {
+                if let Some(&bad) = list.iter().find(|&&i| i >= n) {
+                    return Err(Error::invalid(format!("hold-out index {bad} is out of range: the capture has {n} images")));
+                }
+                list.clone()
+            }
+            Holdout::Spread(count) => {
+                let count = (*count).min(n);
+                if count == 1 {
+                    vec![0]
+                } else {
+                    (0..count).map(|i| ((i * (n - 1)) as f64 / (count - 1) as f64).round() as usize).collect()
+                }
+            }
+        };
+        idx.sort_unstable();
+        idx.dedup();
+        if idx.len() >= n {
+            return Err(Error::invalid(format!("holding out {} of {n} images leaves nothing to fit", idx.len())));
+        }
+        Ok(idx)
+    }
+}
+
+/// Options of [`evaluate`].
+#[derive(Clone, Debug)]
+pub struct EvalOptions {
+    pub holdout: Holdout,
+    pub fit: FitOptions,
+    pub storage: Storage,
+    /// Fit once without all held-out images instead of once per held-out image.
+    pub joint: bool,
+    /// Mask (> 0.5 inside) for the linear PSNR; overrides the capture's own mask.
+    pub mask: Option<Vec<f32>>,
+}
+
+/// The result for one held-out image.
+#[derive(Clone, Debug, Serialize)]
+pub struct HoldoutResult {
+    pub index: usize,
+    pub image: String,
+    pub direction: [f64; 3],
+    pub psnr_srgb8: f64,
+    pub psnr_linear: f64,
+    pub fit_seconds: f64,
+    pub lambda: f64,
+}
+
+/// The evaluation of a capture.
+#[derive(Clone, Debug, Serialize)]
+pub struct EvalReport {
+    pub capture: String,
+    pub images: usize,
+    pub width: usize,
+    pub height: usize,
+    pub basis: String,
+    pub coefficients: usize,
+    pub objective: String,
+    pub color_space: String,
+    pub storage: String,
+    pub protocol: String,
+    pub psnr_srgb8_mean: f64,
+    pub psnr_linear_mean: f64,
+    pub masked: bool,
+    pub bytes_per_pixel: f64,
+    /// Mean wall time of one fit.
+    pub fit_seconds: f64,
+    pub peak_rss_bytes: Option<u64>,
+    pub holdouts: Vec<HoldoutResult>,
+}
+
+/// Hold out, fit, relight and compare.
+pub fn evaluate(capture: &Capture, options: &EvalOptions, progress: &dyn Progress) -> Result<EvalReport> {
+    let n = capture.len();
+    let held = options.holdout.indices(n)?;
+    let mask = match &options.mask {
+        Some(m) => Some(m.clone()),
+        None => capture.mask.as_ref().map(|m| m.as_ref().clone()),
+    };
+    if let Some(m) = &mask {
+        if m.len() != capture.width * capture.height {
+            return Err(Error::invalid("the mask's size differs from the capture's"));
+        }
+    }
+    crate::memory::reset_peak_rss();
+    let groups: Vec<Vec<usize>> = if options.joint { vec![held.clone()] } else { held.iter().map(|&i| vec![i]).collect() };
+    let mut results = Vec::new();
+    let mut bytes_per_pixel = f64::NAN;
+    let mut fit_seconds = Vec::new();
+    for group in &groups {
+        let train: Vec<usize> = (0..n).filter(|i| !group.contains(i)).collect();
+        let mut fitted = fit::fit(&capture.subset(&train), &options.fit, progress)?;
+        fit_seconds.push(fitted.report.seconds);
+        if bytes_per_pixel.is_nan() {
+            bytes_per_pixel = stored_bytes(&fitted.image, options.storage)? as f64 / (capture.width * capture.height) as f64;
+        }
+        fitted.image.maps.data.iter_mut().for_each(|v| *v = options.storage.quantize(*v));
+        for &index in group {
+            let light = &capture.lights[index];
+            let color = light.intensity.map(|v| v as f64);
+            let rig = LightRig::new(vec![Light::directional(light.direction, color)]);
+            let relit = engine::relight(&fitted.image, &rig, &RelightOptions::default())?;
+            let reference = capture.load_raw(index)?;
+            let (psnr_srgb8, psnr_linear) = compare(&relit.data, &reference.data, mask.as_deref());
+            results.push(HoldoutResult {
+                index,
+                image: capture.image_name(index),
+                direction: light.direction.into(),
+                psnr_srgb8,
+                psnr_linear,
+                fit_seconds: fitted.report.seconds,
+                lambda: fitted.report.lambda,
+            });
+        }
+    }
+    let mean = |f: &dyn Fn(&HoldoutResult) -> f64| results.iter().map(f).sum::<f64>() / results.len() as f64;
+    Ok(EvalReport {
+        capture: capture.origin.clone(),
+        images: n,
+        width: capture.width,
+        height: capture.height,
+        basis: options.fit.basis.short_name(),
+        coefficients: options.fit.basis.len(),
+        objective: if options.fit.color_space == crate::maps::MapSpace::Srgb {
+            "linear".into()
+        } else {
+            options.fit.objective.name().into()
+        },
+        color_space: options.fit.color_space.name().into(),
+        storage: options.storage.name().into(),
+        protocol: if options.joint { "joint".into() } else { "one fit per hold-out".into() },
+        psnr_srgb8_mean: mean(&|r| r.psnr_srgb8),
+        psnr_linear_mean: mean(&|r| r.psnr_linear),
+        masked: mask.is_some(),
+        bytes_per_pixel,
+        fit_seconds: fit_seconds.iter().sum::<f64>() / fit_seconds.len() as f64,
+        peak_rss_bytes: crate::memory::peak_rss_bytes(),
+        holdouts: results,
+    })
+}
+
+/// Bytes of the EXR file the maps would be stored in.
+fn stored_bytes(image: &crate::maps::RelightableImage, storage: Storage) -> Result<u64> {
+    let dir = tempfile::tempdir().map_err(|e| Error::io(std::path::Path::new("."), "create a temporary folder in", e))?;
+    let path = dir.path().join("maps.exr");
+    crate::codec::exr::write(&path, image, storage)?;
+    Ok(std::fs::metadata(&path).map_err(|e| Error::io(&path, "measure", e))?.len())
+}
+
+/// (8-bit sRGB PSNR over all samples, linear PSNR inside `mask`) of `test` against `reference`.
+pub fn compare(test: &[f32], reference: &[f32], mask: Option<&[f32]>) -> (f64, f64) {
+    let mut sq8 = 0.0f64;
+    let (mut sq, mut count) = (0.0f64, 0usize);
+    for (p, (t, r)) in test.chunks_exact(3).zip(reference.chunks_exact(3)).enumerate() {
+        let inside = mask.is_none_or(|m| m[p] > 0.5);
+        for c in 0..3 {
+            let d8 = crate::color::linear_to_srgb8(t[c]) as f64 - crate::color::linear_to_srgb8(r[c]) as f64;
+            sq8 += d8 * d8;
+            if inside {
+                let t = if t[c].is_finite() { t[c] } else { 0.0 };
+                sq += (t as f64 - r[c] as f64).powi(2);
+                count += 1;
+            }
+        }
+    }
+    let mse8 = sq8 / test.len().max(1) as f64;
+    (psnr(mse8, 255.0), psnr(sq / count.max(1) as f64, 1.0))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn holdout_specs() {
+        assert_eq!("every:10".parse::<Holdout>().unwrap().indices(25).unwrap(), vec![0, 10, 20]);
+        assert_eq!("0,12,24,35,47".parse::<Holdout>().unwrap().indices(60).unwrap(), vec![0, 12, 24, 35, 47]);
+        // The peer protocol: round(i·(N−1)/4).
+        assert_eq!("spread:5".parse::<Holdout>().unwrap().indices(60).unwrap(), vec![0, 15, 30, 44, 59]);
+        assert_eq!("spread:5".parse::<Holdout>().unwrap().indices(47).unwrap(), vec![0, 12, 23, 35, 46]);
+        assert!("every:0".parse::<Holdout>().is_err());
+        assert!("1,x".parse::<Holdout>().is_err());
+        assert!("3,99".parse::<Holdout>().unwrap().indices(10).is_err());
+        assert!("every:1".parse::<Holdout>().unwrap().indices(10).is_err());
+    }
+
+    #[test]
+    fn psnr_follows_the_protocol() {
+        let a = vec![0.5f32; 30];
+        assert_eq!(compare(&a, &a, None), (100.0, 100.0));
+        // One 8-bit step in every sample: MSE 1 → 48.13 dB.
+        let t8 = crate::color::srgb8_table();
+        let x: Vec<f32> = vec![t8[100]; 30];
+        let y: Vec<f32> = vec![t8[101]; 30];
+        assert!((compare(&x, &y, None).0 - 48.1308).abs() < 1e-3);
+        // The mask restricts the linear figure only.
+        let mut z = x.clone();
+        z[0] = 1.0;
+        let mask = vec![0.0f32, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0];
+        assert_eq!(compare(&z, &x, Some(&mask)).1, 100.0);
+        assert!(compare(&z, &x, None).1 < 100.0);
+    }
+}

@@ -1,0 +1,694 @@
+//! Fitting: from a capture to coefficient maps, by streaming regularised least squares.
+//!
+//! For every pixel and colour channel the fit finds coefficients `c` minimising
+//!
+//! ```text
+//!   Σ_j w_j (B(L_j)·c − I_j)²  +  λ · (Σ_j w_j) · cᵀ P c
+//! ```
+//!
+//! over the reference images `j`, where `B(L_j)` are the basis values at image `j`'s
+//! light vector, `P` is the basis' smoothness penalty ([`Basis::penalty`]: for SH the
+//! mean squared gradient over the sphere, which leaves the constant term free) and the
+//! sample weights `w_j` depend on the [`Objective`]:
+//!
+//! * [`Objective::Linear`]: `w_j = q_j`, the quadrature weight of the direction (1,
+//!   or the solid angle of its cell when the directions form a full spherical grid).
+//!   Every pixel shares one normal matrix, so the images stream through once, one batch
+//!   at a time, accumulating `Σ_j q_j B(L_j) I_j` per pixel (memory: the maps), and one
+//!   k×k solve turns the sums into coefficients — the precomputed solver `(BᵀQB+λP)⁻¹BᵀQ`
+//!   applied in two factors.
+//! * [`Objective::Perceptual`] (default): `w_j = q_j · s(v)²` where `s` is the slope
+//!   of the sRGB curve at the sample's radiance `v`, so a linear-space residual counts
+//!   as much as the display-space error it causes. `v` is the observation first, then
+//!   the prediction (iteratively reweighted, [`FitOptions::reweights`] times), which keeps
+//!   a highlight the basis cannot follow from dominating the fit. Weights differ per
+//!   pixel, so every pixel gets its own normal equations. The images are first
+//!   rebinned into a strip-major spill file on disk (the seed's rebinning); each strip
+//!   of rows of all images is then read in one piece and solved pixel by pixel with
+//!   matrix products (`W · vec(B_j B_jᵀ)`) and a Cholesky factorisation per pixel.
+//!
+//! Maps stored display-referred ([`MapSpace::Srgb`]) fit sRGB-encoded values with
+//! plain (quadrature-weighted) least squares.
+//!
+//! **λ** is chosen automatically unless fixed: on a deterministic subsample of pixels
+//! the exact leave-one-out residual `e_j / (1 − h_jj)` of the weighted fit is computed
+//! for a ladder of λ values and the smallest weighted error wins. Because the weights
+//! are the squared sRGB slopes, that error estimates the display-space error on lights
+//! that were not captured — the quantity users see.
+
+mod spill;
+
+use crate::basis::{Basis, BasisSpec};
+use crate::capture::Capture;
+use crate::color;
+use crate::image::ImageRgb;
+use crate::linalg;
+use crate::maps::{CoefficientMaps, FitInfo, MapSpace, Metadata, RelightableImage};
+use crate::progress::Progress;
+use crate::sphere;
+use crate::{Error, ErrorKind, Result};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::time::Instant;
+
+/// What the fit minimises.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Objective {
+    /// Squared residuals weighted by the squared slope of the sRGB curve (display-space error).
+    #[default]
+    Perceptual,
+    /// Plain squared residuals in linear radiance.
+    Linear,
+}
+
+impl Objective {
+    pub fn name(self) -> &'static str {
+        match self {
+            Objective::Perceptual => "perceptual",
+            Objective::Linear => "linear",
+        }
+    }
+}
+
+/// The penalty that regularises the fit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Regularizer {
+    /// The basis' smoothness penalty (SH: mean squared gradient; the constant term is free).
+    #[default]
+    Roughness,
+    /// Plain ridge: every coefficient shrunk equally.
+    Ridge,
+}
+
+impl Regularizer {
+    pub fn name(self) -> &'static str {
+        match self {
+            Regularizer::Roughness => "roughness",
+            Regularizer::Ridge => "ridge",
+        }
+    }
+}
+
+/// How λ is set.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Lambda {
+    /// Chosen per capture by leave-one-out on a pixel subsample.
+    #[default]
+    Auto,
+    /// A fixed value (relative to the total sample weight).
+    Fixed(f64),
+}
+
+/// The ladder of λ values the automatic choice tries.
+pub const LAMBDA_LADDER: [f64; 11] = [1e-7, 3e-7, 1e-6, 3e-6, 1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3, 1e-2];
+
+/// Options of [`fit`].
+#[derive(Clone, Debug)]
+pub struct FitOptions {
+    pub basis: BasisSpec,
+    pub objective: Objective,
+    pub color_space: MapSpace,
+    pub regularizer: Regularizer,
+    pub lambda: Lambda,
+    /// Reweighting passes of the perceptual objective after the first solve.
+    pub reweights: usize,
+    /// Bytes of one strip of all images held in memory by the perceptual fit.
+    pub strip_bytes: usize,
+    /// Pixels in the subsample used to choose λ and estimate the training residual.
+    pub subsample: usize,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        Self {
+            basis: BasisSpec::default(),
+            objective: Objective::default(),
+            color_space: MapSpace::Linear,
+            regularizer: Regularizer::default(),
+            lambda: Lambda::Auto,
+            reweights: 1,
+            strip_bytes: 64 << 20,
+            subsample: 1024,
+        }
+    }
+}
+
+/// What a fit measured about itself.
+#[derive(Clone, Debug, Serialize)]
+pub struct FitReport {
+    pub images: usize,
+    pub width: usize,
+    pub height: usize,
+    pub coefficients: usize,
+    pub objective: Objective,
+    pub color_space: MapSpace,
+    pub lambda: f64,
+    /// `(λ, leave-one-out weighted MSE)` for each λ tried by the automatic choice.
+    pub lambda_scores: Vec<(f64, f64)>,
+    pub seconds: f64,
+    pub images_per_second: f64,
+    /// Peak resident memory of the process during the fit, if measurable.
+    pub peak_rss_bytes: Option<u64>,
+    /// Bytes of the on-disk spill file (perceptual objective), 0 otherwise.
+    pub spill_bytes: u64,
+    pub rmse_linear: [f64; 3],
+    pub psnr_srgb8: f64,
+}
+
+/// A fitted relightable image and its report.
+#[derive(Clone, Debug)]
+pub struct FitOutput {
+    pub image: RelightableImage,
+    pub report: FitReport,
+}
+
+/// The sample weights' design: basis values and quadrature weights per image.
+struct Design {
+    basis: Box<dyn Basis>,
+    k: usize,
+    n: usize,
+    /// N×k basis values, row-major.
+    a: Vec<f64>,
+    /// Quadrature weight per image (mean 1).
+    q: Vec<f64>,
+    /// Penalty diagonal, scaled as configured.
+    penalty: Vec<f64>,
+}
+
+impl Design {
+    fn new(capture: &Capture, options: &FitOptions) -> Result<Design> {
+        let basis = options.basis.build()?;
+        let k = basis.len();
+        let n = capture.len();
+        if n == 0 {
+            return Err(Error::invalid("the capture has no images"));
+        }
+        let dirs = capture.directions();
+        let mut a = vec![0.0; n * k];
+        for (j, d) in dirs.iter().enumerate() {
+            basis.eval(*d, &mut a[j * k..(j + 1) * k]);
+        }
+        let q = sphere::grid_quadrature_weights(&dirs).unwrap_or_else(|| vec![1.0; n]);
+        let penalty = match options.regularizer {
+            Regularizer::Roughness => basis.penalty(),
+            Regularizer::Ridge => vec![1.0 / (4.0 * std::f64::consts::PI); k],
+        };
+        Ok(Design { basis, k, n, a, q, penalty })
+    }
+
+    fn row(&self, j: usize) -> &[f64] {
+        &self.a[j * self.k..(j + 1) * self.k]
+    }
+
+    /// Add `λ·W·P` (and a tiny multiple of `W·I` so that the system stays definite when
+    /// the data leave a coefficient undetermined) to the diagonal of `m`.
+    fn regularize(&self, m: &mut [f64], lambda: f64, total_weight: f64) {
+        const DEFINITENESS: f64 = 1e-10; // relative to the data weight, far below any λ
+        for i in 0..self.k {
+            m[i * self.k + i] += total_weight * (lambda * self.penalty[i] + DEFINITENESS);
+        }
+    }
+}
+
+/// Per-sample weight of the objective for a (linear) radiance `v`.
+#[inline]
+fn perceptual_weight(v: f64) -> f64 {
+    let s = color::srgb_slope(v);
+    s * s
+}
+
+/// Deterministically spread `count` pixel indices over `pixels`.
+fn subsample_indices(pixels: usize, count: usize) -> Vec<usize> {
+    let count = count.min(pixels).max(1);
+    let step = pixels as f64 / count as f64;
+    // A fixed pseudo-random offset inside each stride avoids aliasing with image rows.
+    let mut state = 0x9E37_79B9_7F4A_7C15u64;
+    (0..count)
+        .map(|s| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            let jitter = (state % 1_000_003) as f64 / 1_000_003.0;
+            (((s as f64 + jitter) * step) as usize).min(pixels - 1)
+        })
+        .collect()
+}
+
+/// The values the fit targets, from a linear image: unchanged for linear maps,
+/// sRGB-encoded for display-referred maps.
+fn to_target(mut img: ImageRgb, space: MapSpace) -> ImageRgb {
+    if space == MapSpace::Srgb {
+        img.data.iter_mut().for_each(|v| *v = color::linear_to_srgb(*v));
+    }
+    img
+}
+
+/// Fit `capture` with `options`.
+pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> Result<FitOutput> {
+    let start = Instant::now();
+    let design = Design::new(capture, options)?;
+    let (w, h) = (capture.width, capture.height);
+    let pixels = w * h;
+    if pixels == 0 {
+        return Err(Error::invalid("the capture's images are empty"));
+    }
+    let per_pixel = options.objective == Objective::Perceptual && options.color_space == MapSpace::Linear;
+    let sub_idx = subsample_indices(pixels, options.subsample);
+    let mut sub = vec![0f32; sub_idx.len() * design.n * 3];
+
+    let mut accum = None;
+    let mut spill = None;
+    if per_pixel {
+        spill = Some(spill::Spill::create(w, h, design.n, options.strip_bytes)?);
+    } else {
+        accum = Some(vec![0f32; pixels * design.k * 3]);
+    }
+
+    // Pass 1: stream the images, a batch of decoders' worth at a time.
+    progress.begin("reading images", design.n as u64);
+    let batch = rayon::current_num_threads().max(1);
+    for first in (0..design.n).step_by(batch) {
+        let indices: Vec<usize> = (first..(first + batch).min(design.n)).collect();
+        let images: Vec<ImageRgb> = indices
+            .par_iter()
+            .map(|&j| {
+                let img = to_target(capture.load(j)?, options.color_space);
+                if let Some(spill) = &spill {
+                    spill.write_image(j, &img.data)?;
+                }
+                progress.advance(1);
+                Ok(img)
+            })
+            .collect::<Result<_>>()?;
+        for (&j, img) in indices.iter().zip(&images) {
+            for (s, &p) in sub_idx.iter().enumerate() {
+                let o = (s * design.n + j) * 3;
+                sub[o..o + 3].copy_from_slice(&img.data[3 * p..3 * p + 3]);
+            }
+        }
+        if let Some(acc) = accum.as_mut() {
+            accumulate(acc, &design, &indices, &images);
+        }
+    }
+    progress.end();
+
+    // λ: leave-one-out on the subsample, unless fixed.
+    let (lambda, lambda_scores) = match options.lambda {
+        Lambda::Fixed(l) if l >= 0.0 && l.is_finite() => (l, Vec::new()),
+        Lambda::Fixed(l) => return Err(Error::invalid(format!("λ must be a non-negative number, got {l}"))),
+        Lambda::Auto => {
+            let scores = loo_scores(&design, &sub, sub_idx.len(), per_pixel);
+            let best = scores
+                .iter()
+                .filter(|s| s.1.is_finite())
+                .min_by(|a, b| a.1.total_cmp(&b.1))
+                .map(|s| s.0)
+                .unwrap_or(1e-3);
+            (best, scores)
+        }
+    };
+
+    let mut maps = CoefficientMaps::zeros(w, h, design.k);
+    if let Some(acc) = accum.take() {
+        solve_shared(acc, &design, lambda, &mut maps)?;
+    } else if let Some(spill) = spill.as_ref() {
+        solve_per_pixel(spill, &design, lambda, options.reweights, &mut maps, progress)?;
+    }
+
+    let (rmse_linear, psnr_srgb8) = training_residual(&design, &maps, &sub, &sub_idx, options.color_space);
+    let seconds = start.elapsed().as_secs_f64();
+    let mut meta = Metadata::new(design.basis.spec(), options.color_space, capture.projection.clone());
+    let objective = if options.color_space == MapSpace::Srgb { Objective::Linear } else { options.objective };
+    meta.fit = Some(FitInfo {
+        objective: objective.name().into(),
+        regularizer: options.regularizer.name().into(),
+        lambda,
+        lambda_choice: if matches!(options.lambda, Lambda::Auto) { "auto".into() } else { "fixed".into() },
+        images: design.n,
+        rmse_linear,
+        psnr_srgb8,
+        seconds,
+    });
+    let report = FitReport {
+        images: design.n,
+        width: w,
+        height: h,
+        coefficients: design.k,
+        objective,
+        color_space: options.color_space,
+        lambda,
+        lambda_scores,
+        seconds,
+        images_per_second: design.n as f64 / seconds.max(1e-9),
+        peak_rss_bytes: crate::memory::peak_rss_bytes(),
+        spill_bytes: spill.as_ref().map_or(0, |s| s.bytes()),
+        rmse_linear,
+        psnr_srgb8,
+    };
+    let depth = capture.depth.as_ref().map(|d| d.as_ref().clone());
+    Ok(FitOutput { image: RelightableImage { meta, maps, depth }, report })
+}
+
+/// Pixels per parallel task.
+const CHUNK: usize = 128;
+
+/// Add `q_j B(L_j) I_j` of a batch of images into the pixel-major sums `acc` (pixel, i, c).
+fn accumulate(acc: &mut [f32], design: &Design, indices: &[usize], images: &[ImageRgb]) {
+    let k = design.k;
+    let rows: Vec<Vec<f32>> = indices
+        .iter()
+        .map(|&j| design.row(j).iter().map(|&v| (v * design.q[j]) as f32).collect())
+        .collect();
+    acc.par_chunks_mut(3 * k * CHUNK).enumerate().for_each(|(chunk, out)| {
+        let p0 = chunk * CHUNK;
+        for (pl, sums) in out.chunks_exact_mut(3 * k).enumerate() {
+            let p = p0 + pl;
+            for (img, row) in images.iter().zip(&rows) {
+                let px = [img.data[3 * p], img.data[3 * p + 1], img.data[3 * p + 2]];
+                for (i, &a) in row.iter().enumerate() {
+                    sums[3 * i] += a * px[0];
+                    sums[3 * i + 1] += a * px[1];
+                    sums[3 * i + 2] += a * px[2];
+                }
+            }
+        }
+    });
+}
+
+/// Solve the shared normal equations for every pixel and store planar maps.
+fn solve_shared(mut acc: Vec<f32>, design: &Design, lambda: f64, maps: &mut CoefficientMaps) -> Result<()> {
+    let k = design.k;
+    let mut m = vec![0.0; k * k];
+    let total: f64 = design.q.iter().sum();
+    for j in 0..design.n {
+        let row = design.row(j);
+        for r in 0..k {
+            for c in 0..k {
+                m[r * k + c] += design.q[j] * row[r] * row[c];
+            }
+        }
+    }
+    design.regularize(&mut m, lambda, total);
+    if !linalg::cholesky(&mut m, k) {
+        return Err(Error::new(ErrorKind::Numerical, "the normal equations are singular; use a larger λ"));
+    }
+    // The inverse, column by column, as an f32 matrix applied per pixel.
+    let mut inv = vec![0f32; k * k];
+    for col in 0..k {
+        let mut e = vec![0.0; k];
+        e[col] = 1.0;
+        linalg::cholesky_solve(&m, k, &mut e);
+        for r in 0..k {
+            inv[r * k + col] = e[r] as f32;
+        }
+    }
+    acc.par_chunks_mut(3 * k).for_each(|sums| {
+        let b = sums.to_vec();
+        for r in 0..k {
+            let mut s = [0f32; 3];
+            for (i, &v) in inv[r * k..(r + 1) * k].iter().enumerate() {
+                s[0] += v * b[3 * i];
+                s[1] += v * b[3 * i + 1];
+                s[2] += v * b[3 * i + 2];
+            }
+            sums[3 * r..3 * r + 3].copy_from_slice(&s);
+        }
+    });
+    scatter_planar(&acc, 0, maps);
+    Ok(())
+}
+
+/// Copy pixel-major coefficients (pixel, i, c) for pixels `p0..` into the planar maps.
+fn scatter_planar(pixel_major: &[f32], p0: usize, maps: &mut CoefficientMaps) {
+    let k = maps.k;
+    let npix = maps.pixels();
+    let count = pixel_major.len() / (3 * k);
+    maps.data.par_chunks_mut(npix).enumerate().for_each(|(plane, values)| {
+        for (p, dst) in values[p0..p0 + count].iter_mut().enumerate() {
+            *dst = pixel_major[p * 3 * k + plane];
+        }
+    });
+}
+
+/// Scratch space of one per-pixel solve task.
+struct Scratch {
+    obs: Vec<f64>,
+    weights: Vec<f64>,
+    weighted_obs: Vec<f64>,
+    packed: Vec<f64>,
+    rhs: Vec<f64>,
+    coef: Vec<f64>,
+    pred: Vec<f64>,
+    m: Vec<f64>,
+}
+
+/// Indices of the packed upper triangle of a k×k symmetric matrix, row by row.
+fn packed_pairs(k: usize) -> Vec<(usize, usize)> {
+    (0..k).flat_map(|r| (r..k).map(move |c| (r, c))).collect()
+}
+
+/// Per-pixel weighted fit of every strip in the spill file.
+fn solve_per_pixel(
+    spill: &spill::Spill,
+    design: &Design,
+    lambda: f64,
+    reweights: usize,
+    maps: &mut CoefficientMaps,
+    progress: &dyn Progress,
+) -> Result<()> {
+    let (k, n) = (design.k, design.n);
+    let pairs = packed_pairs(k);
+    let t = pairs.len();
+    // N×T table of the outer products B_j B_jᵀ (upper triangle), so that the weighted
+    // normal matrices of a chunk of pixels are one matrix product W · outer.
+    let mut outer = vec![0.0; n * t];
+    for j in 0..n {
+        let row = design.row(j);
+        for (x, &(r, c)) in pairs.iter().enumerate() {
+            outer[j * t + x] = row[r] * row[c];
+        }
+    }
+    progress.begin("fitting strips", spill.strips() as u64);
+    let mut buffer = Vec::new();
+    for s in 0..spill.strips() {
+        let (p0, count) = spill.read_strip(s, &mut buffer)?;
+        let strip = &buffer;
+        let results: Vec<Vec<f32>> = (0..count.div_ceil(CHUNK))
+            .into_par_iter()
+            .map_init(
+                || Scratch {
+                    obs: vec![0.0; CHUNK * n],
+                    weights: vec![0.0; CHUNK * n],
+                    weighted_obs: vec![0.0; CHUNK * n],
+                    packed: vec![0.0; CHUNK * t],
+                    rhs: vec![0.0; CHUNK * k],
+                    coef: vec![0.0; CHUNK * k],
+                    pred: vec![0.0; CHUNK * n],
+                    m: vec![0.0; k * k],
+                },
+                |scratch, chunk| {
+                    let a = chunk * CHUNK;
+                    let len = CHUNK.min(count - a);
+                    let mut out = vec![0f32; len * 3 * k];
+                    for c in 0..3 {
+                        for p in 0..len {
+                            for j in 0..n {
+                                scratch.obs[p * n + j] = strip[(j * count + a + p) * 3 + c] as f64;
+                            }
+                        }
+                        solve_chunk(design, &outer, &pairs, lambda, reweights, len, scratch);
+                        for p in 0..len {
+                            for i in 0..k {
+                                out[p * 3 * k + 3 * i + c] = scratch.coef[p * k + i] as f32;
+                            }
+                        }
+                    }
+                    out
+                },
+            )
+            .collect();
+        let flat: Vec<f32> = results.concat();
+        scatter_planar(&flat, p0, maps);
+        progress.advance(1);
+    }
+    progress.end();
+    Ok(())
+}
+
+/// Iteratively reweighted solve of `len` pixels' observations in `scratch.obs` (len×N).
+fn solve_chunk(
+    design: &Design,
+    outer: &[f64],
+    pairs: &[(usize, usize)],
+    lambda: f64,
+    reweights: usize,
+    len: usize,
+    s: &mut Scratch,
+) {
+    let (k, n, t) = (design.k, design.n, pairs.len());
+    for x in 0..len * n {
+        s.weights[x] = design.q[x % n] * perceptual_weight(s.obs[x]);
+    }
+    for pass in 0..=reweights {
+        for x in 0..len * n {
+            s.weighted_obs[x] = s.weights[x] * s.obs[x];
+        }
+        linalg::matmul(len, n, t, &s.weights, outer, &mut s.packed);
+        linalg::matmul(len, n, k, &s.weighted_obs, &design.a, &mut s.rhs);
+        for p in 0..len {
+            let total: f64 = s.weights[p * n..(p + 1) * n].iter().sum();
+            for (x, &(r, c)) in pairs.iter().enumerate() {
+                let v = s.packed[p * t + x];
+                s.m[r * k + c] = v;
+                s.m[c * k + r] = v;
+            }
+            let coef = &mut s.coef[p * k..(p + 1) * k];
+            coef.copy_from_slice(&s.rhs[p * k..(p + 1) * k]);
+            solve_regularized(design, &mut s.m, coef, lambda, total);
+        }
+        if pass < reweights {
+            linalg::matmul_bt(len, k, n, &s.coef, &design.a, &mut s.pred);
+            for x in 0..len * n {
+                s.weights[x] = design.q[x % n] * perceptual_weight(s.pred[x]);
+            }
+        }
+    }
+}
+
+/// Solve `(m + λ W P) c = rhs` in place; if the system is numerically singular, retry
+/// with a larger λ, and give up with zeros (a black pixel) rather than NaN.
+fn solve_regularized(design: &Design, m: &mut [f64], rhs: &mut [f64], lambda: f64, total: f64) {
+    let k = design.k;
+    let base = m.to_vec();
+    let mut l = lambda;
+    for _ in 0..6 {
+        m.copy_from_slice(&base);
+        design.regularize(m, l, total.max(1e-30));
+        if linalg::cholesky(m, k) {
+            linalg::cholesky_solve(m, k, rhs);
+            return;
+        }
+        l = (l * 100.0).max(1e-6);
+    }
+    rhs.iter_mut().for_each(|v| *v = 0.0);
+}
+
+/// Leave-one-out weighted error for each λ of [`LAMBDA_LADDER`], on the subsample.
+fn loo_scores(design: &Design, sub: &[f32], count: usize, perceptual: bool) -> Vec<(f64, f64)> {
+    let (k, n) = (design.k, design.n);
+    let totals: Vec<(f64, f64)> = (0..count * 3)
+        .into_par_iter()
+        .fold(
+            || vec![(0.0f64, 0.0f64); LAMBDA_LADDER.len()],
+            |mut acc, item| {
+                let (s, c) = (item / 3, item % 3);
+                let obs: Vec<f64> = (0..n).map(|j| sub[(s * n + j) * 3 + c] as f64).collect();
+                let w: Vec<f64> = obs
+                    .iter()
+                    .enumerate()
+                    .map(|(j, &v)| design.q[j] * if perceptual { perceptual_weight(v) } else { 1.0 })
+                    .collect();
+                let total: f64 = w.iter().sum();
+                let mut m0 = vec![0.0; k * k];
+                let mut b0 = vec![0.0; k];
+                for j in 0..n {
+                    let row = design.row(j);
+                    for r in 0..k {
+                        b0[r] += w[j] * row[r] * obs[j];
+                        for cc in r..k {
+                            m0[r * k + cc] += w[j] * row[r] * row[cc];
+                        }
+                    }
+                }
+                for r in 0..k {
+                    for cc in 0..r {
+                        m0[r * k + cc] = m0[cc * k + r];
+                    }
+                }
+                let mut z = vec![0.0; k];
+                for (li, &lambda) in LAMBDA_LADDER.iter().enumerate() {
+                    let mut m = m0.clone();
+                    design.regularize(&mut m, lambda, total);
+                    if !linalg::cholesky(&mut m, k) {
+                        acc[li].0 += f64::INFINITY;
+                        continue;
+                    }
+                    let mut coef = b0.clone();
+                    linalg::cholesky_solve(&m, k, &mut coef);
+                    for j in 0..n {
+                        let row = design.row(j);
+                        z.copy_from_slice(row);
+                        linalg::forward_solve(&m, k, &mut z);
+                        let leverage = w[j] * z.iter().map(|v| v * v).sum::<f64>();
+                        let pred: f64 = row.iter().zip(&coef).map(|(a, b)| a * b).sum();
+                        let e = (obs[j] - pred) / (1.0 - leverage).max(1e-6);
+                        acc[li].0 += w[j] * e * e;
+                        acc[li].1 += w[j];
+                    }
+                }
+                acc
+            },
+        )
+        .reduce(
+            || vec![(0.0, 0.0); LAMBDA_LADDER.len()],
+            |mut a, b| {
+                a.iter_mut().zip(b).for_each(|(x, y)| {
+                    x.0 += y.0;
+                    x.1 += y.1;
+                });
+                a
+            },
+        );
+    LAMBDA_LADDER.iter().zip(totals).map(|(&l, (err, wsum))| (l, err / wsum.max(1e-30))).collect()
+}
+
+/// Training residual on the subsample: RMSE in linear radiance per channel and 8-bit sRGB PSNR.
+fn training_residual(
+    design: &Design,
+    maps: &CoefficientMaps,
+    sub: &[f32],
+    sub_idx: &[usize],
+    space: MapSpace,
+) -> ([f64; 3], f64) {
+    let (k, n) = (design.k, design.n);
+    let mut sq = [0.0f64; 3];
+    let mut sq8 = 0.0f64;
+    for (s, &p) in sub_idx.iter().enumerate() {
+        for c in 0..3 {
+            let coef: Vec<f64> = (0..k).map(|i| maps.plane(i, c)[p] as f64).collect();
+            for j in 0..n {
+                let pred: f64 = design.row(j).iter().zip(&coef).map(|(a, b)| a * b).sum();
+                let obs = sub[(s * n + j) * 3 + c] as f64;
+                let (pred_lin, obs_lin) = match space {
+                    MapSpace::Linear => (pred, obs),
+                    MapSpace::Srgb => (
+                        color::srgb_to_linear(pred.clamp(0.0, 1.0) as f32) as f64,
+                        color::srgb_to_linear(obs.clamp(0.0, 1.0) as f32) as f64,
+                    ),
+                };
+                sq[c] += (pred_lin - obs_lin).powi(2);
+                let d = color::linear_to_srgb8(pred_lin as f32) as f64 - color::linear_to_srgb8(obs_lin as f32) as f64;
+                sq8 += d * d;
+            }
+        }
+    }
+    let count = (sub_idx.len() * n) as f64;
+    let rmse = sq.map(|v| (v / count).sqrt());
+    let mse8 = sq8 / (3.0 * count);
+    (rmse, psnr(mse8, 255.0))
+}
+
+/// `10·log10(peak² / mse)`, capped at 100 dB for a perfect match.
+pub fn psnr(mse: f64, peak: f64) -> f64 {
+    if mse <= 0.0 {
+        100.0
+    } else {
+        (20.0 * peak.log10() - 10.0 * mse.log10()).min(100.0)
+    }
+}
+
+#[cfg(test)]
+mod tests;

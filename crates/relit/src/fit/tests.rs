@@ -1,0 +1,175 @@
+use super::*;
+use crate::basis::BasisSpec;
+use crate::camera::Projection;
+use crate::progress::Silent;
+use crate::sphere::{fibonacci, grid, hemisphere_fibonacci, Vec3};
+
+/// Pseudo-random coefficients for `pixels` pixels of a `bands`-band SH function, made
+/// positive enough on the sphere that sRGB weights stay moderate.
+fn known_coefficients(pixels: usize, k: usize) -> Vec<f64> {
+    let mut state = 12345u64;
+    let mut next = || {
+        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((state >> 33) as f64 / (1u64 << 31) as f64) - 0.5
+    };
+    (0..pixels * k * 3).map(|x| if (x / 3) % k == 0 { 1.2 + 0.2 * next() } else { 0.08 * next() }).collect()
+}
+
+/// Images of the band-limited function with coefficients `coef` (pixel, i, c).
+fn capture_of(coef: &[f64], w: usize, h: usize, bands: usize, dirs: &[Vec3]) -> Capture {
+    let sh = BasisSpec::Sh { bands }.build().unwrap();
+    let k = sh.len();
+    let images = dirs
+        .iter()
+        .map(|&d| {
+            let y = sh.values(d);
+            let mut img = ImageRgb::new(w, h);
+            for p in 0..w * h {
+                for c in 0..3 {
+                    img.data[3 * p + c] = (0..k).map(|i| coef[(p * k + i) * 3 + c] * y[i]).sum::<f64>() as f32;
+                }
+            }
+            img
+        })
+        .collect();
+    Capture::from_memory(images, dirs, Projection::default()).unwrap()
+}
+
+fn max_coefficient_error(maps: &CoefficientMaps, coef: &[f64]) -> f64 {
+    let k = maps.k;
+    let mut worst = 0.0f64;
+    for p in 0..maps.pixels() {
+        for i in 0..k {
+            for c in 0..3 {
+                worst = worst.max((maps.plane(i, c)[p] as f64 - coef[(p * k + i) * 3 + c]).abs());
+            }
+        }
+    }
+    worst
+}
+
+fn options(bands: usize, objective: Objective, lambda: f64) -> FitOptions {
+    FitOptions { basis: BasisSpec::Sh { bands }, objective, lambda: Lambda::Fixed(lambda), ..Default::default() }
+}
+
+/// f32 images and f32 maps bound how exactly coefficients come back.
+const RECOVERY_TOLERANCE: f64 = 2e-4;
+
+#[test]
+fn recovers_known_coefficients_from_scattered_directions() {
+    let (w, h, bands) = (5, 4, 4);
+    let coef = known_coefficients(w * h, bands * bands);
+    let capture = capture_of(&coef, w, h, bands, &fibonacci(200));
+    for objective in [Objective::Linear, Objective::Perceptual] {
+        let out = fit(&capture, &options(bands, objective, 1e-9), &Silent).unwrap();
+        let err = max_coefficient_error(&out.image.maps, &coef);
+        assert!(err < RECOVERY_TOLERANCE, "{objective:?}: max error {err}");
+    }
+}
+
+#[test]
+fn recovers_known_coefficients_from_the_upper_hemisphere() {
+    // Hemisphere-only data determine a band-limited function only up to a badly
+    // conditioned system (cond ~1e5 for 25 coefficients), so λ must be tiny and the
+    // tolerance is looser; the point is that the solver does not break down.
+    let (w, h, bands) = (4, 3, 3);
+    let coef = known_coefficients(w * h, bands * bands);
+    let capture = capture_of(&coef, w, h, bands, &hemisphere_fibonacci(120));
+    let out = fit(&capture, &options(bands, Objective::Linear, 1e-10), &Silent).unwrap();
+    let err = max_coefficient_error(&out.image.maps, &coef);
+    assert!(err < 5e-3, "max error {err}");
+}
+
+#[test]
+fn grid_quadrature_fit_equals_projection() {
+    // On a full θ×φ grid the weighted fit of a band-limited function is exact as well.
+    let (w, h, bands) = (3, 2, 3);
+    let coef = known_coefficients(w * h, bands * bands);
+    let capture = capture_of(&coef, w, h, bands, &grid(12, 24));
+    let out = fit(&capture, &options(bands, Objective::Linear, 1e-9), &Silent).unwrap();
+    assert!(max_coefficient_error(&out.image.maps, &coef) < RECOVERY_TOLERANCE);
+}
+
+#[test]
+fn strips_do_not_change_the_perceptual_fit() {
+    let plane = crate::synth::BumpyPlane { width: 24, height: 17 };
+    let capture = plane.capture(&hemisphere_fibonacci(40));
+    let mut opts = options(3, Objective::Perceptual, 1e-4);
+    let whole = fit(&capture, &opts, &Silent).unwrap();
+    opts.strip_bytes = 1; // one row per strip
+    let strips = fit(&capture, &opts, &Silent).unwrap();
+    assert!(strips.report.spill_bytes > 0);
+    assert_eq!(whole.image.maps, strips.image.maps);
+}
+
+#[test]
+fn fit_then_relight_reproduces_captured_and_new_lights() {
+    let plane = crate::synth::BumpyPlane { width: 40, height: 30 };
+    let dirs = hemisphere_fibonacci(80);
+    let capture = plane.capture(&dirs);
+    let out = fit(&capture, &FitOptions::default(), &Silent).unwrap();
+    let check = |d: Vec3| {
+        let truth = plane.render(d);
+        let relit = crate::engine::relight(
+            &out.image,
+            &crate::light::LightRig::new(vec![crate::light::Light::directional(d, [1.0; 3])]),
+            &Default::default(),
+        )
+        .unwrap();
+        crate::eval::compare(&relit.data, &truth.data, None).0
+    };
+    // The scene is a glossy surface whose shading has a kink at the terminator
+    // (max(0, n·L)), which 25 SH coefficients round off: they follow it to ~35 dB.
+    // 32 dB (~6 8-bit steps RMS) leaves margin; a broken fit gives < 20 dB.
+    let captured = check(dirs[17]);
+    assert!(captured > 32.0, "captured light: {captured:.2} dB");
+    let novel = check(Vec3::new(0.3, -0.4, 0.75));
+    assert!(novel > 32.0, "novel light: {novel:.2} dB");
+    assert!(out.report.lambda > 0.0 && !out.report.lambda_scores.is_empty());
+}
+
+#[test]
+fn display_maps_reproduce_srgb_values() {
+    let plane = crate::synth::BumpyPlane { width: 20, height: 10 };
+    let dirs = hemisphere_fibonacci(60);
+    let capture = plane.capture(&dirs);
+    let opts = FitOptions { color_space: MapSpace::Srgb, ..Default::default() };
+    let out = fit(&capture, &opts, &Silent).unwrap();
+    assert_eq!(out.image.meta.color_space, MapSpace::Srgb);
+    let d = dirs[5];
+    let relit = crate::engine::relight(
+        &out.image,
+        &crate::light::LightRig::new(vec![crate::light::Light::directional(d, [1.0; 3])]),
+        &Default::default(),
+    )
+    .unwrap();
+    let psnr = crate::eval::compare(&relit.data, &plane.render(d).data, None).0;
+    assert!(psnr > 33.0, "{psnr}");
+}
+
+#[test]
+fn fewer_images_than_coefficients_still_fit_with_ridge() {
+    let plane = crate::synth::BumpyPlane { width: 8, height: 8 };
+    let capture = plane.capture(&hemisphere_fibonacci(10));
+    let out = fit(&capture, &FitOptions::default(), &Silent).unwrap();
+    assert!(out.image.maps.data.iter().all(|v| v.is_finite()));
+}
+
+#[test]
+fn below_the_horizon_stays_bounded() {
+    // Unregularised hemisphere fits explode below the horizon; the automatic λ must
+    // keep the extrapolation within a small multiple of the observed range.
+    let plane = crate::synth::BumpyPlane { width: 16, height: 12 };
+    let capture = plane.capture(&hemisphere_fibonacci(60));
+    let out = fit(&capture, &FitOptions::default(), &Silent).unwrap();
+    let sh = BasisSpec::Sh { bands: 5 }.build().unwrap();
+    let mut worst = 0.0f64;
+    for d in fibonacci(200).into_iter().filter(|d| d.z < -0.2) {
+        let y = sh.values(d);
+        for p in 0..out.image.maps.pixels() {
+            let v: f64 = (0..25).map(|i| out.image.maps.plane(i, 1)[p] as f64 * y[i]).sum();
+            worst = worst.max(v.abs());
+        }
+    }
+    assert!(worst < 3.0, "below-horizon magnitude {worst}");
+}

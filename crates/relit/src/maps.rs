@@ -1,0 +1,140 @@
+//! Relightable images: coefficient maps plus what is needed to interpret them.
+
+use crate::basis::BasisSpec;
+use crate::camera::Projection;
+use serde::{Deserialize, Serialize};
+
+/// The version of the file layout written by this build (see the [conventions](crate)).
+pub const FORMAT_VERSION: u32 = 1;
+
+/// The light frame, stated in every file so that a reader never has to guess.
+pub const LIGHT_FRAME: &str = "light vectors toward the light; x right, y up, z toward the camera";
+
+/// Which space the maps' values are in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum MapSpace {
+    /// Linear radiance for a unit white light: lights add up physically.
+    #[default]
+    Linear,
+    /// Display-referred: the basis reproduces sRGB-encoded values (single-light RTI
+    /// publishing). The engine decodes each light's contribution before adding.
+    Srgb,
+}
+
+impl MapSpace {
+    pub fn name(self) -> &'static str {
+        match self {
+            MapSpace::Linear => "linear",
+            MapSpace::Srgb => "srgb",
+        }
+    }
+}
+
+/// How a set of maps was fitted, kept for `relit info` and provenance.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FitInfo {
+    /// `perceptual` or `linear`.
+    pub objective: String,
+    /// The smoothness penalty's name (e.g. `roughness`).
+    pub regularizer: String,
+    /// The regularisation weight λ used (relative to the data weight).
+    pub lambda: f64,
+    /// How λ was chosen: `auto` (leave-one-out on a pixel subsample) or `fixed`.
+    pub lambda_choice: String,
+    /// Number of reference images fitted.
+    pub images: usize,
+    /// Root-mean-square training residual per channel in linear radiance (subsample).
+    pub rmse_linear: [f64; 3],
+    /// 8-bit sRGB PSNR of the training images (subsample).
+    pub psnr_srgb8: f64,
+    /// Wall time of the fit in seconds.
+    pub seconds: f64,
+}
+
+/// Everything about a relightable image but its pixels.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Metadata {
+    pub format_version: u32,
+    pub basis: BasisSpec,
+    pub color_space: MapSpace,
+    pub light_frame: String,
+    pub projection: Projection,
+    pub fit: Option<FitInfo>,
+}
+
+impl Metadata {
+    /// Metadata for fresh maps of `basis`.
+    pub fn new(basis: BasisSpec, color_space: MapSpace, projection: Projection) -> Self {
+        Self {
+            format_version: FORMAT_VERSION,
+            basis,
+            color_space,
+            light_frame: LIGHT_FRAME.to_string(),
+            projection,
+            fit: None,
+        }
+    }
+}
+
+/// `k` coefficients × 3 colour channels of planar `f32` maps (plane `3 * i + c`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct CoefficientMaps {
+    pub width: usize,
+    pub height: usize,
+    pub k: usize,
+    /// `3 * k` planes of `width * height` values, plane `3 * i + c` for coefficient `i`, channel `c`.
+    pub data: Vec<f32>,
+}
+
+impl CoefficientMaps {
+    /// Zeroed maps.
+    pub fn zeros(width: usize, height: usize, k: usize) -> Self {
+        Self { width, height, k, data: vec![0.0; 3 * k * width * height] }
+    }
+
+    /// Pixels per plane.
+    pub fn pixels(&self) -> usize {
+        self.width * self.height
+    }
+
+    /// The plane of coefficient `i`, channel `c`.
+    pub fn plane(&self, i: usize, c: usize) -> &[f32] {
+        let n = self.pixels();
+        &self.data[(3 * i + c) * n..(3 * i + c + 1) * n]
+    }
+
+    /// The plane of coefficient `i`, channel `c`, mutably.
+    pub fn plane_mut(&mut self, i: usize, c: usize) -> &mut [f32] {
+        let n = self.pixels();
+        &mut self.data[(3 * i + c) * n..(3 * i + c + 1) * n]
+    }
+
+    /// The coefficients of pixel `p` for channel `c`.
+    pub fn coefficients(&self, p: usize, c: usize) -> Vec<f32> {
+        (0..self.k).map(|i| self.plane(i, c)[p]).collect()
+    }
+
+    /// Bytes of the maps in memory.
+    pub fn bytes(&self) -> usize {
+        self.data.len() * 4
+    }
+}
+
+/// Coefficient maps with their metadata and optional depth: what a `.exr` file holds.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RelightableImage {
+    pub meta: Metadata,
+    pub maps: CoefficientMaps,
+    /// Distance from the eye along each pixel's view ray, if known.
+    pub depth: Option<Vec<f32>>,
+}
+
+impl RelightableImage {
+    pub fn width(&self) -> usize {
+        self.maps.width
+    }
+    pub fn height(&self) -> usize {
+        self.maps.height
+    }
+}
