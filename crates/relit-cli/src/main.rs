@@ -1,1 +1,54 @@
-fn main(){}
+//! `relit`: the command-line face of the relit library.
+//!
+//! Exit codes: 0 success, 1 the work failed (bad input, I/O…), 2 bad command line.
+
+mod cmd_demo;
+mod cmd_eval;
+mod cmd_fit;
+mod cmd_info;
+mod cmd_relight;
+mod shared;
+
+use clap::{Parser, Subcommand};
+
+/// Image-based relighting: fit captures into coefficient maps and relight them.
+#[derive(Parser)]
+#[command(name = "relit", version, about, long_about = None, propagate_version = true)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Fit a capture (.lp or manifest .json) into a relightable EXR of coefficient maps.
+    Fit(cmd_fit::Args),
+    /// Relight a fitted file with lights that were never photographed.
+    Relight(cmd_relight::Args),
+    /// Show what a relightable file holds.
+    Info(cmd_info::Args),
+    /// Measure fidelity: hold out captured lights, fit the rest, compare.
+    Eval(cmd_eval::Args),
+    /// Run the whole pipeline on a built-in scene: capture, fit, relight, compare.
+    Demo(cmd_demo::Args),
+}
+
+fn main() {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Fit(args) => cmd_fit::run(args),
+        Command::Relight(args) => cmd_relight::run(args),
+        Command::Info(args) => cmd_info::run(args),
+        Command::Eval(args) => cmd_eval::run(args),
+        Command::Demo(args) => cmd_demo::run(args),
+    };
+    if let Err(err) = result {
+        eprintln!("relit: error: {err}");
+        let mut source = err.source();
+        while let Some(cause) = source {
+            eprintln!("  caused by: {cause}");
+            source = cause.source();
+        }
+        std::process::exit(1);
+    }
+}

@@ -55,15 +55,16 @@ pub fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
     backward_solve(l, n, b);
 }
 
-/// `c = a · b` for row-major `a` (m×k), `b` (k×n), `c` (m×n), overwriting `c`.
-pub fn matmul(m: usize, k: usize, n: usize, a: &[f64], b: &[f64], c: &mut [f64]) {
+
+/// `c = a · b` in single precision, for row-major `a` (m×k), `b` (k×n), `c` (m×n).
+pub fn matmul_f32(m: usize, k: usize, n: usize, a: &[f32], b: &[f32], c: &mut [f32]) {
     assert!(a.len() >= m * k && b.len() >= k * n && c.len() >= m * n);
     if m == 0 || n == 0 {
         return;
     }
     // SAFETY: the slices are at least as long as the strides below address.
     unsafe {
-        matrixmultiply::dgemm(
+        matrixmultiply::sgemm(
             m, k, n, 1.0, a.as_ptr(), k as isize, 1, b.as_ptr(), n as isize, 1, 0.0, c.as_mut_ptr(), n as isize, 1,
         );
     }
@@ -97,7 +98,7 @@ mod tests {
         (0..n).for_each(|i| a[i * n + i] += 1.0);
         let x_true: Vec<f64> = (0..n).map(|i| i as f64 - 1.5).collect();
         let mut b = vec![0.0; n];
-        matmul(n, n, 1, &a, &x_true, &mut b);
+        matmul_bt(1, n, n, &x_true, &a, &mut b); // a is symmetric: x·aᵀ = a·x
         let mut l = a.clone();
         assert!(cholesky(&mut l, n));
         cholesky_solve(&l, n, &mut b);

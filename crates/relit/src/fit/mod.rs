@@ -220,6 +220,33 @@ fn perceptual_weight(v: f64) -> f64 {
     s * s
 }
 
+/// The sRGB curve continued by straight lines below 0 and above 1, so that secants
+/// between out-of-range values keep a positive slope (a clipped curve would give
+/// saturated samples zero weight and leave a fully saturated pixel undetermined).
+#[inline]
+fn srgb_extended(v: f64) -> f64 {
+    if v < 0.0 {
+        12.92 * v
+    } else if v > 1.0 {
+        1.0 + color::srgb_slope(1.0) * (v - 1.0)
+    } else {
+        color::linear_to_srgb(v as f32) as f64
+    }
+}
+
+/// Squared secant slope of the sRGB curve between a prediction and an observation:
+/// the weight under which the linear residual equals the display-space residual.
+#[inline]
+fn secant_weight(pred: f64, obs: f64) -> f64 {
+    const TANGENT_BELOW: f64 = 1e-5; // closer than this, f32 rounding dominates the secant
+    let d = pred - obs;
+    if d.abs() < TANGENT_BELOW {
+        return perceptual_weight(0.5 * (pred + obs));
+    }
+    let s = (srgb_extended(pred) - srgb_extended(obs)) / d;
+    s * s
+}
+
 /// Deterministically spread `count` pixel indices over `pixels`.
 fn subsample_indices(pixels: usize, count: usize) -> Vec<usize> {
     let count = count.min(pixels).max(1);
@@ -436,10 +463,10 @@ fn scatter_planar(pixel_major: &[f32], p0: usize, maps: &mut CoefficientMaps) {
 /// Scratch space of one per-pixel solve task.
 struct Scratch {
     obs: Vec<f64>,
-    weights: Vec<f64>,
-    weighted_obs: Vec<f64>,
-    packed: Vec<f64>,
-    rhs: Vec<f64>,
+    weights: Vec<f32>,
+    weighted_obs: Vec<f32>,
+    packed: Vec<f32>,
+    rhs: Vec<f32>,
     coef: Vec<f64>,
     pred: Vec<f64>,
     m: Vec<f64>,
@@ -464,13 +491,16 @@ fn solve_per_pixel(
     let t = pairs.len();
     // N×T table of the outer products B_j B_jᵀ (upper triangle), so that the weighted
     // normal matrices of a chunk of pixels are one matrix product W · outer.
-    let mut outer = vec![0.0; n * t];
+    // Single precision: the products sum N positive terms, so their relative error stays
+    // near 1e-7; the factorisation that follows is done in double precision.
+    let mut outer = vec![0f32; n * t];
     for j in 0..n {
         let row = design.row(j);
         for (x, &(r, c)) in pairs.iter().enumerate() {
-            outer[j * t + x] = row[r] * row[c];
+            outer[j * t + x] = (row[r] * row[c]) as f32;
         }
     }
+    let a32: Vec<f32> = design.a.iter().map(|&v| v as f32).collect();
     progress.begin("fitting strips", spill.strips() as u64);
     let mut buffer = Vec::new();
     for s in 0..spill.strips() {
@@ -499,7 +529,7 @@ fn solve_per_pixel(
                                 scratch.obs[p * n + j] = strip[(j * count + a + p) * 3 + c] as f64;
                             }
                         }
-                        solve_chunk(design, &outer, &pairs, lambda, reweights, len, scratch);
+                        solve_chunk(design, &outer, &a32, &pairs, lambda, reweights, len, scratch);
                         for p in 0..len {
                             for i in 0..k {
                                 out[p * 3 * k + 3 * i + c] = scratch.coef[p * k + i] as f32;
@@ -519,9 +549,11 @@ fn solve_per_pixel(
 }
 
 /// Iteratively reweighted solve of `len` pixels' observations in `scratch.obs` (len×N).
+#[allow(clippy::too_many_arguments)]
 fn solve_chunk(
     design: &Design,
-    outer: &[f64],
+    outer: &[f32],
+    a32: &[f32],
     pairs: &[(usize, usize)],
     lambda: f64,
     reweights: usize,
@@ -530,29 +562,31 @@ fn solve_chunk(
 ) {
     let (k, n, t) = (design.k, design.n, pairs.len());
     for x in 0..len * n {
-        s.weights[x] = design.q[x % n] * perceptual_weight(s.obs[x]);
+        s.weights[x] = (design.q[x % n] * perceptual_weight(s.obs[x])) as f32;
     }
     for pass in 0..=reweights {
         for x in 0..len * n {
-            s.weighted_obs[x] = s.weights[x] * s.obs[x];
+            s.weighted_obs[x] = s.weights[x] * s.obs[x] as f32;
         }
-        linalg::matmul(len, n, t, &s.weights, outer, &mut s.packed);
-        linalg::matmul(len, n, k, &s.weighted_obs, &design.a, &mut s.rhs);
+        linalg::matmul_f32(len, n, t, &s.weights, outer, &mut s.packed);
+        linalg::matmul_f32(len, n, k, &s.weighted_obs, a32, &mut s.rhs);
         for p in 0..len {
-            let total: f64 = s.weights[p * n..(p + 1) * n].iter().sum();
+            let total: f64 = s.weights[p * n..(p + 1) * n].iter().map(|&w| w as f64).sum();
             for (x, &(r, c)) in pairs.iter().enumerate() {
-                let v = s.packed[p * t + x];
+                let v = s.packed[p * t + x] as f64;
                 s.m[r * k + c] = v;
                 s.m[c * k + r] = v;
             }
             let coef = &mut s.coef[p * k..(p + 1) * k];
-            coef.copy_from_slice(&s.rhs[p * k..(p + 1) * k]);
+            for (dst, &v) in coef.iter_mut().zip(&s.rhs[p * k..(p + 1) * k]) {
+                *dst = v as f64;
+            }
             solve_regularized(design, &mut s.m, coef, lambda, total);
         }
         if pass < reweights {
             linalg::matmul_bt(len, k, n, &s.coef, &design.a, &mut s.pred);
             for x in 0..len * n {
-                s.weights[x] = design.q[x % n] * perceptual_weight(s.pred[x]);
+                s.weights[x] = (design.q[x % n] * secant_weight(s.pred[x], s.obs[x])) as f32;
             }
         }
     }

@@ -1,0 +1,82 @@
+//! `relit fit`: capture in, relightable EXR out.
+
+use crate::shared::{mib, Bars, FitArgs};
+use anyhow::Context;
+use relit::capture::Capture;
+use relit::codec::{exr, Storage};
+use std::path::PathBuf;
+
+/// Sample precision of the stored maps.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+pub enum StorageArg {
+    Half,
+    Float,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// The capture: an RTI `.lp` file or a relit manifest `.json`.
+    pub capture: PathBuf,
+    /// The relightable EXR to write.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    #[command(flatten)]
+    pub fit: FitArgs,
+    /// Sample precision of the stored maps.
+    #[arg(long, value_enum, default_value_t = StorageArg::Half)]
+    pub storage: StorageArg,
+    /// Print the summary as JSON.
+    #[arg(long)]
+    pub json: bool,
+    /// No progress bars.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let options = args.fit.to_options()?;
+    let capture = Capture::open(&args.capture)?;
+    if !args.json && !args.quiet {
+        eprintln!(
+            "relit fit: {} images of {}×{} from {}, {} ({} coefficients), {} objective",
+            capture.len(),
+            capture.width,
+            capture.height,
+            args.capture.display(),
+            options.basis.short_name(),
+            options.basis.len(),
+            options.objective.name()
+        );
+    }
+    let bars = Bars::new(args.quiet || args.json);
+    let output = relit::fit::fit(&capture, &options, &bars)?;
+    let storage = match args.storage {
+        StorageArg::Half => Storage::Half,
+        StorageArg::Float => Storage::Float,
+    };
+    exr::write(&args.output, &output.image, storage).with_context(|| format!("writing {}", args.output.display()))?;
+    let bytes = std::fs::metadata(&args.output).map(|m| m.len()).unwrap_or(0);
+    let r = &output.report;
+    if args.json {
+        let mut value = serde_json::to_value(r)?;
+        value["output"] = serde_json::json!(args.output.display().to_string());
+        value["file_bytes"] = serde_json::json!(bytes);
+        value["bytes_per_pixel"] = serde_json::json!(bytes as f64 / (r.width * r.height) as f64);
+        println!("{}", serde_json::to_string_pretty(&value)?);
+    } else {
+        println!("wrote {} ({}, {:.1} bytes/pixel)", args.output.display(), relit::memory::mib(bytes), bytes as f64 / (r.width * r.height) as f64);
+        println!(
+            "fit: {:.2} s, {:.1} images/s, peak memory {}, λ = {:.0e}{}",
+            r.seconds,
+            r.images_per_second,
+            mib(r.peak_rss_bytes),
+            r.lambda,
+            if r.lambda_scores.is_empty() { " (fixed)" } else { " (chosen by leave-one-out)" }
+        );
+        println!(
+            "training residual: RMSE (linear) R {:.4} G {:.4} B {:.4}; 8-bit sRGB PSNR {:.2} dB",
+            r.rmse_linear[0], r.rmse_linear[1], r.rmse_linear[2], r.psnr_srgb8
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,131 @@
+//! Pieces several subcommands share: fit flags, progress bars, formatting.
+
+use clap::{Args, ValueEnum};
+use indicatif::{ProgressBar, ProgressStyle};
+use relit::basis::BasisSpec;
+use relit::fit::{FitOptions, Lambda, Objective, Regularizer};
+use relit::maps::MapSpace;
+use std::sync::Mutex;
+
+/// What the fit minimises (see the library docs of `relit::fit`).
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum ObjectiveArg {
+    /// Squared residuals weighted by the sRGB curve's slope (display-space error).
+    Perceptual,
+    /// Plain least squares in linear radiance.
+    Linear,
+}
+
+/// The space the stored maps are in.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum SpaceArg {
+    /// Linear radiance: lights add up physically (default).
+    Linear,
+    /// Display-referred sRGB values (single-light RTI publishing).
+    Srgb,
+}
+
+/// The regulariser.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum RegularizerArg {
+    /// Penalise the mean squared gradient over the sphere (constant term free).
+    Roughness,
+    /// Shrink every coefficient equally.
+    Ridge,
+}
+
+/// Flags that shape a fit.
+#[derive(Args, Debug, Clone)]
+pub struct FitArgs {
+    /// Spherical-harmonic bands (k = bands² coefficients, 1..=8).
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u8).range(1..=8))]
+    pub bands: u8,
+    /// Fit objective.
+    #[arg(long, value_enum, default_value_t = ObjectiveArg::Perceptual)]
+    pub objective: ObjectiveArg,
+    /// Space of the stored maps (srgb fits display values with plain least squares).
+    #[arg(long, value_enum, default_value_t = SpaceArg::Linear)]
+    pub space: SpaceArg,
+    /// Regulariser of the fit.
+    #[arg(long, value_enum, default_value_t = RegularizerArg::Roughness)]
+    pub regularizer: RegularizerArg,
+    /// Regularisation weight λ, or `auto` to choose it per capture by leave-one-out.
+    #[arg(long, default_value = "auto")]
+    pub lambda: String,
+    /// Reweighting passes of the perceptual objective.
+    #[arg(long, default_value_t = 1)]
+    pub reweights: usize,
+}
+
+impl FitArgs {
+    pub fn to_options(&self) -> anyhow::Result<FitOptions> {
+        let lambda = if self.lambda.eq_ignore_ascii_case("auto") {
+            Lambda::Auto
+        } else {
+            let v: f64 = self.lambda.parse().map_err(|_| anyhow::anyhow!("--lambda must be `auto` or a number"))?;
+            anyhow::ensure!(v.is_finite() && v >= 0.0, "--lambda must be a non-negative number");
+            Lambda::Fixed(v)
+        };
+        Ok(FitOptions {
+            basis: BasisSpec::Sh { bands: self.bands as usize },
+            objective: match self.objective {
+                ObjectiveArg::Perceptual => Objective::Perceptual,
+                ObjectiveArg::Linear => Objective::Linear,
+            },
+            color_space: match self.space {
+                SpaceArg::Linear => MapSpace::Linear,
+                SpaceArg::Srgb => MapSpace::Srgb,
+            },
+            regularizer: match self.regularizer {
+                RegularizerArg::Roughness => Regularizer::Roughness,
+                RegularizerArg::Ridge => Regularizer::Ridge,
+            },
+            lambda,
+            reweights: self.reweights,
+            ..FitOptions::default()
+        })
+    }
+}
+
+/// Progress bars on standard error (hidden when it is not a terminal or when quiet).
+pub struct Bars {
+    bar: Mutex<Option<ProgressBar>>,
+    quiet: bool,
+}
+
+impl Bars {
+    pub fn new(quiet: bool) -> Self {
+        Self { bar: Mutex::new(None), quiet }
+    }
+}
+
+impl relit::progress::Progress for Bars {
+    fn begin(&self, stage: &str, total: u64) {
+        if self.quiet {
+            return;
+        }
+        let bar = ProgressBar::new(total);
+        bar.set_style(
+            ProgressStyle::with_template("{msg:>16} [{bar:40}] {pos}/{len} {elapsed_precise} eta {eta}")
+                .expect("valid template")
+                .progress_chars("=> "),
+        );
+        bar.set_message(stage.to_string());
+        *self.bar.lock().expect("progress lock") = Some(bar);
+    }
+    fn advance(&self, n: u64) {
+        if let Some(bar) = self.bar.lock().expect("progress lock").as_ref() {
+            bar.inc(n);
+        }
+    }
+    fn end(&self) {
+        if let Some(bar) = self.bar.lock().expect("progress lock").take() {
+            bar.finish_and_clear();
+        }
+    }
+}
+
+/// Bytes for people.
+pub fn mib(bytes: Option<u64>) -> String {
+    bytes.map(relit::memory::mib).unwrap_or_else(|| "n/a".into())
+}
