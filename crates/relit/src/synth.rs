@@ -5,11 +5,12 @@
 //! the capture studio (ray tracer) is the source of richer scenes.
 
 use crate::camera::Projection;
-use crate::capture::Capture;
+use crate::capture::{Capture, ImageGenerator};
 use crate::image::{self, ImageRgb};
 use crate::sphere::Vec3;
 use crate::Result;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// The bumpy plane at `width×height` pixels.
 #[derive(Clone, Copy, Debug)]
@@ -61,10 +62,12 @@ impl BumpyPlane {
         img
     }
 
-    /// A capture in memory under `dirs`.
+    /// A capture under `dirs` whose images are rendered when the fit asks for them.
     pub fn capture(&self, dirs: &[Vec3]) -> Capture {
-        let images = dirs.iter().map(|&d| self.render(d)).collect();
-        Capture::from_memory(images, dirs, Projection::Planar { fov_y_deg: None }).expect("consistent synthetic capture")
+        let generators: Vec<Arc<dyn ImageGenerator>> =
+            dirs.iter().map(|&light| Arc::new(PlaneUnderLight { plane: *self, light }) as Arc<dyn ImageGenerator>).collect();
+        Capture::from_generators(generators, dirs, self.width, self.height, Projection::Planar { fov_y_deg: None })
+            .expect("consistent synthetic capture")
     }
 
     /// Write the capture as 8-bit sRGB PNGs plus `dirs.lp` into `folder`; returns the `.lp` path.
@@ -78,6 +81,19 @@ impl BumpyPlane {
         let lp = folder.join("dirs.lp");
         crate::fsutil::write_bytes_atomically(&lp, crate::capture::lp::format(&names, dirs).as_bytes())?;
         Ok(lp)
+    }
+}
+
+/// The plane under one light, rendered on demand.
+#[derive(Debug)]
+struct PlaneUnderLight {
+    plane: BumpyPlane,
+    light: Vec3,
+}
+
+impl ImageGenerator for PlaneUnderLight {
+    fn generate(&self) -> Result<ImageRgb> {
+        Ok(self.plane.render(self.light))
     }
 }
 

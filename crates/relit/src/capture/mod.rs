@@ -24,6 +24,15 @@ pub enum ImageSource {
     File { path: PathBuf, encoding: Option<Encoding> },
     /// A linear image already in memory.
     Memory(Arc<ImageRgb>),
+    /// A linear image made on demand (a renderer), so that a capture of hundreds of
+    /// images streams through the fit like files do instead of sitting in memory.
+    Generated(Arc<dyn ImageGenerator>),
+}
+
+/// Something that produces one reference image on request (a renderer under one light).
+pub trait ImageGenerator: Send + Sync + std::fmt::Debug {
+    /// Produce the linear image.
+    fn generate(&self) -> Result<ImageRgb>;
 }
 
 /// One reference image and the light it was taken under.
@@ -84,6 +93,30 @@ impl Capture {
         Ok(Capture { lights, width, height, projection, depth: None, mask: None, origin: "memory".into() })
     }
 
+    /// A capture whose images are produced on demand by `generators` (linear, unit
+    /// intensity), all of `width×height`.
+    pub fn from_generators(
+        generators: Vec<Arc<dyn ImageGenerator>>,
+        directions: &[Vec3],
+        width: usize,
+        height: usize,
+        projection: Projection,
+    ) -> Result<Capture> {
+        if generators.is_empty() || generators.len() != directions.len() {
+            return Err(Error::invalid("a capture needs one direction per image and at least one image"));
+        }
+        let lights = generators
+            .into_iter()
+            .zip(directions)
+            .enumerate()
+            .map(|(i, (g, d))| {
+                let direction = d.normalized().ok_or_else(|| Error::invalid(format!("light {i} has no direction")))?;
+                Ok(CapturedLight { image: ImageSource::Generated(g), direction, intensity: [1.0; 3] })
+            })
+            .collect::<Result<Vec<_>>>()?;
+        Ok(Capture { lights, width, height, projection, depth: None, mask: None, origin: "generated".into() })
+    }
+
     /// The number of reference images.
     pub fn len(&self) -> usize {
         self.lights.len()
@@ -105,7 +138,7 @@ impl Capture {
             ImageSource::File { path, .. } => {
                 path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| path.display().to_string())
             }
-            ImageSource::Memory(_) => format!("#{index}"),
+            ImageSource::Memory(_) | ImageSource::Generated(_) => format!("#{index}"),
         }
     }
 
@@ -129,6 +162,7 @@ impl Capture {
         let img = match &self.lights[index].image {
             ImageSource::File { path, encoding } => image::load_linear(path, *encoding)?,
             ImageSource::Memory(img) => (**img).clone(),
+            ImageSource::Generated(g) => g.generate()?,
         };
         if (img.width, img.height) != (self.width, self.height) {
             return Err(Error::new(
@@ -179,7 +213,7 @@ pub(crate) fn check_images(lights: &[CapturedLight], line_of: &dyn Fn(usize) -> 
                         dims.1,
                         match &lights[first].image {
                             ImageSource::File { path, .. } => path.display().to_string(),
-                            ImageSource::Memory(_) => "the first image".into(),
+                            _ => "the first image".into(),
                         },
                         line_of(first)
                     ),

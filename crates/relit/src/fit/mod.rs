@@ -103,7 +103,7 @@ pub enum Lambda {
 }
 
 /// The ladder of λ values the automatic choice tries.
-pub const LAMBDA_LADDER: [f64; 11] = [1e-7, 3e-7, 1e-6, 3e-6, 1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3, 1e-2];
+pub const LAMBDA_LADDER: [f64; 13] = [1e-7, 3e-7, 1e-6, 3e-6, 1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3, 1e-2, 3e-2, 1e-1];
 
 /// Options of [`fit`].
 #[derive(Clone, Debug)]
