@@ -2,11 +2,13 @@
 //!
 //! Exit codes: 0 success, 1 the work failed (bad input, I/O…), 2 bad command line.
 
+mod cmd_capture;
 mod cmd_demo;
 mod cmd_eval;
 mod cmd_fit;
 mod cmd_info;
 mod cmd_relight;
+mod cmd_render_truth;
 mod shared;
 
 use clap::{Parser, Subcommand};
@@ -31,6 +33,10 @@ enum Command {
     Eval(cmd_eval::Args),
     /// Run the whole pipeline on a built-in scene: capture, fit, relight, compare.
     Demo(cmd_demo::Args),
+    /// Render a synthetic capture (images, manifest, .lp, depth, mask) of a scene.
+    Capture(cmd_capture::Args),
+    /// Render a scene directly under lights: the ground truth relighting is compared with.
+    RenderTruth(cmd_render_truth::Args),
 }
 
 fn main() {
@@ -41,6 +47,8 @@ fn main() {
         Command::Info(args) => cmd_info::run(args),
         Command::Eval(args) => cmd_eval::run(args),
         Command::Demo(args) => cmd_demo::run(args),
+        Command::Capture(args) => cmd_capture::run(args),
+        Command::RenderTruth(args) => cmd_render_truth::run(args),
     };
     if let Err(err) = result {
         eprintln!("relit: error: {err}");

@@ -109,18 +109,27 @@ impl Pose {
 
     /// The identity orientation with the eye at `eye`.
     pub fn at(eye: Vec3) -> Pose {
-        Pose { eye, ..Pose::identity() }
+        Pose {
+            eye,
+            ..Pose::identity()
+        }
     }
 
     /// A camera at `eye` looking at `target`, turned so that `up_hint` points up in the image.
     pub fn look_at(eye: Vec3, target: Vec3, up_hint: Vec3) -> Result<Pose> {
-        let back = (eye - target).normalized().ok_or_else(|| Error::invalid("the camera's eye and target coincide"))?;
-        let right = up_hint
-            .cross(back)
+        let back = (eye - target)
             .normalized()
-            .ok_or_else(|| Error::invalid("the camera's up vector is parallel to its view direction (or zero)"))?;
+            .ok_or_else(|| Error::invalid("the camera's eye and target coincide"))?;
+        let right = up_hint.cross(back).normalized().ok_or_else(|| {
+            Error::invalid("the camera's up vector is parallel to its view direction (or zero)")
+        })?;
         let up = back.cross(right);
-        Ok(Pose { eye, right, up, back })
+        Ok(Pose {
+            eye,
+            right,
+            up,
+            back,
+        })
     }
 
     /// Check that the axes are finite, orthonormal and right-handed.
@@ -136,7 +145,9 @@ impl Pose {
             && self.back.dot(self.right).abs() < TOLERANCE;
         let right_handed = self.right.cross(self.up).dot(self.back) > 0.0;
         if !(unit && orthogonal && right_handed) {
-            return Err(Error::invalid("the camera axes right, up, back must be orthonormal and right-handed"));
+            return Err(Error::invalid(
+                "the camera axes right, up, back must be orthonormal and right-handed",
+            ));
         }
         Ok(())
     }
@@ -212,12 +223,20 @@ impl Camera {
     /// is orthographic with an image plane [`DEFAULT_ORTHOGRAPHIC_HEIGHT`] high.
     pub fn new(projection: &Projection, width: usize, height: usize, pose: Pose) -> Result<Camera> {
         let model = match *projection {
-            Projection::Planar { fov_y_deg: Some(fov) } => Model::Perspective(Perspective::new(width, height, fov)?),
-            Projection::Planar { fov_y_deg: None } => {
-                Model::Orthographic(Orthographic::new(width, height, DEFAULT_ORTHOGRAPHIC_HEIGHT)?)
+            Projection::Planar {
+                fov_y_deg: Some(fov),
+            } => Model::Perspective(Perspective::new(width, height, fov)?),
+            Projection::Planar { fov_y_deg: None } => Model::Orthographic(Orthographic::new(
+                width,
+                height,
+                DEFAULT_ORTHOGRAPHIC_HEIGHT,
+            )?),
+            Projection::Cylindrical { fov_y_deg } => {
+                Model::Cylindrical(Cylindrical::new(width, height, fov_y_deg)?)
             }
-            Projection::Cylindrical { fov_y_deg } => Model::Cylindrical(Cylindrical::new(width, height, fov_y_deg)?),
-            Projection::Equirectangular => Model::Equirectangular(Equirectangular::new(width, height)?),
+            Projection::Equirectangular => {
+                Model::Equirectangular(Equirectangular::new(width, height)?)
+            }
         };
         Camera::from_model(model, pose)
     }
@@ -252,7 +271,10 @@ impl Camera {
     /// The world ray through image position `(x, y)` (continuous pixel coordinates).
     pub fn ray(&self, x: f64, y: f64) -> Ray {
         let local = self.model.inner().ray(x, y);
-        Ray { origin: self.pose.to_world_point(local.origin), direction: self.pose.to_world_direction(local.direction) }
+        Ray {
+            origin: self.pose.to_world_point(local.origin),
+            direction: self.pose.to_world_direction(local.direction),
+        }
     }
 
     /// The world ray through the centre of pixel `(i, j)`.
@@ -289,7 +311,9 @@ impl Camera {
         Ok(depth
             .iter()
             .enumerate()
-            .map(|(k, &d)| (d.is_finite() && d > 0.0).then(|| self.position(k % w, k / w, d as f64)))
+            .map(|(k, &d)| {
+                (d.is_finite() && d > 0.0).then(|| self.position(k % w, k / w, d as f64))
+            })
             .collect())
     }
 }
@@ -318,9 +342,10 @@ impl CameraSpec {
     /// Build the camera, checking every parameter.
     pub fn build(&self) -> Result<Camera> {
         match (&self.projection, self.orthographic_height) {
-            (Projection::Planar { fov_y_deg: None }, Some(h)) => {
-                Camera::from_model(Model::Orthographic(Orthographic::new(self.width, self.height, h)?), self.pose)
-            }
+            (Projection::Planar { fov_y_deg: None }, Some(h)) => Camera::from_model(
+                Model::Orthographic(Orthographic::new(self.width, self.height, h)?),
+                self.pose,
+            ),
             _ => Camera::new(&self.projection, self.width, self.height, self.pose),
         }
     }
@@ -346,7 +371,9 @@ impl From<&Camera> for CameraSpec {
 fn check_size(width: usize, height: usize) -> Result<()> {
     const MAX_SIDE: usize = 1 << 16; // far beyond any panorama; stops overflowing products
     if width == 0 || height == 0 || width > MAX_SIDE || height > MAX_SIDE {
-        return Err(Error::invalid(format!("a camera image must be 1 to {MAX_SIDE} pixels a side, not {width}×{height}")));
+        return Err(Error::invalid(format!(
+            "a camera image must be 1 to {MAX_SIDE} pixels a side, not {width}×{height}"
+        )));
     }
     Ok(())
 }
@@ -354,7 +381,9 @@ fn check_size(width: usize, height: usize) -> Result<()> {
 /// Check a field of view in degrees (strictly between 0 and 180).
 fn check_fov(fov_y_deg: f64) -> Result<f64> {
     if !(fov_y_deg.is_finite() && fov_y_deg > 0.0 && fov_y_deg < 180.0) {
-        return Err(Error::invalid(format!("a vertical field of view must be between 0 and 180 degrees, not {fov_y_deg}")));
+        return Err(Error::invalid(format!(
+            "a vertical field of view must be between 0 and 180 degrees, not {fov_y_deg}"
+        )));
     }
     Ok(fov_y_deg)
 }
@@ -386,12 +415,39 @@ mod tests {
     /// Every camera model used by the tests, with a pose that is not the identity so
     /// that the world transform is exercised too.
     fn cameras() -> Vec<Camera> {
-        let pose = Pose::look_at(Vec3::new(1.0, 2.0, 3.0), Vec3::new(-2.0, 1.5, -1.0), Vec3::new(0.1, 1.0, 0.0)).unwrap();
+        let pose = Pose::look_at(
+            Vec3::new(1.0, 2.0, 3.0),
+            Vec3::new(-2.0, 1.5, -1.0),
+            Vec3::new(0.1, 1.0, 0.0),
+        )
+        .unwrap();
         vec![
-            Camera::new(&Projection::Planar { fov_y_deg: Some(50.0) }, 64, 48, pose).unwrap(),
+            Camera::new(
+                &Projection::Planar {
+                    fov_y_deg: Some(50.0),
+                },
+                64,
+                48,
+                pose,
+            )
+            .unwrap(),
             Camera::new(&Projection::Planar { fov_y_deg: None }, 40, 30, pose).unwrap(),
-            Camera::new(&Projection::Cylindrical { fov_y_deg: None }, 1024, 256, pose).unwrap(),
-            Camera::new(&Projection::Cylindrical { fov_y_deg: Some(100.0) }, 96, 40, Pose::identity()).unwrap(),
+            Camera::new(
+                &Projection::Cylindrical { fov_y_deg: None },
+                1024,
+                256,
+                pose,
+            )
+            .unwrap(),
+            Camera::new(
+                &Projection::Cylindrical {
+                    fov_y_deg: Some(100.0),
+                },
+                96,
+                40,
+                Pose::identity(),
+            )
+            .unwrap(),
             Camera::new(&Projection::Equirectangular, 128, 64, pose).unwrap(),
         ]
     }
@@ -410,9 +466,12 @@ mod tests {
                         let ray = camera.ray(x, y);
                         assert!((ray.direction.length() - 1.0).abs() < 1e-12);
                         let p = ray.at(3.7);
-                        let back = camera.pixel(p).unwrap_or_else(|| panic!("{:?} lost ({x}, {y})", camera.projection()));
+                        let back = camera
+                            .pixel(p)
+                            .unwrap_or_else(|| panic!("{:?} lost ({x}, {y})", camera.projection()));
                         assert!(
-                            (back[0] - x).abs() < PIXEL_TOLERANCE && (back[1] - y).abs() < PIXEL_TOLERANCE,
+                            (back[0] - x).abs() < PIXEL_TOLERANCE
+                                && (back[1] - y).abs() < PIXEL_TOLERANCE,
                             "{:?}: ({x}, {y}) came back as {back:?}",
                             camera.projection()
                         );
@@ -427,14 +486,31 @@ mod tests {
     fn identity_pose_follows_the_conventions() {
         // The image centre looks along −z; the right edge of a perspective image leans
         // toward +x; the top toward +y.
-        let persp = Camera::new(&Projection::Planar { fov_y_deg: Some(90.0) }, 100, 100, Pose::identity()).unwrap();
+        let persp = Camera::new(
+            &Projection::Planar {
+                fov_y_deg: Some(90.0),
+            },
+            100,
+            100,
+            Pose::identity(),
+        )
+        .unwrap();
         let centre = persp.ray(50.0, 50.0).direction;
         assert!((centre - Vec3::new(0.0, 0.0, -1.0)).length() < 1e-12);
         let corner = persp.ray(100.0, 0.0).direction;
-        assert!((corner - Vec3::new(1.0, 1.0, -1.0).normalized().unwrap()).length() < 1e-12, "{corner:?}");
+        assert!(
+            (corner - Vec3::new(1.0, 1.0, -1.0).normalized().unwrap()).length() < 1e-12,
+            "{corner:?}"
+        );
         // A cylindrical panorama pans right as x grows: a quarter turn right of the
         // centre column looks along +x, the first column looks along +z (behind).
-        let cyl = Camera::new(&Projection::Cylindrical { fov_y_deg: None }, 1024, 256, Pose::identity()).unwrap();
+        let cyl = Camera::new(
+            &Projection::Cylindrical { fov_y_deg: None },
+            1024,
+            256,
+            Pose::identity(),
+        )
+        .unwrap();
         assert!((cyl.ray(768.0, 128.0).direction - Vec3::new(1.0, 0.0, 0.0)).length() < 1e-12);
         assert!((cyl.ray(0.0, 128.0).direction - Vec3::new(0.0, 0.0, 1.0)).length() < 1e-12);
         // Square pixels on the cylinder: 256 rows of 2π/1024 span ±π/4 of height.
@@ -443,7 +519,13 @@ mod tests {
         let eq = Camera::new(&Projection::Equirectangular, 64, 32, Pose::identity()).unwrap();
         assert!((eq.ray(32.0, 0.0).direction - Vec3::new(0.0, 1.0, 0.0)).length() < 1e-12);
         // Orthographic rays are parallel and start on the image plane.
-        let ortho = Camera::new(&Projection::Planar { fov_y_deg: None }, 20, 10, Pose::at(Vec3::new(0.0, 0.0, 5.0))).unwrap();
+        let ortho = Camera::new(
+            &Projection::Planar { fov_y_deg: None },
+            20,
+            10,
+            Pose::at(Vec3::new(0.0, 0.0, 5.0)),
+        )
+        .unwrap();
         let r = ortho.ray(20.0, 0.0);
         assert_eq!(r.direction, Vec3::new(0.0, 0.0, -1.0));
         assert!((r.origin - Vec3::new(2.0, 1.0, 5.0)).length() < 1e-12);
@@ -451,9 +533,19 @@ mod tests {
 
     #[test]
     fn positions_from_depth_lie_on_the_rays() {
-        let cam = Camera::new(&Projection::Planar { fov_y_deg: Some(60.0) }, 4, 3, Pose::at(Vec3::new(0.0, 1.0, 2.0))).unwrap();
+        let cam = Camera::new(
+            &Projection::Planar {
+                fov_y_deg: Some(60.0),
+            },
+            4,
+            3,
+            Pose::at(Vec3::new(0.0, 1.0, 2.0)),
+        )
+        .unwrap();
         // A plane z = −3 in front of the eye: depth = distance to it along each ray.
-        let depth: Vec<f32> = (0..12).map(|k| (5.0 / -cam.pixel_ray(k % 4, k / 4).direction.z) as f32).collect();
+        let depth: Vec<f32> = (0..12)
+            .map(|k| (5.0 / -cam.pixel_ray(k % 4, k / 4).direction.z) as f32)
+            .collect();
         let mut with_hole = depth.clone();
         with_hole[5] = 0.0;
         let points = cam.positions_from_depth(&with_hole).unwrap();
@@ -466,20 +558,75 @@ mod tests {
 
     #[test]
     fn bad_parameters_are_errors_not_panics() {
-        assert!(Camera::new(&Projection::Planar { fov_y_deg: Some(180.0) }, 4, 4, Pose::identity()).is_err());
-        assert!(Camera::new(&Projection::Planar { fov_y_deg: Some(f64::NAN) }, 4, 4, Pose::identity()).is_err());
+        assert!(Camera::new(
+            &Projection::Planar {
+                fov_y_deg: Some(180.0)
+            },
+            4,
+            4,
+            Pose::identity()
+        )
+        .is_err());
+        assert!(Camera::new(
+            &Projection::Planar {
+                fov_y_deg: Some(f64::NAN)
+            },
+            4,
+            4,
+            Pose::identity()
+        )
+        .is_err());
         assert!(Camera::new(&Projection::Equirectangular, 0, 4, Pose::identity()).is_err());
-        assert!(Camera::new(&Projection::Cylindrical { fov_y_deg: Some(-3.0) }, 4, 4, Pose::identity()).is_err());
-        let skewed = Pose { right: Vec3::new(1.0, 0.1, 0.0), ..Pose::identity() };
+        assert!(Camera::new(
+            &Projection::Cylindrical {
+                fov_y_deg: Some(-3.0)
+            },
+            4,
+            4,
+            Pose::identity()
+        )
+        .is_err());
+        let skewed = Pose {
+            right: Vec3::new(1.0, 0.1, 0.0),
+            ..Pose::identity()
+        };
         assert!(Camera::new(&Projection::Equirectangular, 8, 4, skewed).is_err());
-        let left_handed = Pose { back: Vec3::new(0.0, 0.0, -1.0), ..Pose::identity() };
+        let left_handed = Pose {
+            back: Vec3::new(0.0, 0.0, -1.0),
+            ..Pose::identity()
+        };
         assert!(left_handed.validate().is_err());
-        assert!(Pose::look_at(Vec3::new(0.0, 0.0, 0.0), Vec3::new(0.0, 5.0, 0.0), Vec3::new(0.0, 1.0, 0.0)).is_err());
+        assert!(Pose::look_at(
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(0.0, 5.0, 0.0),
+            Vec3::new(0.0, 1.0, 0.0)
+        )
+        .is_err());
         // Points the camera cannot see.
-        let persp = Camera::new(&Projection::Planar { fov_y_deg: Some(40.0) }, 8, 8, Pose::identity()).unwrap();
-        assert!(persp.pixel(Vec3::new(0.0, 0.0, 1.0)).is_none(), "behind the eye");
-        assert!(persp.pixel(Vec3::new(10.0, 0.0, -1.0)).is_none(), "outside the image");
-        let cyl = Camera::new(&Projection::Cylindrical { fov_y_deg: None }, 64, 16, Pose::identity()).unwrap();
+        let persp = Camera::new(
+            &Projection::Planar {
+                fov_y_deg: Some(40.0),
+            },
+            8,
+            8,
+            Pose::identity(),
+        )
+        .unwrap();
+        assert!(
+            persp.pixel(Vec3::new(0.0, 0.0, 1.0)).is_none(),
+            "behind the eye"
+        );
+        assert!(
+            persp.pixel(Vec3::new(10.0, 0.0, -1.0)).is_none(),
+            "outside the image"
+        );
+        let cyl = Camera::new(
+            &Projection::Cylindrical { fov_y_deg: None },
+            64,
+            16,
+            Pose::identity(),
+        )
+        .unwrap();
         assert!(cyl.pixel(Vec3::new(0.0, 3.0, 0.0)).is_none(), "on the axis");
     }
 
@@ -492,12 +639,22 @@ mod tests {
             let rebuilt = back.build().unwrap();
             assert_eq!(rebuilt.projection(), camera.projection());
             let (a, b) = (rebuilt.pixel_ray(3, 2), camera.pixel_ray(3, 2));
-            assert!((a.direction - b.direction).length() < 1e-12 && (a.origin - b.origin).length() < 1e-12);
+            assert!(
+                (a.direction - b.direction).length() < 1e-12
+                    && (a.origin - b.origin).length() < 1e-12
+            );
         }
         let old: Projection = serde_json::from_str(r#"{"type":"planar","fov_y_deg":50}"#).unwrap();
-        assert_eq!(old, Projection::Planar { fov_y_deg: Some(50.0) });
-        let spec: CameraSpec =
-            serde_json::from_str(r#"{"projection":{"type":"equirectangular"},"width":8,"height":4}"#).unwrap();
+        assert_eq!(
+            old,
+            Projection::Planar {
+                fov_y_deg: Some(50.0)
+            }
+        );
+        let spec: CameraSpec = serde_json::from_str(
+            r#"{"projection":{"type":"equirectangular"},"width":8,"height":4}"#,
+        )
+        .unwrap();
         assert_eq!(spec.pose, Pose::identity());
     }
 }

@@ -1,6 +1,9 @@
 //! The cylindrical panorama of seed 004: 360° around the vertical axis.
 
-use super::{check_fov, check_size, column_azimuth, panorama_azimuth, panorama_column, CameraModel, Projection, Ray};
+use super::{
+    check_fov, check_size, column_azimuth, panorama_azimuth, panorama_column, CameraModel,
+    Projection, Ray,
+};
 use crate::sphere::Vec3;
 use crate::Result;
 use std::f64::consts::TAU;
@@ -25,7 +28,12 @@ impl Cylindrical {
             Some(fov) => 2.0 * (check_fov(fov)?.to_radians() / 2.0).tan(),
             None => TAU * height as f64 / width as f64,
         };
-        Ok(Cylindrical { width, height, fov_y_deg, span })
+        Ok(Cylindrical {
+            width,
+            height,
+            fov_y_deg,
+            span,
+        })
     }
 }
 
@@ -38,7 +46,10 @@ impl CameraModel for Cylindrical {
         let phi = column_azimuth(x, self.width);
         let h = (0.5 - y / self.height as f64) * self.span;
         let direction = Vec3::new(phi.sin(), h, -phi.cos()) * (1.0 / (1.0 + h * h).sqrt());
-        Ray { origin: Vec3::default(), direction }
+        Ray {
+            origin: Vec3::default(),
+            direction,
+        }
     }
 
     fn pixel(&self, p: Vec3) -> Option<[f64; 2]> {
@@ -56,6 +67,8 @@ impl CameraModel for Cylindrical {
     }
 
     fn projection(&self) -> Projection {
-        Projection::Cylindrical { fov_y_deg: self.fov_y_deg }
+        Projection::Cylindrical {
+            fov_y_deg: self.fov_y_deg,
+        }
     }
 }

@@ -1,6 +1,8 @@
 //! The latitude–longitude panorama: the whole sphere of directions.
 
-use super::{check_size, column_azimuth, panorama_azimuth, panorama_column, CameraModel, Projection, Ray};
+use super::{
+    check_size, column_azimuth, panorama_azimuth, panorama_column, CameraModel, Projection, Ray,
+};
 use crate::sphere::Vec3;
 use crate::Result;
 use std::f64::consts::PI;
@@ -29,7 +31,10 @@ impl CameraModel for Equirectangular {
         let phi = column_azimuth(x, self.width);
         let latitude = (0.5 - y / self.height as f64) * PI;
         let (s, c) = latitude.sin_cos();
-        Ray { origin: Vec3::default(), direction: Vec3::new(c * phi.sin(), s, -c * phi.cos()) }
+        Ray {
+            origin: Vec3::default(),
+            direction: Vec3::new(c * phi.sin(), s, -c * phi.cos()),
+        }
     }
 
     fn pixel(&self, p: Vec3) -> Option<[f64; 2]> {
@@ -38,7 +43,11 @@ impl CameraModel for Equirectangular {
             return None;
         }
         // At the poles every column is the same point; column 0's centre stands for them.
-        let x = if radius > 0.0 { panorama_column(panorama_azimuth(p), self.width) } else { 0.5 };
+        let x = if radius > 0.0 {
+            panorama_column(panorama_azimuth(p), self.width)
+        } else {
+            0.5
+        };
         let y = (0.5 - p.y.atan2(radius) / PI) * self.height as f64;
         Some([x, y])
     }

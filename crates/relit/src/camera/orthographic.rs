@@ -19,11 +19,19 @@ impl Orthographic {
     pub fn new(width: usize, height: usize, view_height: f64) -> Result<Orthographic> {
         check_size(width, height)?;
         if !(view_height.is_finite() && view_height > 0.0) {
-            return Err(Error::invalid(format!("an orthographic view height must be positive, not {view_height}")));
+            return Err(Error::invalid(format!(
+                "an orthographic view height must be positive, not {view_height}"
+            )));
         }
         let half_height = view_height / 2.0;
         let half_width = half_height * width as f64 / height as f64;
-        Ok(Orthographic { width, height, view_height, half_width, half_height })
+        Ok(Orthographic {
+            width,
+            height,
+            view_height,
+            half_width,
+            half_height,
+        })
     }
 
     /// The height of the image plane in scene units.
@@ -40,7 +48,10 @@ impl CameraModel for Orthographic {
     fn ray(&self, x: f64, y: f64) -> Ray {
         let u = (2.0 * x / self.width as f64 - 1.0) * self.half_width;
         let v = (1.0 - 2.0 * y / self.height as f64) * self.half_height;
-        Ray { origin: Vec3::new(u, v, 0.0), direction: Vec3::new(0.0, 0.0, -1.0) }
+        Ray {
+            origin: Vec3::new(u, v, 0.0),
+            direction: Vec3::new(0.0, 0.0, -1.0),
+        }
     }
 
     fn pixel(&self, p: Vec3) -> Option<[f64; 2]> {
@@ -49,7 +60,8 @@ impl CameraModel for Orthographic {
         }
         let x = (p.x / self.half_width + 1.0) * 0.5 * self.width as f64;
         let y = (1.0 - p.y / self.half_height) * 0.5 * self.height as f64;
-        ((0.0..=self.width as f64).contains(&x) && (0.0..=self.height as f64).contains(&y)).then_some([x, y])
+        ((0.0..=self.width as f64).contains(&x) && (0.0..=self.height as f64).contains(&y))
+            .then_some([x, y])
     }
 
     fn depth(&self, p: Vec3) -> f64 {

@@ -22,7 +22,13 @@ impl Perspective {
         let fov_y_deg = check_fov(fov_y_deg)?;
         let half_height = (fov_y_deg.to_radians() / 2.0).tan();
         let half_width = half_height * width as f64 / height as f64;
-        Ok(Perspective { width, height, fov_y_deg, half_width, half_height })
+        Ok(Perspective {
+            width,
+            height,
+            fov_y_deg,
+            half_width,
+            half_height,
+        })
     }
 
     pub fn fov_y_deg(&self) -> f64 {
@@ -39,7 +45,10 @@ impl CameraModel for Perspective {
         let u = (2.0 * x / self.width as f64 - 1.0) * self.half_width;
         let v = (1.0 - 2.0 * y / self.height as f64) * self.half_height;
         let direction = Vec3::new(u, v, -1.0) * (1.0 / (u * u + v * v + 1.0).sqrt());
-        Ray { origin: Vec3::default(), direction }
+        Ray {
+            origin: Vec3::default(),
+            direction,
+        }
     }
 
     fn pixel(&self, p: Vec3) -> Option<[f64; 2]> {
@@ -49,7 +58,8 @@ impl CameraModel for Perspective {
         let (u, v) = (p.x / -p.z, p.y / -p.z);
         let x = (u / self.half_width + 1.0) * 0.5 * self.width as f64;
         let y = (1.0 - v / self.half_height) * 0.5 * self.height as f64;
-        ((0.0..=self.width as f64).contains(&x) && (0.0..=self.height as f64).contains(&y)).then_some([x, y])
+        ((0.0..=self.width as f64).contains(&x) && (0.0..=self.height as f64).contains(&y))
+            .then_some([x, y])
     }
 
     fn depth(&self, p: Vec3) -> f64 {
@@ -57,6 +67,8 @@ impl CameraModel for Perspective {
     }
 
     fn projection(&self) -> Projection {
-        Projection::Planar { fov_y_deg: Some(self.fov_y_deg) }
+        Projection::Planar {
+            fov_y_deg: Some(self.fov_y_deg),
+        }
     }
 }
