@@ -190,6 +190,7 @@ pub fn capture_to_folder(
     let manifest = Manifest {
         encoding: (format == ImageFormat::Png16).then_some(Encoding::Linear),
         projection: camera.projection(),
+        camera: Some(spec.clone()),
         depth: Some("depth.exr".into()),
         mask: Some("mask.png".into()),
         images: names

@@ -1,7 +1,7 @@
 //! Relightable images: coefficient maps plus what is needed to interpret them.
 
 use crate::basis::BasisSpec;
-use crate::camera::Projection;
+use crate::camera::{CameraSpec, Projection};
 use serde::{Deserialize, Serialize};
 
 /// The version of the file layout written by this build (see the [conventions](crate)).
@@ -60,6 +60,8 @@ pub struct Metadata {
     pub color_space: MapSpace,
     pub light_frame: String,
     pub projection: Projection,
+    /// The full camera (pose included), needed with depth by lights that have a position.
+    pub camera: Option<CameraSpec>,
     pub fit: Option<FitInfo>,
 }
 
@@ -72,6 +74,7 @@ impl Metadata {
             color_space,
             light_frame: LIGHT_FRAME.to_string(),
             projection,
+            camera: None,
             fit: None,
         }
     }
@@ -90,7 +93,12 @@ pub struct CoefficientMaps {
 impl CoefficientMaps {
     /// Zeroed maps.
     pub fn zeros(width: usize, height: usize, k: usize) -> Self {
-        Self { width, height, k, data: vec![0.0; 3 * k * width * height] }
+        Self {
+            width,
+            height,
+            k,
+            data: vec![0.0; 3 * k * width * height],
+        }
     }
 
     /// Pixels per plane.

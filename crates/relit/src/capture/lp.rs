@@ -28,11 +28,18 @@ pub struct LpEntry {
 /// Parse the text of an `.lp` file. `origin` names the file in messages.
 pub fn parse(text: &str, origin: &str) -> Result<Vec<LpEntry>> {
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
-    let mut lines = text.lines().enumerate().map(|(i, l)| (i + 1, l.trim())).filter(|(_, l)| !l.is_empty());
-    let (count_line, count_text) =
-        lines.next().ok_or_else(|| Error::parse(format!("{origin}: empty file (expected an image count)")))?;
+    let mut lines = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| (i + 1, l.trim()))
+        .filter(|(_, l)| !l.is_empty());
+    let (count_line, count_text) = lines
+        .next()
+        .ok_or_else(|| Error::parse(format!("{origin}: empty file (expected an image count)")))?;
     let count: usize = count_text.parse().map_err(|_| {
-        Error::parse(format!("{origin}: line {count_line}: expected the number of images, found `{count_text}`"))
+        Error::parse(format!(
+            "{origin}: line {count_line}: expected the number of images, found `{count_text}`"
+        ))
     })?;
     let mut entries = Vec::with_capacity(count.min(100_000));
     let mut seen: HashMap<String, usize> = HashMap::new();
@@ -47,7 +54,9 @@ pub fn parse(text: &str, origin: &str) -> Result<Vec<LpEntry>> {
         let mut xyz = [0.0f64; 3];
         for (k, tok) in tokens[n - 3..].iter().enumerate() {
             xyz[k] = tok.parse().map_err(|_| {
-                Error::parse(format!("{origin}: line {line}: `{tok}` is not a number (expected `filename x y z`)"))
+                Error::parse(format!(
+                    "{origin}: line {line}: `{tok}` is not a number (expected `filename x y z`)"
+                ))
             })?;
         }
         // The name is everything before the three numbers, inner spaces kept.
@@ -72,7 +81,11 @@ pub fn parse(text: &str, origin: &str) -> Result<Vec<LpEntry>> {
                 "{origin}: line {line}: image `{name}` is listed twice (first on line {first})"
             )));
         }
-        entries.push(LpEntry { name, direction, line });
+        entries.push(LpEntry {
+            name,
+            direction,
+            line,
+        });
     }
     if entries.len() != count {
         return Err(Error::parse(format!(
@@ -93,17 +106,22 @@ pub fn read(path: &Path) -> Result<Capture> {
     let lights: Vec<CapturedLight> = entries
         .iter()
         .map(|e| CapturedLight {
-            image: ImageSource::File { path: resolve_image_path(folder, &e.name), encoding: None },
+            image: ImageSource::File {
+                path: resolve_image_path(folder, &e.name),
+                encoding: None,
+            },
             direction: e.direction,
             intensity: [1.0; 3],
         })
         .collect();
-    let (width, height) = check_images(&lights, &|i| format!("{origin}: line {}", entries[i].line))?;
+    let (width, height) =
+        check_images(&lights, &|i| format!("{origin}: line {}", entries[i].line))?;
     Ok(Capture {
         lights,
         width,
         height,
         projection: Projection::Planar { fov_y_deg: None },
+        camera: None,
         depth: None,
         mask: None,
         origin,
@@ -142,12 +160,14 @@ mod tests {
 
     #[test]
     fn each_bad_case_names_its_line() {
-        assert!(err("3\na.jpg 0 0 1\nb.jpg 0 1 0\n").contains("line 1: the count says 3 images but the file lists 2"));
+        assert!(err("3\na.jpg 0 0 1\nb.jpg 0 1 0\n")
+            .contains("line 1: the count says 3 images but the file lists 2"));
         assert!(err("1\na.jpg 0 0 1\nb.jpg 0 1 0\n").contains("line 1"));
         assert!(err("2\na.jpg 0 0 1\nb.jpg 0 0 0\n").contains("line 3: light vector (0, 0, 0)"));
         assert!(err("2\na.jpg 0 0 1\nb.jpg NaN 0 1\n").contains("line 3"));
         assert!(err("2\na.jpg 0 0 1\nb.jpg inf 0 1\n").contains("line 3"));
-        assert!(err("2\na.jpg 0 0 1\na.jpg 0 1 0\n").contains("line 3: image `a.jpg` is listed twice (first on line 2)"));
+        assert!(err("2\na.jpg 0 0 1\na.jpg 0 1 0\n")
+            .contains("line 3: image `a.jpg` is listed twice (first on line 2)"));
         assert!(err("2\na.jpg 0 0 1\nb.jpg 0 x 1\n").contains("line 3: `x` is not a number"));
         assert!(err("2\na.jpg 0 0 1\nb.jpg 0 1\n").contains("line 3: expected `filename x y z`"));
         assert!(err("two\n").contains("line 1: expected the number of images"));
@@ -159,14 +179,25 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let img = crate::image::ImageRgb::new(4, 3);
         crate::image::save(&dir.path().join("a.png"), &img, 0.0).unwrap();
-        crate::image::save(&dir.path().join("b c.png"), &crate::image::ImageRgb::new(5, 3), 0.0).unwrap();
+        crate::image::save(
+            &dir.path().join("b c.png"),
+            &crate::image::ImageRgb::new(5, 3),
+            0.0,
+        )
+        .unwrap();
         let lp = dir.path().join("dirs.lp");
         std::fs::write(&lp, "2\na.png 0 0 1\nmissing.png 0 1 1\n").unwrap();
         let e = read(&lp).unwrap_err().to_string();
-        assert!(e.contains("line 3") && e.contains("missing.png") && e.contains("not found"), "{e}");
+        assert!(
+            e.contains("line 3") && e.contains("missing.png") && e.contains("not found"),
+            "{e}"
+        );
         std::fs::write(&lp, "2\na.png 0 0 1\nb c.png 0 1 1\n").unwrap();
         let e = read(&lp).unwrap_err().to_string();
-        assert!(e.contains("line 3") && e.contains("5×3") && e.contains("4×3"), "{e}");
+        assert!(
+            e.contains("line 3") && e.contains("5×3") && e.contains("4×3"),
+            "{e}"
+        );
         std::fs::write(&lp, "1\nC:\\captures\\a.png 0 0 1\n").unwrap();
         let cap = read(&lp).unwrap();
         assert_eq!((cap.width, cap.height, cap.len()), (4, 3, 1));

@@ -20,11 +20,14 @@
 //!   (default `srgb`); float formats (EXR, HDR) are always linear.
 //! * `projection` (optional): `{"type": "planar", "fov_y_deg": 50}` (no field of view:
 //!   orthographic), `{"type": "cylindrical"}` or `{"type": "equirectangular"}`.
+//! * `camera` (optional): the full camera, `{"projection": {...}, "width": W, "height": H,
+//!   "pose": {"eye": [x,y,z], "right": [..], "up": [..], "back": [..]}}` (see
+//!   [`crate::camera::CameraSpec`]); lights with a position relight from it and the depth.
 //! * `depth`, `mask` (optional): single-channel images of the capture's size. Depth is
 //!   the distance from the eye along each pixel's view ray; the mask is > 0.5 inside.
 
 use super::{check_images, resolve_image_path, Capture, CapturedLight, ImageSource};
-use crate::camera::Projection;
+use crate::camera::{CameraSpec, Projection};
 use crate::color::Encoding;
 use crate::sphere::Vec3;
 use crate::{Error, Result};
@@ -40,6 +43,9 @@ pub struct Manifest {
     pub encoding: Option<Encoding>,
     #[serde(default)]
     pub projection: Projection,
+    /// The full camera (pose included); its projection wins over `projection`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub camera: Option<CameraSpec>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub depth: Option<String>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -94,11 +100,17 @@ pub fn read(path: &Path) -> Result<Capture> {
     let mut seen = std::collections::HashMap::new();
     for (i, entry) in manifest.images.iter().enumerate() {
         let direction = entry.direction.normalized().ok_or_else(|| {
-            Error::parse(format!("{origin}: images[{i}] (`{}`): the direction has no length or is not finite", entry.file))
+            Error::parse(format!(
+                "{origin}: images[{i}] (`{}`): the direction has no length or is not finite",
+                entry.file
+            ))
         })?;
         let intensity = entry.intensity.rgb();
         if intensity.iter().any(|v| !v.is_finite() || *v <= 0.0) {
-            return Err(Error::parse(format!("{origin}: images[{i}] (`{}`): intensity must be positive", entry.file)));
+            return Err(Error::parse(format!(
+                "{origin}: images[{i}] (`{}`): intensity must be positive",
+                entry.file
+            )));
         }
         if let Some(first) = seen.insert(entry.file.clone(), i) {
             return Err(Error::parse(format!(
@@ -107,7 +119,10 @@ pub fn read(path: &Path) -> Result<Capture> {
             )));
         }
         lights.push(CapturedLight {
-            image: ImageSource::File { path: resolve_image_path(folder, &entry.file), encoding: manifest.encoding },
+            image: ImageSource::File {
+                path: resolve_image_path(folder, &entry.file),
+                encoding: manifest.encoding,
+            },
             direction,
             intensity,
         });
@@ -127,7 +142,31 @@ pub fn read(path: &Path) -> Result<Capture> {
     };
     let depth = load_plane(&manifest.depth, "depth")?;
     let mask = load_plane(&manifest.mask, "mask")?;
-    Ok(Capture { lights, width, height, projection: manifest.projection, depth, mask, origin })
+    if let Some(camera) = &manifest.camera {
+        if (camera.width, camera.height) != (width, height) {
+            return Err(Error::invalid(format!(
+                "{origin}: the camera is {}×{} but the images are {width}×{height}",
+                camera.width, camera.height
+            )));
+        }
+        camera
+            .build()
+            .map_err(|e| Error::parse(format!("{origin}: camera: {e}")))?;
+    }
+    let projection = manifest
+        .camera
+        .as_ref()
+        .map_or(manifest.projection, |c| c.projection.clone());
+    Ok(Capture {
+        lights,
+        width,
+        height,
+        projection,
+        camera: manifest.camera,
+        depth,
+        mask,
+        origin,
+    })
 }
 
 #[cfg(test)]
@@ -144,7 +183,10 @@ mod tests {
         assert_eq!(m.images[1].intensity.rgb(), [1.0; 3]);
         assert_eq!(m.projection, Projection::Cylindrical { fov_y_deg: None });
         assert!(serde_json::from_str::<Manifest>(r#"{"imgs":[]}"#).is_err());
-        assert!(serde_json::from_str::<Manifest>(r#"{"images":[{"file":"a","direction":[0,0,1],"intensty":2}]}"#).is_err());
+        assert!(serde_json::from_str::<Manifest>(
+            r#"{"images":[{"file":"a","direction":[0,0,1],"intensty":2}]}"#
+        )
+        .is_err());
     }
 
     #[test]
@@ -154,11 +196,22 @@ mod tests {
         img.data.iter_mut().for_each(|v| *v = 0.5);
         crate::image::save(&dir.path().join("a.exr"), &img, 0.0).unwrap();
         let path = dir.path().join("cap.json");
-        std::fs::write(&path, r#"{"images":[{"file":"a.exr","direction":[0,0,1],"intensity":[0.5,1,2]}]}"#).unwrap();
+        std::fs::write(
+            &path,
+            r#"{"images":[{"file":"a.exr","direction":[0,0,1],"intensity":[0.5,1,2]}]}"#,
+        )
+        .unwrap();
         let cap = read(&path).unwrap();
         let px = cap.load(0).unwrap().get(1, 1);
-        assert!((px[0] - 1.0).abs() < 1e-3 && (px[1] - 0.5).abs() < 1e-3 && (px[2] - 0.25).abs() < 1e-3, "{px:?}");
-        std::fs::write(&path, r#"{"images":[{"file":"a.exr","direction":[0,0,0]}]}"#).unwrap();
+        assert!(
+            (px[0] - 1.0).abs() < 1e-3 && (px[1] - 0.5).abs() < 1e-3 && (px[2] - 0.25).abs() < 1e-3,
+            "{px:?}"
+        );
+        std::fs::write(
+            &path,
+            r#"{"images":[{"file":"a.exr","direction":[0,0,0]}]}"#,
+        )
+        .unwrap();
         assert!(read(&path).unwrap_err().to_string().contains("images[0]"));
     }
 }

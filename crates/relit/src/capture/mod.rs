@@ -9,7 +9,7 @@
 pub mod lp;
 pub mod manifest;
 
-use crate::camera::Projection;
+use crate::camera::{CameraSpec, Projection};
 use crate::color::Encoding;
 use crate::image::{self, ImageRgb};
 use crate::sphere::Vec3;
@@ -21,7 +21,10 @@ use std::sync::Arc;
 #[derive(Clone, Debug)]
 pub enum ImageSource {
     /// A file, decoded on demand; `encoding` overrides the format's default.
-    File { path: PathBuf, encoding: Option<Encoding> },
+    File {
+        path: PathBuf,
+        encoding: Option<Encoding>,
+    },
     /// A linear image already in memory.
     Memory(Arc<ImageRgb>),
     /// A linear image made on demand (a renderer), so that a capture of hundreds of
@@ -52,6 +55,8 @@ pub struct Capture {
     pub width: usize,
     pub height: usize,
     pub projection: Projection,
+    /// The full camera (pose included) when known; lights with a position need it.
+    pub camera: Option<CameraSpec>,
     /// Depth per pixel (distance along the view ray), if known.
     pub depth: Option<Arc<Vec<f32>>>,
     /// Mask per pixel (> 0.5 inside), if known; evaluation restricts linear PSNR to it.
@@ -66,7 +71,10 @@ impl Capture {
     /// Every image is checked to exist and to share one size before this returns, so a
     /// bad capture fails before any work is done.
     pub fn open(path: &Path) -> Result<Capture> {
-        let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(|e| e.to_ascii_lowercase());
         match ext.as_deref() {
             Some("json") => manifest::read(path),
             _ => lp::read(path),
@@ -74,9 +82,15 @@ impl Capture {
     }
 
     /// A capture from images in memory (linear, unit intensity).
-    pub fn from_memory(images: Vec<ImageRgb>, directions: &[Vec3], projection: Projection) -> Result<Capture> {
+    pub fn from_memory(
+        images: Vec<ImageRgb>,
+        directions: &[Vec3],
+        projection: Projection,
+    ) -> Result<Capture> {
         if images.is_empty() || images.len() != directions.len() {
-            return Err(Error::invalid("a capture needs one direction per image and at least one image"));
+            return Err(Error::invalid(
+                "a capture needs one direction per image and at least one image",
+            ));
         }
         let (width, height) = (images[0].width, images[0].height);
         let mut lights = Vec::with_capacity(images.len());
@@ -87,10 +101,25 @@ impl Capture {
                     img.width, img.height
                 )));
             }
-            let direction = d.normalized().ok_or_else(|| Error::invalid(format!("light {i} has no direction")))?;
-            lights.push(CapturedLight { image: ImageSource::Memory(Arc::new(img)), direction, intensity: [1.0; 3] });
+            let direction = d
+                .normalized()
+                .ok_or_else(|| Error::invalid(format!("light {i} has no direction")))?;
+            lights.push(CapturedLight {
+                image: ImageSource::Memory(Arc::new(img)),
+                direction,
+                intensity: [1.0; 3],
+            });
         }
-        Ok(Capture { lights, width, height, projection, depth: None, mask: None, origin: "memory".into() })
+        Ok(Capture {
+            lights,
+            width,
+            height,
+            projection,
+            camera: None,
+            depth: None,
+            mask: None,
+            origin: "memory".into(),
+        })
     }
 
     /// A capture whose images are produced on demand by `generators` (linear, unit
@@ -103,18 +132,35 @@ impl Capture {
         projection: Projection,
     ) -> Result<Capture> {
         if generators.is_empty() || generators.len() != directions.len() {
-            return Err(Error::invalid("a capture needs one direction per image and at least one image"));
+            return Err(Error::invalid(
+                "a capture needs one direction per image and at least one image",
+            ));
         }
         let lights = generators
             .into_iter()
             .zip(directions)
             .enumerate()
             .map(|(i, (g, d))| {
-                let direction = d.normalized().ok_or_else(|| Error::invalid(format!("light {i} has no direction")))?;
-                Ok(CapturedLight { image: ImageSource::Generated(g), direction, intensity: [1.0; 3] })
+                let direction = d
+                    .normalized()
+                    .ok_or_else(|| Error::invalid(format!("light {i} has no direction")))?;
+                Ok(CapturedLight {
+                    image: ImageSource::Generated(g),
+                    direction,
+                    intensity: [1.0; 3],
+                })
             })
             .collect::<Result<Vec<_>>>()?;
-        Ok(Capture { lights, width, height, projection, depth: None, mask: None, origin: "generated".into() })
+        Ok(Capture {
+            lights,
+            width,
+            height,
+            projection,
+            camera: None,
+            depth: None,
+            mask: None,
+            origin: "generated".into(),
+        })
     }
 
     /// The number of reference images.
@@ -135,9 +181,10 @@ impl Capture {
     /// A short name for image `index` (its file name, or its number).
     pub fn image_name(&self, index: usize) -> String {
         match &self.lights[index].image {
-            ImageSource::File { path, .. } => {
-                path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| path.display().to_string())
-            }
+            ImageSource::File { path, .. } => path
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_else(|| path.display().to_string()),
             ImageSource::Memory(_) | ImageSource::Generated(_) => format!("#{index}"),
         }
     }
@@ -190,15 +237,27 @@ impl Capture {
 
 /// Check that every file of `lights` exists and has the size of the first; returns it.
 /// `line_of` names where each image was declared, for messages.
-pub(crate) fn check_images(lights: &[CapturedLight], line_of: &dyn Fn(usize) -> String) -> Result<(usize, usize)> {
+pub(crate) fn check_images(
+    lights: &[CapturedLight],
+    line_of: &dyn Fn(usize) -> String,
+) -> Result<(usize, usize)> {
     let mut size = None;
     for (i, light) in lights.iter().enumerate() {
-        let ImageSource::File { path, .. } = &light.image else { continue };
+        let ImageSource::File { path, .. } = &light.image else {
+            continue;
+        };
         if !path.is_file() {
-            return Err(Error::new(ErrorKind::InvalidInput, format!("{}: image {} not found", line_of(i), path.display())));
+            return Err(Error::new(
+                ErrorKind::InvalidInput,
+                format!("{}: image {} not found", line_of(i), path.display()),
+            ));
         }
         let dims = image::dimensions(path).map_err(|e| {
-            Error::new(ErrorKind::Image, format!("{}: cannot read the size of {}", line_of(i), path.display())).with_source(e)
+            Error::new(
+                ErrorKind::Image,
+                format!("{}: cannot read the size of {}", line_of(i), path.display()),
+            )
+            .with_source(e)
         })?;
         match size {
             None => size = Some((dims, i)),
@@ -222,7 +281,8 @@ pub(crate) fn check_images(lights: &[CapturedLight], line_of: &dyn Fn(usize) -> 
             Some(_) => {}
         }
     }
-    size.map(|(d, _)| d).ok_or_else(|| Error::invalid("the capture lists no images"))
+    size.map(|(d, _)| d)
+        .ok_or_else(|| Error::invalid("the capture lists no images"))
 }
 
 /// Resolve an image name from a capture file relative to the file's folder. Names

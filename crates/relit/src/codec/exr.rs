@@ -20,7 +20,10 @@ fn channel_name(i: usize, c: usize) -> String {
 }
 
 fn exr_error(path: &Path, action: &str, e: exr::error::Error) -> Error {
-    Error::new(ErrorKind::Io, format!("cannot {action} {}: {e}", path.display()))
+    Error::new(
+        ErrorKind::Io,
+        format!("cannot {action} {}: {e}", path.display()),
+    )
 }
 
 /// JSON with every non-ASCII character escaped, as EXR text attributes hold bytes.
@@ -53,7 +56,9 @@ pub fn write(path: &Path, image: &RelightableImage, storage: Storage) -> Result<
         for c in 0..3 {
             let plane = maps.plane(i, c);
             let samples = match storage {
-                Storage::Half => FlatSamples::F16(plane.iter().map(|&v| f16::from_f32(v)).collect()),
+                Storage::Half => {
+                    FlatSamples::F16(plane.iter().map(|&v| f16::from_f32(v)).collect())
+                }
                 Storage::Float => FlatSamples::F32(plane.to_vec()),
             };
             channels.push(AnyChannel::new(channel_name(i, c).as_str(), samples));
@@ -65,19 +70,48 @@ pub fn write(path: &Path, image: &RelightableImage, storage: Storage) -> Result<
     let meta = &image.meta;
     let mut attrs = LayerAttributes::default();
     let other = &mut attrs.other;
-    other.insert(Text::new_or_panic("relit.formatVersion"), AttributeValue::I32(meta.format_version as i32));
-    other.insert(Text::new_or_panic("relit.basis"), text(&ascii_json(&meta.basis)));
-    other.insert(Text::new_or_panic("relit.colorSpace"), text(meta.color_space.name()));
-    other.insert(Text::new_or_panic("relit.lightFrame"), text(&ascii_json(&meta.light_frame)));
-    other.insert(Text::new_or_panic("relit.projection"), text(&ascii_json(&meta.projection)));
+    other.insert(
+        Text::new_or_panic("relit.formatVersion"),
+        AttributeValue::I32(meta.format_version as i32),
+    );
+    other.insert(
+        Text::new_or_panic("relit.basis"),
+        text(&ascii_json(&meta.basis)),
+    );
+    other.insert(
+        Text::new_or_panic("relit.colorSpace"),
+        text(meta.color_space.name()),
+    );
+    other.insert(
+        Text::new_or_panic("relit.lightFrame"),
+        text(&ascii_json(&meta.light_frame)),
+    );
+    other.insert(
+        Text::new_or_panic("relit.projection"),
+        text(&ascii_json(&meta.projection)),
+    );
     other.insert(Text::new_or_panic("relit.storage"), text(storage.name()));
     if let Some(fit) = &meta.fit {
         other.insert(Text::new_or_panic("relit.fit"), text(&ascii_json(fit)));
     }
-    let encoding = Encoding { compression: Compression::ZIP16, ..Encoding::default() };
+    if let Some(camera) = &meta.camera {
+        other.insert(
+            Text::new_or_panic("relit.camera"),
+            text(&ascii_json(camera)),
+        );
+    }
+    let encoding = Encoding {
+        compression: Compression::ZIP16,
+        ..Encoding::default()
+    };
     let layer = Layer::new((w, h), attrs, encoding, AnyChannels::sort(channels.into()));
     let exr_image = Image::from_layer(layer);
-    write_atomically(path, |out| exr_image.write().to_buffered(out).map_err(|e| exr_error(path, "write", e)))
+    write_atomically(path, |out| {
+        exr_image
+            .write()
+            .to_buffered(out)
+            .map_err(|e| exr_error(path, "write", e))
+    })
 }
 
 fn text_attr(attrs: &LayerAttributes, name: &str) -> Option<String> {
@@ -88,20 +122,23 @@ fn text_attr(attrs: &LayerAttributes, name: &str) -> Option<String> {
 }
 
 fn parse_json<T: serde::de::DeserializeOwned>(path: &Path, name: &str, s: &str) -> Result<T> {
-    serde_json::from_str(s).map_err(|e| Error::parse(format!("{}: attribute {name}: {e}", path.display())))
+    serde_json::from_str(s)
+        .map_err(|e| Error::parse(format!("{}: attribute {name}: {e}", path.display())))
 }
 
 /// Read a relightable image written by [`write`].
 pub fn read(path: &Path) -> Result<RelightableImage> {
     if !path.is_file() {
-        return Err(Error::new(ErrorKind::Io, format!("{} does not exist", path.display())));
+        return Err(Error::new(
+            ErrorKind::Io,
+            format!("{} does not exist", path.display()),
+        ));
     }
     let image = read_all_data(path)?;
-    let layer = image
-        .layer_data
-        .into_iter()
-        .next()
-        .ok_or_else(|| Error::parse(format!("{}: the EXR file has no layer", path.display())))?;
+    let layer =
+        image.layer_data.into_iter().next().ok_or_else(|| {
+            Error::parse(format!("{}: the EXR file has no layer", path.display()))
+        })?;
     let attrs = &layer.attributes;
     let bad = |what: &str| Error::parse(format!("{}: not a relit file ({what})", path.display()));
     let version = match attrs.other.get(&Text::new_or_panic("relit.formatVersion")) {
@@ -114,13 +151,23 @@ pub fn read(path: &Path) -> Result<RelightableImage> {
             path.display()
         )));
     }
-    let basis: BasisSpec =
-        parse_json(path, "relit.basis", &text_attr(attrs, "relit.basis").ok_or_else(|| bad("no relit.basis"))?)?;
-    basis.build().map_err(|e| Error::parse(format!("{}: relit.basis: {e}", path.display())))?;
+    let basis: BasisSpec = parse_json(
+        path,
+        "relit.basis",
+        &text_attr(attrs, "relit.basis").ok_or_else(|| bad("no relit.basis"))?,
+    )?;
+    basis
+        .build()
+        .map_err(|e| Error::parse(format!("{}: relit.basis: {e}", path.display())))?;
     let color_space = match text_attr(attrs, "relit.colorSpace").as_deref() {
         Some("linear") | None => MapSpace::Linear,
         Some("srgb") => MapSpace::Srgb,
-        Some(other) => return Err(Error::parse(format!("{}: unknown relit.colorSpace `{other}`", path.display()))),
+        Some(other) => {
+            return Err(Error::parse(format!(
+                "{}: unknown relit.colorSpace `{other}`",
+                path.display()
+            )))
+        }
     };
     let light_frame = match text_attr(attrs, "relit.lightFrame") {
         Some(s) => parse_json(path, "relit.lightFrame", &s)?,
@@ -129,6 +176,10 @@ pub fn read(path: &Path) -> Result<RelightableImage> {
     let projection = match text_attr(attrs, "relit.projection") {
         Some(s) => parse_json(path, "relit.projection", &s)?,
         None => Default::default(),
+    };
+    let camera = match text_attr(attrs, "relit.camera") {
+        Some(s) => Some(parse_json(path, "relit.camera", &s)?),
+        None => None,
     };
     let fit: Option<FitInfo> = match text_attr(attrs, "relit.fit") {
         Some(s) => Some(parse_json(path, "relit.fit", &s)?),
@@ -145,19 +196,38 @@ pub fn read(path: &Path) -> Result<RelightableImage> {
             depth = Some(channel.sample_data.values_as_f32().collect());
             continue;
         }
-        let Some((i, c)) = parse_channel_name(&name) else { continue };
+        let Some((i, c)) = parse_channel_name(&name) else {
+            continue;
+        };
         if i >= k {
-            return Err(bad(&format!("channel {name} beyond the basis' {k} coefficients")));
+            return Err(bad(&format!(
+                "channel {name} beyond the basis' {k} coefficients"
+            )));
         }
-        for (dst, v) in maps.plane_mut(i, c).iter_mut().zip(channel.sample_data.values_as_f32()) {
+        for (dst, v) in maps
+            .plane_mut(i, c)
+            .iter_mut()
+            .zip(channel.sample_data.values_as_f32())
+        {
             *dst = v;
         }
         found[3 * i + c] = true;
     }
     if let Some(missing) = found.iter().position(|f| !f) {
-        return Err(bad(&format!("channel {} is missing", channel_name(missing / 3, missing % 3))));
+        return Err(bad(&format!(
+            "channel {} is missing",
+            channel_name(missing / 3, missing % 3)
+        )));
     }
-    let meta = Metadata { format_version: version, basis, color_space, light_frame, projection, fit };
+    let meta = Metadata {
+        format_version: version,
+        basis,
+        color_space,
+        light_frame,
+        projection,
+        camera,
+        fit,
+    };
     Ok(RelightableImage { meta, maps, depth })
 }
 
@@ -182,10 +252,18 @@ fn parse_channel_name(name: &str) -> Option<(usize, usize)> {
 
 /// Read the header attributes only, for `relit info` on large files.
 pub fn read_metadata_summary(path: &Path) -> Result<Vec<(String, String)>> {
-    let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|e| exr_error(path, "read", e))?;
+    let meta =
+        exr::meta::MetaData::read_from_file(path, false).map_err(|e| exr_error(path, "read", e))?;
     let mut out = Vec::new();
     for header in &meta.headers {
-        out.push(("size".into(), format!("{}×{}", header.layer_size.width(), header.layer_size.height())));
+        out.push((
+            "size".into(),
+            format!(
+                "{}×{}",
+                header.layer_size.width(),
+                header.layer_size.height()
+            ),
+        ));
         out.push(("channels".into(), header.channels.list.len().to_string()));
         out.push(("compression".into(), format!("{:?}", header.compression)));
         let mut names: Vec<_> = header.own_attributes.other.keys().collect();
@@ -206,30 +284,48 @@ pub fn write_rgb(path: &Path, image: &ImageRgb) -> Result<()> {
     let (w, h) = (image.width, image.height);
     let channels = SpecificChannels::rgb(|pos: Vec2<usize>| {
         let i = 3 * (pos.y() * w + pos.x());
-        (f16::from_f32(image.data[i]), f16::from_f32(image.data[i + 1]), f16::from_f32(image.data[i + 2]))
+        (
+            f16::from_f32(image.data[i]),
+            f16::from_f32(image.data[i + 1]),
+            f16::from_f32(image.data[i + 2]),
+        )
     });
-    let encoding = Encoding { compression: Compression::ZIP16, ..Encoding::default() };
+    let encoding = Encoding {
+        compression: Compression::ZIP16,
+        ..Encoding::default()
+    };
     let layer = Layer::new((w, h), LayerAttributes::default(), encoding, channels);
     let img = Image::from_layer(layer);
-    write_atomically(path, |out| img.write().to_buffered(out).map_err(|e| exr_error(path, "write", e)))
+    write_atomically(path, |out| {
+        img.write()
+            .to_buffered(out)
+            .map_err(|e| exr_error(path, "write", e))
+    })
 }
 
 /// Read a single-valued plane (depth or mask) from the first of the channels `Z`, `Y`,
 /// `R`, `A` that the file has.
 pub fn read_scalar_channel(path: &Path) -> Result<(usize, usize, Vec<f32>)> {
     let image = read_all_data(path)?;
-    let layer = image
-        .layer_data
-        .into_iter()
-        .next()
-        .ok_or_else(|| Error::parse(format!("{}: the EXR file has no layer", path.display())))?;
+    let layer =
+        image.layer_data.into_iter().next().ok_or_else(|| {
+            Error::parse(format!("{}: the EXR file has no layer", path.display()))
+        })?;
     let (w, h) = (layer.size.width(), layer.size.height());
     for wanted in ["Z", "Y", "R", "A"] {
-        if let Some(ch) = layer.channel_data.list.iter().find(|c| c.name.to_string() == wanted) {
+        if let Some(ch) = layer
+            .channel_data
+            .list
+            .iter()
+            .find(|c| c.name.to_string() == wanted)
+        {
             return Ok((w, h, ch.sample_data.values_as_f32().collect()));
         }
     }
-    Err(Error::parse(format!("{}: no Z, Y, R or A channel", path.display())))
+    Err(Error::parse(format!(
+        "{}: no Z, Y, R or A channel",
+        path.display()
+    )))
 }
 
 #[cfg(test)]
@@ -242,7 +338,13 @@ mod tests {
         for (i, v) in maps.data.iter_mut().enumerate() {
             *v = ((i * 7919) % 1000) as f32 / 137.0 - 3.0 + 1e-7 * i as f32;
         }
-        let mut meta = Metadata::new(BasisSpec::Sh { bands: 2 }, MapSpace::Linear, Projection::Cylindrical { fov_y_deg: Some(60.0) });
+        let mut meta = Metadata::new(
+            BasisSpec::Sh { bands: 2 },
+            MapSpace::Linear,
+            Projection::Cylindrical {
+                fov_y_deg: Some(60.0),
+            },
+        );
         meta.fit = Some(FitInfo {
             objective: "perceptual".into(),
             regularizer: "roughness".into(),
@@ -253,7 +355,20 @@ mod tests {
             psnr_srgb8: 35.5,
             seconds: 1.25,
         });
-        RelightableImage { meta, maps, depth: Some((0..15).map(|i| i as f32 * 0.5).collect()) }
+        meta.camera = Some(crate::camera::CameraSpec {
+            projection: Projection::Cylindrical {
+                fov_y_deg: Some(60.0),
+            },
+            width: 5,
+            height: 3,
+            pose: crate::camera::Pose::at(crate::sphere::Vec3::new(0.0, 1.5, 0.0)),
+            orthographic_height: None,
+        });
+        RelightableImage {
+            meta,
+            maps,
+            depth: Some((0..15).map(|i| i as f32 * 0.5).collect()),
+        }
     }
 
     #[test]
@@ -285,10 +400,16 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let plain = dir.path().join("plain.exr");
         write_rgb(&plain, &ImageRgb::new(2, 2)).unwrap();
-        assert!(read(&plain).unwrap_err().to_string().contains("not a relit file"));
+        assert!(read(&plain)
+            .unwrap_err()
+            .to_string()
+            .contains("not a relit file"));
         let junk = dir.path().join("junk.exr");
         std::fs::write(&junk, b"v/1\x01 garbage").unwrap();
         assert!(read(&junk).is_err());
-        assert!(read(&dir.path().join("absent.exr")).unwrap_err().to_string().contains("does not exist"));
+        assert!(read(&dir.path().join("absent.exr"))
+            .unwrap_err()
+            .to_string()
+            .contains("does not exist"));
     }
 }

@@ -103,7 +103,9 @@ pub enum Lambda {
 }
 
 /// The ladder of λ values the automatic choice tries.
-pub const LAMBDA_LADDER: [f64; 13] = [1e-7, 3e-7, 1e-6, 3e-6, 1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3, 1e-2, 3e-2, 1e-1];
+pub const LAMBDA_LADDER: [f64; 13] = [
+    1e-7, 3e-7, 1e-6, 3e-6, 1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3, 1e-2, 3e-2, 1e-1,
+];
 
 /// Options of [`fit`].
 #[derive(Clone, Debug)]
@@ -196,7 +198,14 @@ impl Design {
             Regularizer::Roughness => basis.penalty(),
             Regularizer::Ridge => vec![1.0 / (4.0 * std::f64::consts::PI); k],
         };
-        Ok(Design { basis, k, n, a, q, penalty })
+        Ok(Design {
+            basis,
+            k,
+            n,
+            a,
+            q,
+            penalty,
+        })
     }
 
     fn row(&self, j: usize) -> &[f64] {
@@ -268,7 +277,9 @@ fn subsample_indices(pixels: usize, count: usize) -> Vec<usize> {
 /// sRGB-encoded for display-referred maps.
 fn to_target(mut img: ImageRgb, space: MapSpace) -> ImageRgb {
     if space == MapSpace::Srgb {
-        img.data.iter_mut().for_each(|v| *v = color::linear_to_srgb(*v));
+        img.data
+            .iter_mut()
+            .for_each(|v| *v = color::linear_to_srgb(*v));
     }
     img
 }
@@ -282,7 +293,8 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
     if pixels == 0 {
         return Err(Error::invalid("the capture's images are empty"));
     }
-    let per_pixel = options.objective == Objective::Perceptual && options.color_space == MapSpace::Linear;
+    let per_pixel =
+        options.objective == Objective::Perceptual && options.color_space == MapSpace::Linear;
     let sub_idx = subsample_indices(pixels, options.subsample);
     let mut sub = vec![0f32; sub_idx.len() * design.n * 3];
 
@@ -325,7 +337,11 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
     // λ: leave-one-out on the subsample, unless fixed.
     let (lambda, lambda_scores) = match options.lambda {
         Lambda::Fixed(l) if l >= 0.0 && l.is_finite() => (l, Vec::new()),
-        Lambda::Fixed(l) => return Err(Error::invalid(format!("λ must be a non-negative number, got {l}"))),
+        Lambda::Fixed(l) => {
+            return Err(Error::invalid(format!(
+                "λ must be a non-negative number, got {l}"
+            )))
+        }
         Lambda::Auto => {
             let scores = loo_scores(&design, &sub, sub_idx.len(), per_pixel);
             let best = scores
@@ -342,18 +358,39 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
     if let Some(acc) = accum.take() {
         solve_shared(acc, &design, lambda, &mut maps)?;
     } else if let Some(spill) = spill.as_ref() {
-        solve_per_pixel(spill, &design, lambda, options.reweights, &mut maps, progress)?;
+        solve_per_pixel(
+            spill,
+            &design,
+            lambda,
+            options.reweights,
+            &mut maps,
+            progress,
+        )?;
     }
 
-    let (rmse_linear, psnr_srgb8) = training_residual(&design, &maps, &sub, &sub_idx, options.color_space);
+    let (rmse_linear, psnr_srgb8) =
+        training_residual(&design, &maps, &sub, &sub_idx, options.color_space);
     let seconds = start.elapsed().as_secs_f64();
-    let mut meta = Metadata::new(design.basis.spec(), options.color_space, capture.projection.clone());
-    let objective = if options.color_space == MapSpace::Srgb { Objective::Linear } else { options.objective };
+    let mut meta = Metadata::new(
+        design.basis.spec(),
+        options.color_space,
+        capture.projection.clone(),
+    );
+    meta.camera = capture.camera.clone();
+    let objective = if options.color_space == MapSpace::Srgb {
+        Objective::Linear
+    } else {
+        options.objective
+    };
     meta.fit = Some(FitInfo {
         objective: objective.name().into(),
         regularizer: options.regularizer.name().into(),
         lambda,
-        lambda_choice: if matches!(options.lambda, Lambda::Auto) { "auto".into() } else { "fixed".into() },
+        lambda_choice: if matches!(options.lambda, Lambda::Auto) {
+            "auto".into()
+        } else {
+            "fixed".into()
+        },
         images: design.n,
         rmse_linear,
         psnr_srgb8,
@@ -376,7 +413,10 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
         psnr_srgb8,
     };
     let depth = capture.depth.as_ref().map(|d| d.as_ref().clone());
-    Ok(FitOutput { image: RelightableImage { meta, maps, depth }, report })
+    Ok(FitOutput {
+        image: RelightableImage { meta, maps, depth },
+        report,
+    })
 }
 
 /// Pixels per parallel task.
@@ -387,26 +427,39 @@ fn accumulate(acc: &mut [f32], design: &Design, indices: &[usize], images: &[Ima
     let k = design.k;
     let rows: Vec<Vec<f32>> = indices
         .iter()
-        .map(|&j| design.row(j).iter().map(|&v| (v * design.q[j]) as f32).collect())
+        .map(|&j| {
+            design
+                .row(j)
+                .iter()
+                .map(|&v| (v * design.q[j]) as f32)
+                .collect()
+        })
         .collect();
-    acc.par_chunks_mut(3 * k * CHUNK).enumerate().for_each(|(chunk, out)| {
-        let p0 = chunk * CHUNK;
-        for (pl, sums) in out.chunks_exact_mut(3 * k).enumerate() {
-            let p = p0 + pl;
-            for (img, row) in images.iter().zip(&rows) {
-                let px = [img.data[3 * p], img.data[3 * p + 1], img.data[3 * p + 2]];
-                for (i, &a) in row.iter().enumerate() {
-                    sums[3 * i] += a * px[0];
-                    sums[3 * i + 1] += a * px[1];
-                    sums[3 * i + 2] += a * px[2];
+    acc.par_chunks_mut(3 * k * CHUNK)
+        .enumerate()
+        .for_each(|(chunk, out)| {
+            let p0 = chunk * CHUNK;
+            for (pl, sums) in out.chunks_exact_mut(3 * k).enumerate() {
+                let p = p0 + pl;
+                for (img, row) in images.iter().zip(&rows) {
+                    let px = [img.data[3 * p], img.data[3 * p + 1], img.data[3 * p + 2]];
+                    for (i, &a) in row.iter().enumerate() {
+                        sums[3 * i] += a * px[0];
+                        sums[3 * i + 1] += a * px[1];
+                        sums[3 * i + 2] += a * px[2];
+                    }
                 }
             }
-        }
-    });
+        });
 }
 
 /// Solve the shared normal equations for every pixel and store planar maps.
-fn solve_shared(mut acc: Vec<f32>, design: &Design, lambda: f64, maps: &mut CoefficientMaps) -> Result<()> {
+fn solve_shared(
+    mut acc: Vec<f32>,
+    design: &Design,
+    lambda: f64,
+    maps: &mut CoefficientMaps,
+) -> Result<()> {
     let k = design.k;
     let mut m = vec![0.0; k * k];
     let total: f64 = design.q.iter().sum();
@@ -420,7 +473,10 @@ fn solve_shared(mut acc: Vec<f32>, design: &Design, lambda: f64, maps: &mut Coef
     }
     design.regularize(&mut m, lambda, total);
     if !linalg::cholesky(&mut m, k) {
-        return Err(Error::new(ErrorKind::Numerical, "the normal equations are singular; use a larger λ"));
+        return Err(Error::new(
+            ErrorKind::Numerical,
+            "the normal equations are singular; use a larger λ",
+        ));
     }
     // The inverse, column by column, as an f32 matrix applied per pixel.
     let mut inv = vec![0f32; k * k];
@@ -453,11 +509,14 @@ fn scatter_planar(pixel_major: &[f32], p0: usize, maps: &mut CoefficientMaps) {
     let k = maps.k;
     let npix = maps.pixels();
     let count = pixel_major.len() / (3 * k);
-    maps.data.par_chunks_mut(npix).enumerate().for_each(|(plane, values)| {
-        for (p, dst) in values[p0..p0 + count].iter_mut().enumerate() {
-            *dst = pixel_major[p * 3 * k + plane];
-        }
-    });
+    maps.data
+        .par_chunks_mut(npix)
+        .enumerate()
+        .for_each(|(plane, values)| {
+            for (p, dst) in values[p0..p0 + count].iter_mut().enumerate() {
+                *dst = pixel_major[p * 3 * k + plane];
+            }
+        });
 }
 
 /// Scratch space of one per-pixel solve task.
@@ -529,7 +588,9 @@ fn solve_per_pixel(
                                 scratch.obs[p * n + j] = strip[(j * count + a + p) * 3 + c] as f64;
                             }
                         }
-                        solve_chunk(design, &outer, &a32, &pairs, lambda, reweights, len, scratch);
+                        solve_chunk(
+                            design, &outer, &a32, &pairs, lambda, reweights, len, scratch,
+                        );
                         for p in 0..len {
                             for i in 0..k {
                                 out[p * 3 * k + 3 * i + c] = scratch.coef[p * k + i] as f32;
@@ -571,7 +632,10 @@ fn solve_chunk(
         linalg::matmul_f32(len, n, t, &s.weights, outer, &mut s.packed);
         linalg::matmul_f32(len, n, k, &s.weighted_obs, a32, &mut s.rhs);
         for p in 0..len {
-            let total: f64 = s.weights[p * n..(p + 1) * n].iter().map(|&w| w as f64).sum();
+            let total: f64 = s.weights[p * n..(p + 1) * n]
+                .iter()
+                .map(|&w| w as f64)
+                .sum();
             for (x, &(r, c)) in pairs.iter().enumerate() {
                 let v = s.packed[p * t + x] as f64;
                 s.m[r * k + c] = v;
@@ -623,7 +687,14 @@ fn loo_scores(design: &Design, sub: &[f32], count: usize, perceptual: bool) -> V
                 let w: Vec<f64> = obs
                     .iter()
                     .enumerate()
-                    .map(|(j, &v)| design.q[j] * if perceptual { perceptual_weight(v) } else { 1.0 })
+                    .map(|(j, &v)| {
+                        design.q[j]
+                            * if perceptual {
+                                perceptual_weight(v)
+                            } else {
+                                1.0
+                            }
+                    })
                     .collect();
                 let total: f64 = w.iter().sum();
                 let mut m0 = vec![0.0; k * k];
@@ -676,7 +747,11 @@ fn loo_scores(design: &Design, sub: &[f32], count: usize, perceptual: bool) -> V
                 a
             },
         );
-    LAMBDA_LADDER.iter().zip(totals).map(|(&l, (err, wsum))| (l, err / wsum.max(1e-30))).collect()
+    LAMBDA_LADDER
+        .iter()
+        .zip(totals)
+        .map(|(&l, (err, wsum))| (l, err / wsum.max(1e-30)))
+        .collect()
 }
 
 /// Training residual on the subsample: RMSE in linear radiance per channel and 8-bit sRGB PSNR.
@@ -704,7 +779,8 @@ fn training_residual(
                     ),
                 };
                 sq[c] += (pred_lin - obs_lin).powi(2);
-                let d = color::linear_to_srgb8(pred_lin as f32) as f64 - color::linear_to_srgb8(obs_lin as f32) as f64;
+                let d = color::linear_to_srgb8(pred_lin as f32) as f64
+                    - color::linear_to_srgb8(obs_lin as f32) as f64;
                 sq8 += d * d;
             }
         }
