@@ -55,29 +55,52 @@ impl DemoScene {
 fn moving_light(frame: usize, frames: usize) -> Vec3 {
     let phi = std::f64::consts::TAU * frame as f64 / frames as f64;
     let elevation = 35f64.to_radians();
-    Vec3::new(elevation.cos() * phi.cos(), elevation.cos() * phi.sin(), elevation.sin())
+    Vec3::new(
+        elevation.cos() * phi.cos(),
+        elevation.cos() * phi.sin(),
+        elevation.sin(),
+    )
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    anyhow::ensure!(args.lights >= 1 && args.frames >= 1, "--lights and --frames must be at least 1");
+    anyhow::ensure!(
+        args.lights >= 1 && args.frames >= 1,
+        "--lights and --frames must be at least 1"
+    );
     let total = Instant::now();
-    std::fs::create_dir_all(args.out.join("frames")).with_context(|| format!("creating {}", args.out.display()))?;
-    let scene = DemoScene(relit::synth::BumpyPlane { width: 512, height: 384 });
+    std::fs::create_dir_all(args.out.join("frames"))
+        .with_context(|| format!("creating {}", args.out.display()))?;
+    let scene = DemoScene(relit::synth::BumpyPlane {
+        width: 512,
+        height: 384,
+    });
     let (w, h) = scene.size();
     let say = |s: String| {
         if !args.json {
             println!("{s}");
         }
     };
-    say(format!("relit demo: {} at {w}×{h}, {} lights, {} frames → {}", scene.name(), args.lights, args.frames, args.out.display()));
+    say(format!(
+        "relit demo: {} at {w}×{h}, {} lights, {} frames → {}",
+        scene.name(),
+        args.lights,
+        args.frames,
+        args.out.display()
+    ));
 
     let t = Instant::now();
     let dirs = sphere::hemisphere_fibonacci(args.lights);
     let capture = scene.capture(&dirs);
     let capture_s = t.elapsed().as_secs_f64();
-    say(format!("  capture   {capture_s:>7.2} s  ({:.0} images/s)", args.lights as f64 / capture_s));
+    say(format!(
+        "  capture   {capture_s:>7.2} s  ({:.0} images/s)",
+        args.lights as f64 / capture_s
+    ));
 
-    let options = FitOptions { basis: relit::basis::BasisSpec::Sh { bands: args.bands }, ..Default::default() };
+    let options = FitOptions {
+        basis: relit::basis::BasisSpec::Sh { bands: args.bands },
+        ..Default::default()
+    };
     let fitted = fit::fit(&capture, &options, &Bars::new(args.json))?;
     let maps_path = args.out.join("scene.exr");
     relit::codec::exr::write(&maps_path, &fitted.image, relit::codec::Storage::Half)?;
@@ -106,7 +129,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             px[2] *= 0.9;
         }
         psnrs.push(relit::eval::compare(&frame.data, &truth.data, None).0);
-        image::save(&args.out.join("frames").join(format!("frame_{f:03}.png")), &frame, 0.0)?;
+        image::save(
+            &args.out.join("frames").join(format!("frame_{f:03}.png")),
+            &frame,
+            0.0,
+        )?;
         frames.push(frame);
     }
     let sheet = image::contact_sheet(&frames, 6, 1536);
@@ -115,10 +142,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mean = psnrs.iter().sum::<f64>() / psnrs.len() as f64;
     let worst = psnrs.iter().cloned().fold(f64::INFINITY, f64::min);
     let per_frame_ms = 1e3 * relight_s / args.frames as f64;
-    say(format!("  relight   {per_frame_ms:>7.2} ms per frame ({:.0} fps), frames in {}", 1e3 / per_frame_ms, args.out.join("frames").display()));
+    say(format!(
+        "  relight   {per_frame_ms:>7.2} ms per frame ({:.0} fps), frames in {}",
+        1e3 / per_frame_ms,
+        args.out.join("frames").display()
+    ));
     say(format!("  fidelity  {mean:>7.2} dB mean 8-bit sRGB PSNR against ground truth (worst frame {worst:.2} dB)"));
     say(format!("  contact sheet {}", sheet_path.display()));
-    say(format!("  total     {:>7.2} s", total.elapsed().as_secs_f64()));
+    say(format!(
+        "  total     {:>7.2} s",
+        total.elapsed().as_secs_f64()
+    ));
     if args.json {
         let value = serde_json::json!({
             "scene": scene.name(), "width": w, "height": h, "lights": args.lights, "frames": args.frames,

@@ -79,7 +79,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         report.storage,
         report.protocol
     );
-    println!("{:>6}  {:<24} {:>12} {:>12} {:>8} {:>8}", "index", "image", "sRGB8 dB", "linear dB", "λ", "fit s");
+    println!(
+        "{:>6}  {:<24} {:>12} {:>12} {:>8} {:>8}",
+        "index", "image", "sRGB8 dB", "linear dB", "λ", "fit s"
+    );
     for h in &report.holdouts {
         println!(
             "{:>6}  {:<24} {:>12.2} {:>12.2} {:>8.0e} {:>8.2}",
@@ -88,7 +91,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     println!(
         "mean    {:<24} {:>12.2} {:>12.2}",
-        if report.masked { "(linear inside mask)" } else { "" },
+        if report.masked {
+            "(linear inside mask)"
+        } else {
+            ""
+        },
         report.psnr_srgb8_mean,
         report.psnr_linear_mean
     );

@@ -54,8 +54,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         StorageArg::Half => Storage::Half,
         StorageArg::Float => Storage::Float,
     };
-    exr::write(&args.output, &output.image, storage).with_context(|| format!("writing {}", args.output.display()))?;
-    let bytes = std::fs::metadata(&args.output).map(|m| m.len()).unwrap_or(0);
+    exr::write(&args.output, &output.image, storage)
+        .with_context(|| format!("writing {}", args.output.display()))?;
+    let bytes = std::fs::metadata(&args.output)
+        .map(|m| m.len())
+        .unwrap_or(0);
     let r = &output.report;
     if args.json {
         let mut value = serde_json::to_value(r)?;
@@ -64,14 +67,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         value["bytes_per_pixel"] = serde_json::json!(bytes as f64 / (r.width * r.height) as f64);
         println!("{}", serde_json::to_string_pretty(&value)?);
     } else {
-        println!("wrote {} ({}, {:.1} bytes/pixel)", args.output.display(), relit::memory::mib(bytes), bytes as f64 / (r.width * r.height) as f64);
+        println!(
+            "wrote {} ({}, {:.1} bytes/pixel)",
+            args.output.display(),
+            relit::memory::mib(bytes),
+            bytes as f64 / (r.width * r.height) as f64
+        );
         println!(
             "fit: {:.2} s, {:.1} images/s, peak memory {}, λ = {:.0e}{}",
             r.seconds,
             r.images_per_second,
             mib(r.peak_rss_bytes),
             r.lambda,
-            if r.lambda_scores.is_empty() { " (fixed)" } else { " (chosen by leave-one-out)" }
+            if r.lambda_scores.is_empty() {
+                " (fixed)"
+            } else {
+                " (chosen by leave-one-out)"
+            }
         );
         println!(
             "training residual: RMSE (linear) R {:.4} G {:.4} B {:.4}; 8-bit sRGB PSNR {:.2} dB",

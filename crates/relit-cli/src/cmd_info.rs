@@ -17,7 +17,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let meta = &image.meta;
     let bytes = std::fs::metadata(&args.file)?.len();
     let attributes = exr::read_metadata_summary(&args.file)?;
-    let storage = attributes.iter().find(|(k, _)| k == "relit.storage").map(|(_, v)| v.clone()).unwrap_or_default();
+    let storage = attributes
+        .iter()
+        .find(|(k, _)| k == "relit.storage")
+        .map(|(_, v)| v.clone())
+        .unwrap_or_default();
     if args.json {
         let value = serde_json::json!({
             "file": args.file.display().to_string(),
@@ -40,12 +44,26 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     println!("{}", args.file.display());
     println!("  size          {}×{}", image.width(), image.height());
-    println!("  basis         {} ({} coefficients × RGB)", meta.basis.short_name(), image.maps.k);
+    println!(
+        "  basis         {} ({} coefficients × RGB)",
+        meta.basis.short_name(),
+        image.maps.k
+    );
     println!("  color space   {}", meta.color_space.name());
-    println!("  storage       {storage}, {} ({:.1} bytes/pixel)", relit::memory::mib(bytes), bytes as f64 / (image.width() * image.height()) as f64);
+    println!(
+        "  storage       {storage}, {} ({:.1} bytes/pixel)",
+        relit::memory::mib(bytes),
+        bytes as f64 / (image.width() * image.height()) as f64
+    );
     println!("  light frame   {}", meta.light_frame);
-    println!("  projection    {}", serde_json::to_string(&meta.projection)?);
-    println!("  depth         {}", if image.depth.is_some() { "yes" } else { "no" });
+    println!(
+        "  projection    {}",
+        serde_json::to_string(&meta.projection)?
+    );
+    println!(
+        "  depth         {}",
+        if image.depth.is_some() { "yes" } else { "no" }
+    );
     println!("  format        relit {}", meta.format_version);
     if let Some(fit) = &meta.fit {
         println!(

@@ -62,12 +62,20 @@ impl FitArgs {
         let lambda = if self.lambda.eq_ignore_ascii_case("auto") {
             Lambda::Auto
         } else {
-            let v: f64 = self.lambda.parse().map_err(|_| anyhow::anyhow!("--lambda must be `auto` or a number"))?;
-            anyhow::ensure!(v.is_finite() && v >= 0.0, "--lambda must be a non-negative number");
+            let v: f64 = self
+                .lambda
+                .parse()
+                .map_err(|_| anyhow::anyhow!("--lambda must be `auto` or a number"))?;
+            anyhow::ensure!(
+                v.is_finite() && v >= 0.0,
+                "--lambda must be a non-negative number"
+            );
             Lambda::Fixed(v)
         };
         Ok(FitOptions {
-            basis: BasisSpec::Sh { bands: self.bands as usize },
+            basis: BasisSpec::Sh {
+                bands: self.bands as usize,
+            },
             objective: match self.objective {
                 ObjectiveArg::Perceptual => Objective::Perceptual,
                 ObjectiveArg::Linear => Objective::Linear,
@@ -95,7 +103,10 @@ pub struct Bars {
 
 impl Bars {
     pub fn new(quiet: bool) -> Self {
-        Self { bar: Mutex::new(None), quiet }
+        Self {
+            bar: Mutex::new(None),
+            quiet,
+        }
     }
 }
 
@@ -106,9 +117,11 @@ impl relit::progress::Progress for Bars {
         }
         let bar = ProgressBar::new(total);
         bar.set_style(
-            ProgressStyle::with_template("{msg:>16} [{bar:40}] {pos}/{len} {elapsed_precise} eta {eta}")
-                .expect("valid template")
-                .progress_chars("=> "),
+            ProgressStyle::with_template(
+                "{msg:>16} [{bar:40}] {pos}/{len} {elapsed_precise} eta {eta}",
+            )
+            .expect("valid template")
+            .progress_chars("=> "),
         );
         bar.set_message(stage.to_string());
         *self.bar.lock().expect("progress lock") = Some(bar);
@@ -127,5 +140,7 @@ impl relit::progress::Progress for Bars {
 
 /// Bytes for people.
 pub fn mib(bytes: Option<u64>) -> String {
-    bytes.map(relit::memory::mib).unwrap_or_else(|| "n/a".into())
+    bytes
+        .map(relit::memory::mib)
+        .unwrap_or_else(|| "n/a".into())
 }

@@ -6,12 +6,19 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 fn relit(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_relit")).args(args).output().expect("the relit binary runs")
+    Command::new(env!("CARGO_BIN_EXE_relit"))
+        .args(args)
+        .output()
+        .expect("the relit binary runs")
 }
 
 fn ok(args: &[&str]) -> String {
     let out = relit(args);
-    assert!(out.status.success(), "relit {args:?} failed:\n{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "relit {args:?} failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     String::from_utf8(out.stdout).unwrap()
 }
 
@@ -19,8 +26,15 @@ fn ok(args: &[&str]) -> String {
 fn fails(args: &[&str], needle: &str) {
     let out = relit(args);
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "relit {args:?} should fail; stderr:\n{stderr}");
-    assert!(stderr.contains(needle), "relit {args:?}: expected `{needle}` in:\n{stderr}");
+    assert_eq!(
+        out.status.code(),
+        Some(1),
+        "relit {args:?} should fail; stderr:\n{stderr}"
+    );
+    assert!(
+        stderr.contains(needle),
+        "relit {args:?}: expected `{needle}` in:\n{stderr}"
+    );
     assert!(!stderr.contains("panicked"), "{stderr}");
 }
 
@@ -34,8 +48,13 @@ impl Fixture {
     /// A 48-light 8-bit sRGB PNG capture of the analytic bumpy plane, as an `.lp`.
     fn new() -> Fixture {
         let dir = tempfile::tempdir().unwrap();
-        let plane = BumpyPlane { width: 36, height: 24 };
-        let lp = plane.write_lp_capture(dir.path(), &hemisphere_fibonacci(48)).unwrap();
+        let plane = BumpyPlane {
+            width: 36,
+            height: 24,
+        };
+        let lp = plane
+            .write_lp_capture(dir.path(), &hemisphere_fibonacci(48))
+            .unwrap();
         Fixture { dir, lp, plane }
     }
     fn path(&self, name: &str) -> PathBuf {
@@ -50,10 +69,19 @@ impl Fixture {
 fn fit_info_relight_round_trip() {
     let f = Fixture::new();
     let maps = f.path("scene.exr");
-    let summary = ok(&["fit", Fixture::s(&f.lp), "-o", Fixture::s(&maps), "--bands", "4", "-q"]);
+    let summary = ok(&[
+        "fit",
+        Fixture::s(&f.lp),
+        "-o",
+        Fixture::s(&maps),
+        "--bands",
+        "4",
+        "-q",
+    ]);
     assert!(summary.contains("training residual"), "{summary}");
 
-    let info: serde_json::Value = serde_json::from_str(&ok(&["info", Fixture::s(&maps), "--json"])).unwrap();
+    let info: serde_json::Value =
+        serde_json::from_str(&ok(&["info", Fixture::s(&maps), "--json"])).unwrap();
     assert_eq!(info["coefficients"], 16);
     assert_eq!(info["width"], 36);
     assert_eq!(info["color_space"], "linear");
@@ -62,7 +90,14 @@ fn fit_info_relight_round_trip() {
 
     // Relight at a light that was not captured and compare with the analytic truth.
     let out = f.path("relit.png");
-    ok(&["relight", Fixture::s(&maps), "--light", "dir:0.3,-0.4,0.75", "-o", Fixture::s(&out)]);
+    ok(&[
+        "relight",
+        Fixture::s(&maps),
+        "--light",
+        "dir:0.3,-0.4,0.75",
+        "-o",
+        Fixture::s(&out),
+    ]);
     let got = relit::image::load_linear(&out, None).unwrap();
     let truth = f.plane.render(Vec3::new(0.3, -0.4, 0.75));
     let (psnr, _) = relit::eval::compare(&got.data, &truth.data, None);
@@ -72,22 +107,53 @@ fn fit_info_relight_round_trip() {
 
     // Two coloured lights and a rig file; linear EXR output.
     let rig = f.path("rig.json");
-    std::fs::write(&rig, r#"{"lights":[{"type":"directional","direction":[-1,0,1],"color":[0.2,0.4,1.0]}]}"#).unwrap();
+    std::fs::write(
+        &rig,
+        r#"{"lights":[{"type":"directional","direction":[-1,0,1],"color":[0.2,0.4,1.0]}]}"#,
+    )
+    .unwrap();
     let exr = f.path("two.exr");
     let msg = ok(&[
-        "relight", Fixture::s(&maps), "--light", "dir:1,1,1", "--color", "1,0.5,0.2", "--rig", Fixture::s(&rig),
-        "--exposure", "-1", "-o", Fixture::s(&exr),
+        "relight",
+        Fixture::s(&maps),
+        "--light",
+        "dir:1,1,1",
+        "--color",
+        "1,0.5,0.2",
+        "--rig",
+        Fixture::s(&rig),
+        "--exposure",
+        "-1",
+        "-o",
+        Fixture::s(&exr),
     ]);
     assert!(msg.contains("2 lights"), "{msg}");
-    assert!(relit::image::load_linear(&exr, None).unwrap().data.iter().all(|v| v.is_finite()));
+    assert!(relit::image::load_linear(&exr, None)
+        .unwrap()
+        .data
+        .iter()
+        .all(|v| v.is_finite()));
 }
 
 #[test]
 fn eval_reports_json_with_the_required_fields() {
     let f = Fixture::new();
-    let out = ok(&["eval", Fixture::s(&f.lp), "--holdout", "0,12,24,35,47", "--bands", "3", "--json"]);
+    let out = ok(&[
+        "eval",
+        Fixture::s(&f.lp),
+        "--holdout",
+        "0,12,24,35,47",
+        "--bands",
+        "3",
+        "--json",
+    ]);
     let r: serde_json::Value = serde_json::from_str(&out).unwrap();
-    for key in ["psnr_srgb8_mean", "psnr_linear_mean", "bytes_per_pixel", "fit_seconds"] {
+    for key in [
+        "psnr_srgb8_mean",
+        "psnr_linear_mean",
+        "bytes_per_pixel",
+        "fit_seconds",
+    ] {
         assert!(r[key].as_f64().is_some(), "missing {key} in {out}");
     }
     let holdouts = r["holdouts"].as_array().unwrap();
@@ -96,7 +162,16 @@ fn eval_reports_json_with_the_required_fields() {
     assert!(r["psnr_srgb8_mean"].as_f64().unwrap() > 28.0, "{out}");
     // 9 coefficients × 3 colours × 2 bytes of half floats, before compression.
     assert!(r["bytes_per_pixel"].as_f64().unwrap() < 54.0 + 10.0);
-    let every = ok(&["eval", Fixture::s(&f.lp), "--holdout", "every:16", "--joint", "--bands", "2", "--json"]);
+    let every = ok(&[
+        "eval",
+        Fixture::s(&f.lp),
+        "--holdout",
+        "every:16",
+        "--joint",
+        "--bands",
+        "2",
+        "--json",
+    ]);
     let r: serde_json::Value = serde_json::from_str(&every).unwrap();
     assert_eq!(r["holdouts"].as_array().unwrap().len(), 3);
     assert_eq!(r["protocol"], "joint");
@@ -117,7 +192,10 @@ fn bad_input_is_a_clear_error_and_leaves_no_partial_file() {
     let img = f.path("light 001.png");
     let bytes = std::fs::read(&img).unwrap();
     std::fs::write(&img, &bytes[..bytes.len() / 2]).unwrap();
-    fails(&["fit", Fixture::s(&f.lp), "-o", Fixture::s(&out)], "light 001.png");
+    fails(
+        &["fit", Fixture::s(&f.lp), "-o", Fixture::s(&out)],
+        "light 001.png",
+    );
     assert!(!out.exists(), "no partial output");
     let leftovers: Vec<_> = std::fs::read_dir(f.dir.path())
         .unwrap()
@@ -127,12 +205,58 @@ fn bad_input_is_a_clear_error_and_leaves_no_partial_file() {
     assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
     // Not a relit file, a bad light, a missing output folder.
     fails(&["info", Fixture::s(&f.lp)], "");
-    fails(&["relight", Fixture::s(&f.path("absent.exr")), "--light", "dir:0,0,1", "-o", "x.png"], "does not exist");
+    fails(
+        &[
+            "relight",
+            Fixture::s(&f.path("absent.exr")),
+            "--light",
+            "dir:0,0,1",
+            "-o",
+            "x.png",
+        ],
+        "does not exist",
+    );
     std::fs::write(&img, &bytes).unwrap();
-    ok(&["fit", Fixture::s(&f.lp), "-o", Fixture::s(&out), "--bands", "2", "-q"]);
-    fails(&["relight", Fixture::s(&out), "--light", "dir:0,0,0", "-o", Fixture::s(&f.path("x.png"))], "direction");
-    fails(&["relight", Fixture::s(&out), "--light", "dir:0,0,1", "-o", Fixture::s(&f.path("nowhere/x.png"))], "does not exist");
-    fails(&["eval", Fixture::s(&f.lp), "--holdout", "3,99"], "out of range");
+    ok(&[
+        "fit",
+        Fixture::s(&f.lp),
+        "-o",
+        Fixture::s(&out),
+        "--bands",
+        "2",
+        "-q",
+    ]);
+    fails(
+        &[
+            "relight",
+            Fixture::s(&out),
+            "--light",
+            "dir:0,0,0",
+            "-o",
+            Fixture::s(&f.path("x.png")),
+        ],
+        "direction",
+    );
+    fails(
+        &[
+            "relight",
+            Fixture::s(&out),
+            "--light",
+            "dir:0,0,1",
+            "-o",
+            Fixture::s(&f.path("nowhere/x.png")),
+        ],
+        "does not exist",
+    );
+    fails(
+        &["eval", Fixture::s(&f.lp), "--holdout", "3,99"],
+        "out of range",
+    );
     // Bad flags are usage errors (exit 2).
-    assert_eq!(relit(&["fit", Fixture::s(&f.lp), "-o", "x.exr", "--bands", "9"]).status.code(), Some(2));
+    assert_eq!(
+        relit(&["fit", Fixture::s(&f.lp), "-o", "x.exr", "--bands", "9"])
+            .status
+            .code(),
+        Some(2)
+    );
 }

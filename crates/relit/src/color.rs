@@ -62,7 +62,11 @@ pub fn srgb8_table() -> &'static [f32; 256] {
 /// Linear values of the 65536 16-bit sRGB codes.
 pub fn srgb16_table() -> &'static [f32] {
     static TABLE: OnceLock<Vec<f32>> = OnceLock::new();
-    TABLE.get_or_init(|| (0..=65535u32).map(|i| srgb_to_linear(i as f32 / 65535.0)).collect())
+    TABLE.get_or_init(|| {
+        (0..=65535u32)
+            .map(|i| srgb_to_linear(i as f32 / 65535.0))
+            .collect()
+    })
 }
 
 /// Encode a linear value to an 8-bit sRGB code (rounded, clamped).
@@ -92,7 +96,8 @@ mod tests {
         assert!((linear_to_srgb(srgb_to_linear(0.73)) - 0.73).abs() < 1e-5);
         // The slope agrees with a finite difference.
         let (v, h) = (0.3f64, 1e-6);
-        let fd = (linear_to_srgb((v + h) as f32) as f64 - linear_to_srgb((v - h) as f32) as f64) / (2.0 * h);
+        let fd = (linear_to_srgb((v + h) as f32) as f64 - linear_to_srgb((v - h) as f32) as f64)
+            / (2.0 * h);
         assert!((srgb_slope(v) - fd).abs() / fd < 1e-2);
         assert_eq!(linear_to_srgb8(f32::NAN), 0);
     }

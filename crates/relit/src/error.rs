@@ -33,7 +33,11 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 impl Error {
     /// A new error of `kind` with a message.
     pub fn new(kind: ErrorKind, message: impl Into<String>) -> Self {
-        Self { kind, message: message.into(), source: None }
+        Self {
+            kind,
+            message: message.into(),
+            source: None,
+        }
     }
 
     /// Attach the underlying cause.
@@ -59,8 +63,15 @@ impl Error {
         Self::new(ErrorKind::Io, format!("cannot {action} {}", path.display())).with_source(source)
     }
 
-    pub(crate) fn image(path: &Path, source: impl std::error::Error + Send + Sync + 'static) -> Self {
-        Self::new(ErrorKind::Image, format!("cannot decode image {}", path.display())).with_source(source)
+    pub(crate) fn image(
+        path: &Path,
+        source: impl std::error::Error + Send + Sync + 'static,
+    ) -> Self {
+        Self::new(
+            ErrorKind::Image,
+            format!("cannot decode image {}", path.display()),
+        )
+        .with_source(source)
     }
 }
 
@@ -72,6 +83,8 @@ impl fmt::Display for Error {
 
 impl std::error::Error for Error {
     fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
-        self.source.as_deref().map(|e| e as &(dyn std::error::Error + 'static))
+        self.source
+            .as_deref()
+            .map(|e| e as &(dyn std::error::Error + 'static))
     }
 }

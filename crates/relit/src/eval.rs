@@ -39,16 +39,31 @@ impl FromStr for Holdout {
     type Err = Error;
     fn from_str(s: &str) -> Result<Holdout> {
         let s = s.trim();
-        let bad = || Error::parse(format!("bad hold-out `{s}`: expected `every:N`, `spread:N` or indices like `0,12,24`"));
+        let bad = || {
+            Error::parse(format!(
+                "bad hold-out `{s}`: expected `every:N`, `spread:N` or indices like `0,12,24`"
+            ))
+        };
         if let Some(n) = s.strip_prefix("every:") {
             let n: usize = n.trim().parse().map_err(|_| bad())?;
-            return if n == 0 { Err(bad()) } else { Ok(Holdout::Every(n)) };
+            return if n == 0 {
+                Err(bad())
+            } else {
+                Ok(Holdout::Every(n))
+            };
         }
         if let Some(n) = s.strip_prefix("spread:") {
             let n: usize = n.trim().parse().map_err(|_| bad())?;
-            return if n == 0 { Err(bad()) } else { Ok(Holdout::Spread(n)) };
+            return if n == 0 {
+                Err(bad())
+            } else {
+                Ok(Holdout::Spread(n))
+            };
         }
-        let list: Vec<usize> = s.split(',').map(|p| p.trim().parse().map_err(|_| bad())).collect::<Result<_>>()?;
+        let list: Vec<usize> = s
+            .split(',')
+            .map(|p| p.trim().parse().map_err(|_| bad()))
+            .collect::<Result<_>>()?;
         if list.is_empty() {
             return Err(bad());
         }
@@ -63,7 +78,9 @@ impl Holdout {
             Holdout::Every(step) => (0..n).step_by(*step).collect(),
             Holdout::List(list) => {
                 if let Some(&bad) = list.iter().find(|&&i| i >= n) {
-                    return Err(Error::invalid(format!("hold-out index {bad} is out of range: the capture has {n} images")));
+                    return Err(Error::invalid(format!(
+                        "hold-out index {bad} is out of range: the capture has {n} images"
+                    )));
                 }
                 list.clone()
             }
@@ -72,14 +89,19 @@ impl Holdout {
                 if count == 1 {
                     vec![0]
                 } else {
-                    (0..count).map(|i| ((i * (n - 1)) as f64 / (count - 1) as f64).round() as usize).collect()
+                    (0..count)
+                        .map(|i| ((i * (n - 1)) as f64 / (count - 1) as f64).round() as usize)
+                        .collect()
                 }
             }
         };
         idx.sort_unstable();
         idx.dedup();
         if idx.len() >= n {
-            return Err(Error::invalid(format!("holding out {} of {n} images leaves nothing to fit", idx.len())));
+            return Err(Error::invalid(format!(
+                "holding out {} of {n} images leaves nothing to fit",
+                idx.len()
+            )));
         }
         Ok(idx)
     }
@@ -133,7 +155,11 @@ pub struct EvalReport {
 }
 
 /// Hold out, fit, relight and compare.
-pub fn evaluate(capture: &Capture, options: &EvalOptions, progress: &dyn Progress) -> Result<EvalReport> {
+pub fn evaluate(
+    capture: &Capture,
+    options: &EvalOptions,
+    progress: &dyn Progress,
+) -> Result<EvalReport> {
     let n = capture.len();
     let held = options.holdout.indices(n)?;
     let mask = match &options.mask {
@@ -146,7 +172,11 @@ pub fn evaluate(capture: &Capture, options: &EvalOptions, progress: &dyn Progres
         }
     }
     crate::memory::reset_peak_rss();
-    let groups: Vec<Vec<usize>> = if options.joint { vec![held.clone()] } else { held.iter().map(|&i| vec![i]).collect() };
+    let groups: Vec<Vec<usize>> = if options.joint {
+        vec![held.clone()]
+    } else {
+        held.iter().map(|&i| vec![i]).collect()
+    };
     let mut results = Vec::new();
     let mut bytes_per_pixel = f64::NAN;
     let mut fit_seconds = Vec::new();
@@ -155,9 +185,15 @@ pub fn evaluate(capture: &Capture, options: &EvalOptions, progress: &dyn Progres
         let mut fitted = fit::fit(&capture.subset(&train), &options.fit, progress)?;
         fit_seconds.push(fitted.report.seconds);
         if bytes_per_pixel.is_nan() {
-            bytes_per_pixel = stored_bytes(&fitted.image, options.storage)? as f64 / (capture.width * capture.height) as f64;
+            bytes_per_pixel = stored_bytes(&fitted.image, options.storage)? as f64
+                / (capture.width * capture.height) as f64;
         }
-        fitted.image.maps.data.iter_mut().for_each(|v| *v = options.storage.quantize(*v));
+        fitted
+            .image
+            .maps
+            .data
+            .iter_mut()
+            .for_each(|v| *v = options.storage.quantize(*v));
         for &index in group {
             let light = &capture.lights[index];
             let color = light.intensity.map(|v| v as f64);
@@ -176,7 +212,9 @@ pub fn evaluate(capture: &Capture, options: &EvalOptions, progress: &dyn Progres
             });
         }
     }
-    let mean = |f: &dyn Fn(&HoldoutResult) -> f64| results.iter().map(f).sum::<f64>() / results.len() as f64;
+    let mean = |f: &dyn Fn(&HoldoutResult) -> f64| {
+        results.iter().map(f).sum::<f64>() / results.len() as f64
+    };
     Ok(EvalReport {
         capture: capture.origin.clone(),
         images: n,
@@ -191,7 +229,11 @@ pub fn evaluate(capture: &Capture, options: &EvalOptions, progress: &dyn Progres
         },
         color_space: options.fit.color_space.name().into(),
         storage: options.storage.name().into(),
-        protocol: if options.joint { "joint".into() } else { "one fit per hold-out".into() },
+        protocol: if options.joint {
+            "joint".into()
+        } else {
+            "one fit per hold-out".into()
+        },
         psnr_srgb8_mean: mean(&|r| r.psnr_srgb8),
         psnr_linear_mean: mean(&|r| r.psnr_linear),
         masked: mask.is_some(),
@@ -204,20 +246,28 @@ pub fn evaluate(capture: &Capture, options: &EvalOptions, progress: &dyn Progres
 
 /// Bytes of the EXR file the maps would be stored in.
 fn stored_bytes(image: &crate::maps::RelightableImage, storage: Storage) -> Result<u64> {
-    let dir = tempfile::tempdir().map_err(|e| Error::io(std::path::Path::new("."), "create a temporary folder in", e))?;
+    let dir = tempfile::tempdir()
+        .map_err(|e| Error::io(std::path::Path::new("."), "create a temporary folder in", e))?;
     let path = dir.path().join("maps.exr");
     crate::codec::exr::write(&path, image, storage)?;
-    Ok(std::fs::metadata(&path).map_err(|e| Error::io(&path, "measure", e))?.len())
+    Ok(std::fs::metadata(&path)
+        .map_err(|e| Error::io(&path, "measure", e))?
+        .len())
 }
 
 /// (8-bit sRGB PSNR over all samples, linear PSNR inside `mask`) of `test` against `reference`.
 pub fn compare(test: &[f32], reference: &[f32], mask: Option<&[f32]>) -> (f64, f64) {
     let mut sq8 = 0.0f64;
     let (mut sq, mut count) = (0.0f64, 0usize);
-    for (p, (t, r)) in test.chunks_exact(3).zip(reference.chunks_exact(3)).enumerate() {
+    for (p, (t, r)) in test
+        .chunks_exact(3)
+        .zip(reference.chunks_exact(3))
+        .enumerate()
+    {
         let inside = mask.is_none_or(|m| m[p] > 0.5);
         for c in 0..3 {
-            let d8 = crate::color::linear_to_srgb8(t[c]) as f64 - crate::color::linear_to_srgb8(r[c]) as f64;
+            let d8 = crate::color::linear_to_srgb8(t[c]) as f64
+                - crate::color::linear_to_srgb8(r[c]) as f64;
             sq8 += d8 * d8;
             if inside {
                 let t = if t[c].is_finite() { t[c] } else { 0.0 };
@@ -236,11 +286,27 @@ mod tests {
 
     #[test]
     fn holdout_specs() {
-        assert_eq!("every:10".parse::<Holdout>().unwrap().indices(25).unwrap(), vec![0, 10, 20]);
-        assert_eq!("0,12,24,35,47".parse::<Holdout>().unwrap().indices(60).unwrap(), vec![0, 12, 24, 35, 47]);
+        assert_eq!(
+            "every:10".parse::<Holdout>().unwrap().indices(25).unwrap(),
+            vec![0, 10, 20]
+        );
+        assert_eq!(
+            "0,12,24,35,47"
+                .parse::<Holdout>()
+                .unwrap()
+                .indices(60)
+                .unwrap(),
+            vec![0, 12, 24, 35, 47]
+        );
         // The peer protocol: round(i·(N−1)/4).
-        assert_eq!("spread:5".parse::<Holdout>().unwrap().indices(60).unwrap(), vec![0, 15, 30, 44, 59]);
-        assert_eq!("spread:5".parse::<Holdout>().unwrap().indices(47).unwrap(), vec![0, 12, 23, 35, 46]);
+        assert_eq!(
+            "spread:5".parse::<Holdout>().unwrap().indices(60).unwrap(),
+            vec![0, 15, 30, 44, 59]
+        );
+        assert_eq!(
+            "spread:5".parse::<Holdout>().unwrap().indices(47).unwrap(),
+            vec![0, 12, 23, 35, 46]
+        );
         assert!("every:0".parse::<Holdout>().is_err());
         assert!("1,x".parse::<Holdout>().is_err());
         assert!("3,99".parse::<Holdout>().unwrap().indices(10).is_err());

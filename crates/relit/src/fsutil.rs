@@ -16,7 +16,10 @@ where
         _ => Path::new("."),
     };
     if !dir.is_dir() {
-        return Err(Error::new(ErrorKind::Io, format!("output folder {} does not exist", dir.display())));
+        return Err(Error::new(
+            ErrorKind::Io,
+            format!("output folder {} does not exist", dir.display()),
+        ));
     }
     let mut tmp = tempfile::Builder::new()
         .prefix(".relit-")
@@ -28,13 +31,16 @@ where
         write(&mut writer)?;
         writer.flush().map_err(|e| Error::io(path, "write", e))?;
     }
-    tmp.persist(path).map_err(|e| Error::io(path, "rename the finished file to", e.error))?;
+    tmp.persist(path)
+        .map_err(|e| Error::io(path, "rename the finished file to", e.error))?;
     Ok(())
 }
 
 /// Write bytes atomically.
 pub fn write_bytes_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
-    write_atomically(path, |w| w.write_all(bytes).map_err(|e| Error::io(path, "write", e)))
+    write_atomically(path, |w| {
+        w.write_all(bytes).map_err(|e| Error::io(path, "write", e))
+    })
 }
 
 #[cfg(test)]
@@ -52,7 +58,11 @@ mod tests {
         });
         assert!(err.is_err());
         assert_eq!(std::fs::read(&path).unwrap(), b"old");
-        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1, "no temporary file left behind");
+        assert_eq!(
+            std::fs::read_dir(dir.path()).unwrap().count(),
+            1,
+            "no temporary file left behind"
+        );
         write_bytes_atomically(&path, b"new").unwrap();
         assert_eq!(std::fs::read(&path).unwrap(), b"new");
     }

@@ -22,7 +22,11 @@ pub struct ImageRgb {
 impl ImageRgb {
     /// A black image.
     pub fn new(width: usize, height: usize) -> Self {
-        Self { width, height, data: vec![0.0; 3 * width * height] }
+        Self {
+            width,
+            height,
+            data: vec![0.0; 3 * width * height],
+        }
     }
 
     /// The number of pixels.
@@ -43,7 +47,10 @@ impl ImageRgb {
 
     /// The 8-bit sRGB encoding of the image.
     pub fn to_srgb8(&self) -> Vec<u8> {
-        self.data.iter().map(|&v| color::linear_to_srgb8(v)).collect()
+        self.data
+            .iter()
+            .map(|&v| color::linear_to_srgb8(v))
+            .collect()
     }
 }
 
@@ -53,13 +60,17 @@ fn is_float_format(path: &Path) -> bool {
 }
 
 fn extension(path: &Path) -> Option<String> {
-    path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase())
+    path.extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase())
 }
 
 /// The width and height of an image file, reading only its header.
 pub fn dimensions(path: &Path) -> Result<(usize, usize)> {
     let reader = open_reader(path)?;
-    let (w, h) = reader.into_dimensions().map_err(|e| Error::image(path, e))?;
+    let (w, h) = reader
+        .into_dimensions()
+        .map_err(|e| Error::image(path, e))?;
     Ok((w as usize, h as usize))
 }
 
@@ -81,7 +92,9 @@ fn open_reader(path: &Path) -> Result<ImageReader<std::io::BufReader<std::fs::Fi
 /// `encoding` overrides how integer samples are interpreted; by default 8/16-bit
 /// samples are sRGB and float samples linear (see the [conventions](crate)).
 pub fn load_linear(path: &Path, encoding: Option<Encoding>) -> Result<ImageRgb> {
-    let decoded = open_reader(path)?.decode().map_err(|e| Error::image(path, e))?;
+    let decoded = open_reader(path)?
+        .decode()
+        .map_err(|e| Error::image(path, e))?;
     let (width, height) = (decoded.width() as usize, decoded.height() as usize);
     let srgb = encoding.unwrap_or(Encoding::Srgb) == Encoding::Srgb;
     let data: Vec<f32> = match &decoded {
@@ -119,7 +132,11 @@ pub fn load_linear(path: &Path, encoding: Option<Encoding>) -> Result<ImageRgb> 
             }
         }
     };
-    Ok(ImageRgb { width, height, data })
+    Ok(ImageRgb {
+        width,
+        height,
+        data,
+    })
 }
 
 /// Decode a single-channel image (depth, mask) as float values without any transfer
@@ -129,7 +146,9 @@ pub fn load_scalar(path: &Path) -> Result<(usize, usize, Vec<f32>)> {
     if extension(path).as_deref() == Some("exr") {
         return crate::codec::exr::read_scalar_channel(path);
     }
-    let decoded = open_reader(path)?.decode().map_err(|e| Error::image(path, e))?;
+    let decoded = open_reader(path)?
+        .decode()
+        .map_err(|e| Error::image(path, e))?;
     let (w, h) = (decoded.width() as usize, decoded.height() as usize);
     Ok((w, h, decoded.to_luma32f().into_raw()))
 }
@@ -152,15 +171,28 @@ pub fn save(path: &Path, image: &ImageRgb, exposure: f64) -> Result<()> {
         _ => {
             return Err(Error::new(
                 ErrorKind::InvalidInput,
-                format!("cannot tell the output format of {} (use .png, .jpg, .tif or .exr)", path.display()),
+                format!(
+                    "cannot tell the output format of {} (use .png, .jpg, .tif or .exr)",
+                    path.display()
+                ),
             ))
         }
     };
-    let bytes: Vec<u8> = image.data.iter().map(|&v| color::linear_to_srgb8(v * factor)).collect();
+    let bytes: Vec<u8> = image
+        .data
+        .iter()
+        .map(|&v| color::linear_to_srgb8(v * factor))
+        .collect();
     let buffer = image::RgbImage::from_raw(image.width as u32, image.height as u32, bytes)
         .ok_or_else(|| Error::invalid("image buffer has the wrong size"))?;
     write_atomically(path, |w| {
-        buffer.write_to(w, format).map_err(|e| Error::new(ErrorKind::Image, format!("cannot encode {}", path.display())).with_source(e))
+        buffer.write_to(w, format).map_err(|e| {
+            Error::new(
+                ErrorKind::Image,
+                format!("cannot encode {}", path.display()),
+            )
+            .with_source(e)
+        })
     })
 }
 
@@ -169,21 +201,37 @@ pub fn save_srgb8_png(path: &Path, width: usize, height: usize, bytes: Vec<u8>) 
     let buffer = image::RgbImage::from_raw(width as u32, height as u32, bytes)
         .ok_or_else(|| Error::invalid("image buffer has the wrong size"))?;
     write_atomically(path, |w| {
-        buffer
-            .write_to(w, image::ImageFormat::Png)
-            .map_err(|e| Error::new(ErrorKind::Image, format!("cannot encode {}", path.display())).with_source(e))
+        buffer.write_to(w, image::ImageFormat::Png).map_err(|e| {
+            Error::new(
+                ErrorKind::Image,
+                format!("cannot encode {}", path.display()),
+            )
+            .with_source(e)
+        })
     })
 }
 
 /// Write a 16-bit PNG of linear values (no transfer curve), e.g. for test captures.
 pub fn save_png16_linear(path: &Path, image: &ImageRgb) -> Result<()> {
-    let samples: Vec<u16> = image.data.iter().map(|&v| (v.clamp(0.0, 1.0) * 65535.0 + 0.5) as u16).collect();
-    let buffer = image::ImageBuffer::<image::Rgb<u16>, Vec<u16>>::from_raw(image.width as u32, image.height as u32, samples)
-        .ok_or_else(|| Error::invalid("image buffer has the wrong size"))?;
+    let samples: Vec<u16> = image
+        .data
+        .iter()
+        .map(|&v| (v.clamp(0.0, 1.0) * 65535.0 + 0.5) as u16)
+        .collect();
+    let buffer = image::ImageBuffer::<image::Rgb<u16>, Vec<u16>>::from_raw(
+        image.width as u32,
+        image.height as u32,
+        samples,
+    )
+    .ok_or_else(|| Error::invalid("image buffer has the wrong size"))?;
     write_atomically(path, |w| {
-        buffer
-            .write_to(w, image::ImageFormat::Png)
-            .map_err(|e| Error::new(ErrorKind::Image, format!("cannot encode {}", path.display())).with_source(e))
+        buffer.write_to(w, image::ImageFormat::Png).map_err(|e| {
+            Error::new(
+                ErrorKind::Image,
+                format!("cannot encode {}", path.display()),
+            )
+            .with_source(e)
+        })
     })
 }
 
@@ -245,19 +293,28 @@ pub fn contact_sheet(frames: &[ImageRgb], columns: usize, max_width: usize) -> I
     }
     let columns = columns.clamp(1, frames.len());
     let (fw, fh) = (frames[0].width, frames[0].height);
-    let factor = ((fw * columns) as f64 / max_width.max(1) as f64).ceil().max(1.0) as usize;
+    let factor = ((fw * columns) as f64 / max_width.max(1) as f64)
+        .ceil()
+        .max(1.0) as usize;
     let (tw, th) = ((fw / factor).max(1), (fh / factor).max(1));
     let rows = frames.len().div_ceil(columns);
-    let mut sheet = ImageRgb::new(columns * (tw + GUTTER) + GUTTER, rows * (th + GUTTER) + GUTTER);
+    let mut sheet = ImageRgb::new(
+        columns * (tw + GUTTER) + GUTTER,
+        rows * (th + GUTTER) + GUTTER,
+    );
     sheet.data.iter_mut().for_each(|v| *v = 0.01);
     for (n, frame) in frames.iter().enumerate() {
-        let (ox, oy) = (GUTTER + (n % columns) * (tw + GUTTER), GUTTER + (n / columns) * (th + GUTTER));
+        let (ox, oy) = (
+            GUTTER + (n % columns) * (tw + GUTTER),
+            GUTTER + (n / columns) * (th + GUTTER),
+        );
         for y in 0..th {
             for x in 0..tw {
                 let mut sum = [0f32; 3];
                 for sy in 0..factor {
                     for sx in 0..factor {
-                        let px = frame.get((x * factor + sx).min(fw - 1), (y * factor + sy).min(fh - 1));
+                        let px =
+                            frame.get((x * factor + sx).min(fw - 1), (y * factor + sy).min(fh - 1));
                         (0..3).for_each(|c| sum[c] += px[c]);
                     }
                 }

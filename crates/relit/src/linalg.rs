@@ -55,7 +55,6 @@ pub fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
     backward_solve(l, n, b);
 }
 
-
 /// `c = a · b` in single precision, for row-major `a` (m×k), `b` (k×n), `c` (m×n).
 pub fn matmul_f32(m: usize, k: usize, n: usize, a: &[f32], b: &[f32], c: &mut [f32]) {
     assert!(a.len() >= m * k && b.len() >= k * n && c.len() >= m * n);
@@ -65,7 +64,20 @@ pub fn matmul_f32(m: usize, k: usize, n: usize, a: &[f32], b: &[f32], c: &mut [f
     // SAFETY: the slices are at least as long as the strides below address.
     unsafe {
         matrixmultiply::sgemm(
-            m, k, n, 1.0, a.as_ptr(), k as isize, 1, b.as_ptr(), n as isize, 1, 0.0, c.as_mut_ptr(), n as isize, 1,
+            m,
+            k,
+            n,
+            1.0,
+            a.as_ptr(),
+            k as isize,
+            1,
+            b.as_ptr(),
+            n as isize,
+            1,
+            0.0,
+            c.as_mut_ptr(),
+            n as isize,
+            1,
         );
     }
 }
@@ -79,7 +91,20 @@ pub fn matmul_bt(m: usize, k: usize, n: usize, a: &[f64], b: &[f64], c: &mut [f6
     // SAFETY: b is read through transposed strides that stay inside its n×k extent.
     unsafe {
         matrixmultiply::dgemm(
-            m, k, n, 1.0, a.as_ptr(), k as isize, 1, b.as_ptr(), 1, k as isize, 0.0, c.as_mut_ptr(), n as isize, 1,
+            m,
+            k,
+            n,
+            1.0,
+            a.as_ptr(),
+            k as isize,
+            1,
+            b.as_ptr(),
+            1,
+            k as isize,
+            0.0,
+            c.as_mut_ptr(),
+            n as isize,
+            1,
         );
     }
 }
@@ -92,7 +117,9 @@ mod tests {
     fn cholesky_solves_an_spd_system() {
         let n = 5;
         // a = Mᵀ M + I is SPD.
-        let m: Vec<f64> = (0..n * n).map(|i| ((i * 7 % 11) as f64 - 5.0) / 3.0).collect();
+        let m: Vec<f64> = (0..n * n)
+            .map(|i| ((i * 7 % 11) as f64 - 5.0) / 3.0)
+            .collect();
         let mut a = vec![0.0; n * n];
         matmul_bt(n, n, n, &m, &m, &mut a);
         (0..n).for_each(|i| a[i * n + i] += 1.0);

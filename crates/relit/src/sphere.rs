@@ -24,7 +24,11 @@ impl Vec3 {
         self.x * o.x + self.y * o.y + self.z * o.z
     }
     pub fn cross(self, o: Self) -> Self {
-        Self::new(self.y * o.z - self.z * o.y, self.z * o.x - self.x * o.z, self.x * o.y - self.y * o.x)
+        Self::new(
+            self.y * o.z - self.z * o.y,
+            self.z * o.x - self.x * o.z,
+            self.x * o.y - self.y * o.x,
+        )
     }
     pub fn length(self) -> f64 {
         self.dot(self).sqrt()
@@ -146,7 +150,11 @@ pub fn grid_quadrature_weights(dirs: &[Vec3]) -> Option<Vec<f64>> {
     if thetas[0] > 1.01 * spacing || thetas[rings - 1] < PI - 1.01 * spacing {
         return None;
     }
-    let ring_of = |theta: f64| thetas.iter().position(|t| (t - theta).abs() < RING_TOLERANCE);
+    let ring_of = |theta: f64| {
+        thetas
+            .iter()
+            .position(|t| (t - theta).abs() < RING_TOLERANCE)
+    };
     let mut counts = vec![0usize; rings];
     let mut phis: Vec<Vec<f64>> = vec![Vec::new(); rings];
     for &(theta, phi) in &angles {
@@ -177,9 +185,16 @@ pub fn grid_quadrature_weights(dirs: &[Vec3]) -> Option<Vec<f64>> {
             0.5 * (thetas[r - 1] + thetas[r])
         }
     };
-    let band: Vec<f64> = (0..rings).map(|r| 2.0 * PI * (edge(r).cos() - edge(r + 1).cos())).collect();
-    let mut weights: Vec<f64> =
-        angles.iter().map(|&(theta, _)| { let r = ring_of(theta).unwrap_or(0); band[r] / counts[r] as f64 }).collect();
+    let band: Vec<f64> = (0..rings)
+        .map(|r| 2.0 * PI * (edge(r).cos() - edge(r + 1).cos()))
+        .collect();
+    let mut weights: Vec<f64> = angles
+        .iter()
+        .map(|&(theta, _)| {
+            let r = ring_of(theta).unwrap_or(0);
+            band[r] / counts[r] as f64
+        })
+        .collect();
     let mean = weights.iter().sum::<f64>() / weights.len() as f64;
     weights.iter_mut().for_each(|w| *w /= mean);
     Some(weights)
@@ -194,7 +209,9 @@ mod tests {
         for d in fibonacci(100).iter().chain(grid(7, 14).iter()) {
             assert!((d.length() - 1.0).abs() < 1e-12);
         }
-        assert!(hemisphere_fibonacci(50).iter().all(|d| d.z > 0.0 && (d.length() - 1.0).abs() < 1e-12));
+        assert!(hemisphere_fibonacci(50)
+            .iter()
+            .all(|d| d.z > 0.0 && (d.length() - 1.0).abs() < 1e-12));
     }
 
     #[test]
@@ -203,7 +220,8 @@ mod tests {
         let w = grid_quadrature_weights(&dirs).expect("a full grid is recognised");
         // Mean-1 weights times 4π/N integrate: ∫ z² dω = 4π/3 (midpoint rule over 24
         // bands: error ~0.2%).
-        let integral: f64 = dirs.iter().zip(&w).map(|(d, w)| w * d.z * d.z).sum::<f64>() * 4.0 * PI / dirs.len() as f64;
+        let integral: f64 = dirs.iter().zip(&w).map(|(d, w)| w * d.z * d.z).sum::<f64>() * 4.0 * PI
+            / dirs.len() as f64;
         assert!((integral - 4.0 * PI / 3.0).abs() < 0.01, "{integral}");
         assert!(grid_quadrature_weights(&fibonacci(200)).is_none());
         assert!(grid_quadrature_weights(&hemisphere_fibonacci(60)).is_none());

@@ -28,7 +28,10 @@ impl BumpyPlane {
 
     /// Normal (light frame: x right, y up, z toward the camera) and albedo of pixel (x, y).
     fn surface(&self, x: usize, y: usize) -> (Vec3, [f64; 3]) {
-        let (u, v) = ((x as f64 + 0.5) / self.width as f64, (y as f64 + 0.5) / self.height as f64);
+        let (u, v) = (
+            (x as f64 + 0.5) / self.width as f64,
+            (y as f64 + 0.5) / self.height as f64,
+        );
         let e = 1e-4;
         let dhdu = (Self::height_at(u + e, v) - Self::height_at(u - e, v)) / (2.0 * e);
         let dhdv = (Self::height_at(u, v + e) - Self::height_at(u, v - e)) / (2.0 * e);
@@ -53,9 +56,14 @@ impl BumpyPlane {
             for x in 0..self.width {
                 let (n, albedo) = self.surface(x, y);
                 let diffuse = n.dot(l).max(0.0);
-                let spec = if diffuse > 0.0 { 0.15 * n.dot(half).max(0.0).powi(12) } else { 0.0 };
+                let spec = if diffuse > 0.0 {
+                    0.15 * n.dot(half).max(0.0).powi(12)
+                } else {
+                    0.0
+                };
                 for c in 0..3 {
-                    img.data[3 * (y * self.width + x) + c] = (0.8 * albedo[c] * diffuse + spec) as f32;
+                    img.data[3 * (y * self.width + x) + c] =
+                        (0.8 * albedo[c] * diffuse + spec) as f32;
                 }
             }
         }
@@ -64,10 +72,23 @@ impl BumpyPlane {
 
     /// A capture under `dirs` whose images are rendered when the fit asks for them.
     pub fn capture(&self, dirs: &[Vec3]) -> Capture {
-        let generators: Vec<Arc<dyn ImageGenerator>> =
-            dirs.iter().map(|&light| Arc::new(PlaneUnderLight { plane: *self, light }) as Arc<dyn ImageGenerator>).collect();
-        Capture::from_generators(generators, dirs, self.width, self.height, Projection::Planar { fov_y_deg: None })
-            .expect("consistent synthetic capture")
+        let generators: Vec<Arc<dyn ImageGenerator>> = dirs
+            .iter()
+            .map(|&light| {
+                Arc::new(PlaneUnderLight {
+                    plane: *self,
+                    light,
+                }) as Arc<dyn ImageGenerator>
+            })
+            .collect();
+        Capture::from_generators(
+            generators,
+            dirs,
+            self.width,
+            self.height,
+            Projection::Planar { fov_y_deg: None },
+        )
+        .expect("consistent synthetic capture")
     }
 
     /// Write the capture as 8-bit sRGB PNGs plus `dirs.lp` into `folder`; returns the `.lp` path.
@@ -79,7 +100,10 @@ impl BumpyPlane {
             names.push(name);
         }
         let lp = folder.join("dirs.lp");
-        crate::fsutil::write_bytes_atomically(&lp, crate::capture::lp::format(&names, dirs).as_bytes())?;
+        crate::fsutil::write_bytes_atomically(
+            &lp,
+            crate::capture::lp::format(&names, dirs).as_bytes(),
+        )?;
         Ok(lp)
     }
 }

@@ -5,7 +5,10 @@ use relit::eval::{evaluate, EvalOptions, Holdout};
 use std::path::PathBuf;
 
 fn shared_item(name: &str) -> Option<PathBuf> {
-    let lp = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/realrti").join(name).join("dirs.lp");
+    let lp = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data/realrti")
+        .join(name)
+        .join("dirs.lp");
     if lp.is_file() {
         Some(lp)
     } else {
@@ -23,9 +26,14 @@ fn shared_item(name: &str) -> Option<PathBuf> {
 /// relit measures ~36.7 dB here; falling under the peer's best means a regression.
 #[test]
 fn item1_beats_the_best_peer_figure() {
-    let Some(lp) = shared_item("item1") else { return };
+    let Some(lp) = shared_item("item1") else {
+        return;
+    };
     let capture = Capture::open(&lp).unwrap();
-    assert_eq!((capture.len(), capture.width, capture.height), (60, 487, 439));
+    assert_eq!(
+        (capture.len(), capture.width, capture.height),
+        (60, 487, 439)
+    );
     let options = EvalOptions {
         holdout: Holdout::Spread(5),
         fit: Default::default(),
@@ -36,6 +44,14 @@ fn item1_beats_the_best_peer_figure() {
     let report = evaluate(&capture, &options, &relit::progress::Silent).unwrap();
     let indices: Vec<usize> = report.holdouts.iter().map(|h| h.index).collect();
     assert_eq!(indices, vec![0, 15, 30, 44, 59]);
-    assert!(report.psnr_srgb8_mean > 34.04, "item1: {:.2} dB", report.psnr_srgb8_mean);
-    assert!(report.psnr_linear_mean > 38.0, "item1 linear: {:.2} dB", report.psnr_linear_mean);
+    assert!(
+        report.psnr_srgb8_mean > 34.04,
+        "item1: {:.2} dB",
+        report.psnr_srgb8_mean
+    );
+    assert!(
+        report.psnr_linear_mean > 38.0,
+        "item1 linear: {:.2} dB",
+        report.psnr_linear_mean
+    );
 }

@@ -26,7 +26,9 @@ impl SphericalHarmonics {
     /// Spherical harmonics of `bands` bands (1..=8).
     pub fn new(bands: usize) -> Result<Self> {
         if !(1..=MAX_BANDS).contains(&bands) {
-            return Err(Error::invalid(format!("spherical harmonics need 1 to {MAX_BANDS} bands, got {bands}")));
+            return Err(Error::invalid(format!(
+                "spherical harmonics need 1 to {MAX_BANDS} bands, got {bands}"
+            )));
         }
         let mut norm = vec![0.0; MAX_BANDS * MAX_BANDS];
         for l in 0..bands {
@@ -34,7 +36,11 @@ impl SphericalHarmonics {
                 // K_lm = sqrt((2l+1)/(4π) · (l-m)!/(l+m)!)
                 let ratio: f64 = ((l - m + 1)..=(l + m)).map(|f| 1.0 / f as f64).product();
                 let k = ((2 * l + 1) as f64 / (4.0 * PI) * ratio).sqrt();
-                norm[l * MAX_BANDS + m] = if m == 0 { k } else { std::f64::consts::SQRT_2 * k };
+                norm[l * MAX_BANDS + m] = if m == 0 {
+                    k
+                } else {
+                    std::f64::consts::SQRT_2 * k
+                };
             }
         }
         Ok(Self { bands, norm })
@@ -83,7 +89,8 @@ impl Basis for SphericalHarmonics {
                     p_prev = p_cur;
                     p_cur = (2 * m + 1) as f64 * z * pmm;
                 } else if l > m + 1 {
-                    let next = ((2 * l - 1) as f64 * z * p_cur - (l + m - 1) as f64 * p_prev) / (l - m) as f64;
+                    let next = ((2 * l - 1) as f64 * z * p_cur - (l + m - 1) as f64 * p_prev)
+                        / (l - m) as f64;
                     p_prev = p_cur;
                     p_cur = next;
                 }
@@ -170,7 +177,10 @@ mod tests {
         for &(d, l, m, expected) in REFERENCE {
             let y = sh.values(Vec3::from(d));
             let got = y[sh_index(l, m)];
-            assert!((got - expected).abs() < REFERENCE_TOLERANCE, "Y_{l},{m} at {d:?}: {got} vs {expected}");
+            assert!(
+                (got - expected).abs() < REFERENCE_TOLERANCE,
+                "Y_{l},{m} at {d:?}: {got} vs {expected}"
+            );
         }
         // The pole row lists all 25 (l, m); the off-axis ones must vanish there.
         let pole = sh.values(Vec3::new(0.0, 0.0, 1.0));
@@ -196,7 +206,10 @@ mod tests {
                 for m in -(l as isize)..=(l as isize) {
                     let want = appendix_y(l, m, theta, phi);
                     let got = y[sh_index(l, m)];
-                    assert!((got - want).abs() < APPENDIX_TOLERANCE, "l={l} m={m}: {got} vs {want}");
+                    assert!(
+                        (got - want).abs() < APPENDIX_TOLERANCE,
+                        "l={l} m={m}: {got} vs {want}"
+                    );
                 }
             }
         }
@@ -221,7 +234,11 @@ mod tests {
         for i in 0..k {
             for j in 0..k {
                 let want = if i == j { 1.0 } else { 0.0 };
-                assert!((gram[i * k + j] - want).abs() < 2e-3, "<Y{i},Y{j}> = {}", gram[i * k + j]);
+                assert!(
+                    (gram[i * k + j] - want).abs() < 2e-3,
+                    "<Y{i},Y{j}> = {}",
+                    gram[i * k + j]
+                );
             }
         }
     }

@@ -24,9 +24,20 @@ impl Spill {
     pub fn create(width: usize, height: usize, images: usize, strip_bytes: usize) -> Result<Spill> {
         let row_bytes = width * 3 * 4 * images;
         let rows_per_strip = (strip_bytes / row_bytes.max(1)).clamp(1, height.max(1));
-        let file = tempfile::tempfile()
-            .map_err(|e| Error::new(ErrorKind::Io, "cannot create the fit's temporary spill file").with_source(e))?;
-        Ok(Spill { file, width, height, images, rows_per_strip })
+        let file = tempfile::tempfile().map_err(|e| {
+            Error::new(
+                ErrorKind::Io,
+                "cannot create the fit's temporary spill file",
+            )
+            .with_source(e)
+        })?;
+        Ok(Spill {
+            file,
+            width,
+            height,
+            images,
+            rows_per_strip,
+        })
     }
 
     pub fn strips(&self) -> usize {
@@ -69,13 +80,21 @@ impl Spill {
         let mut bytes = vec![0u8; count * 3 * 4 * self.images];
         read_at(&self.file, &mut bytes, self.offset(s, 0))?;
         buffer.clear();
-        buffer.extend(bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])));
+        buffer.extend(
+            bytes
+                .chunks_exact(4)
+                .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+        );
         Ok((r0 * self.width, count))
     }
 }
 
 fn spill_error(e: std::io::Error) -> Error {
-    Error::new(ErrorKind::Io, "the fit's temporary spill file failed (is the temporary folder full?)").with_source(e)
+    Error::new(
+        ErrorKind::Io,
+        "the fit's temporary spill file failed (is the temporary folder full?)",
+    )
+    .with_source(e)
 }
 
 #[cfg(unix)]

@@ -9,10 +9,20 @@ use crate::sphere::{fibonacci, grid, hemisphere_fibonacci, Vec3};
 fn known_coefficients(pixels: usize, k: usize) -> Vec<f64> {
     let mut state = 12345u64;
     let mut next = || {
-        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
         ((state >> 33) as f64 / (1u64 << 31) as f64) - 0.5
     };
-    (0..pixels * k * 3).map(|x| if (x / 3) % k == 0 { 1.2 + 0.2 * next() } else { 0.08 * next() }).collect()
+    (0..pixels * k * 3)
+        .map(|x| {
+            if (x / 3) % k == 0 {
+                1.2 + 0.2 * next()
+            } else {
+                0.08 * next()
+            }
+        })
+        .collect()
 }
 
 /// Images of the band-limited function with coefficients `coef` (pixel, i, c).
@@ -26,7 +36,9 @@ fn capture_of(coef: &[f64], w: usize, h: usize, bands: usize, dirs: &[Vec3]) -> 
             let mut img = ImageRgb::new(w, h);
             for p in 0..w * h {
                 for c in 0..3 {
-                    img.data[3 * p + c] = (0..k).map(|i| coef[(p * k + i) * 3 + c] * y[i]).sum::<f64>() as f32;
+                    img.data[3 * p + c] = (0..k)
+                        .map(|i| coef[(p * k + i) * 3 + c] * y[i])
+                        .sum::<f64>() as f32;
                 }
             }
             img
@@ -49,7 +61,12 @@ fn max_coefficient_error(maps: &CoefficientMaps, coef: &[f64]) -> f64 {
 }
 
 fn options(bands: usize, objective: Objective, lambda: f64) -> FitOptions {
-    FitOptions { basis: BasisSpec::Sh { bands }, objective, lambda: Lambda::Fixed(lambda), ..Default::default() }
+    FitOptions {
+        basis: BasisSpec::Sh { bands },
+        objective,
+        lambda: Lambda::Fixed(lambda),
+        ..Default::default()
+    }
 }
 
 /// f32 images and f32 maps bound how exactly coefficients come back.
@@ -92,7 +109,10 @@ fn grid_quadrature_fit_equals_projection() {
 
 #[test]
 fn strips_do_not_change_the_perceptual_fit() {
-    let plane = crate::synth::BumpyPlane { width: 24, height: 17 };
+    let plane = crate::synth::BumpyPlane {
+        width: 24,
+        height: 17,
+    };
     let capture = plane.capture(&hemisphere_fibonacci(40));
     let mut opts = options(3, Objective::Perceptual, 1e-4);
     let whole = fit(&capture, &opts, &Silent).unwrap();
@@ -104,7 +124,10 @@ fn strips_do_not_change_the_perceptual_fit() {
 
 #[test]
 fn fit_then_relight_reproduces_captured_and_new_lights() {
-    let plane = crate::synth::BumpyPlane { width: 40, height: 30 };
+    let plane = crate::synth::BumpyPlane {
+        width: 40,
+        height: 30,
+    };
     let dirs = hemisphere_fibonacci(80);
     let capture = plane.capture(&dirs);
     let out = fit(&capture, &FitOptions::default(), &Silent).unwrap();
@@ -130,10 +153,16 @@ fn fit_then_relight_reproduces_captured_and_new_lights() {
 
 #[test]
 fn display_maps_reproduce_srgb_values() {
-    let plane = crate::synth::BumpyPlane { width: 20, height: 10 };
+    let plane = crate::synth::BumpyPlane {
+        width: 20,
+        height: 10,
+    };
     let dirs = hemisphere_fibonacci(60);
     let capture = plane.capture(&dirs);
-    let opts = FitOptions { color_space: MapSpace::Srgb, ..Default::default() };
+    let opts = FitOptions {
+        color_space: MapSpace::Srgb,
+        ..Default::default()
+    };
     let out = fit(&capture, &opts, &Silent).unwrap();
     assert_eq!(out.image.meta.color_space, MapSpace::Srgb);
     let d = dirs[5];
@@ -149,7 +178,10 @@ fn display_maps_reproduce_srgb_values() {
 
 #[test]
 fn fewer_images_than_coefficients_still_fit_with_ridge() {
-    let plane = crate::synth::BumpyPlane { width: 8, height: 8 };
+    let plane = crate::synth::BumpyPlane {
+        width: 8,
+        height: 8,
+    };
     let capture = plane.capture(&hemisphere_fibonacci(10));
     let out = fit(&capture, &FitOptions::default(), &Silent).unwrap();
     assert!(out.image.maps.data.iter().all(|v| v.is_finite()));
@@ -159,7 +191,10 @@ fn fewer_images_than_coefficients_still_fit_with_ridge() {
 fn below_the_horizon_stays_bounded() {
     // Unregularised hemisphere fits explode below the horizon; the automatic λ must
     // keep the extrapolation within a small multiple of the observed range.
-    let plane = crate::synth::BumpyPlane { width: 16, height: 12 };
+    let plane = crate::synth::BumpyPlane {
+        width: 16,
+        height: 12,
+    };
     let capture = plane.capture(&hemisphere_fibonacci(60));
     let out = fit(&capture, &FitOptions::default(), &Silent).unwrap();
     let sh = BasisSpec::Sh { bands: 5 }.build().unwrap();
@@ -167,7 +202,9 @@ fn below_the_horizon_stays_bounded() {
     for d in fibonacci(200).into_iter().filter(|d| d.z < -0.2) {
         let y = sh.values(d);
         for p in 0..out.image.maps.pixels() {
-            let v: f64 = (0..25).map(|i| out.image.maps.plane(i, 1)[p] as f64 * y[i]).sum();
+            let v: f64 = (0..25)
+                .map(|i| out.image.maps.plane(i, 1)[p] as f64 * y[i])
+                .sum();
             worst = worst.max(v.abs());
         }
     }
