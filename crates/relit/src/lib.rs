@@ -37,6 +37,7 @@ pub mod capture;
 pub mod codec;
 pub mod color;
 pub mod engine;
+pub mod envmap;
 pub mod error;
 pub mod eval;
 pub mod fit;

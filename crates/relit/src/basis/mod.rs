@@ -5,8 +5,13 @@
 //! basis and the one factory that builds it; adding a basis is one new file plus one
 //! variant there.
 
+mod rotation;
 mod sh;
 
+pub use rotation::{
+    check_rotation, compose, mat3_apply, rotation_about_axis, rotation_from_yaw_pitch_roll,
+    transpose, Mat3, ShRotation, MAT3_IDENTITY,
+};
 pub use sh::{sh_index, SphericalHarmonics, MAX_BANDS};
 
 use crate::sphere::Vec3;
