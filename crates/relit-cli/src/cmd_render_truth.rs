@@ -11,10 +11,14 @@ use std::path::PathBuf;
 pub struct Args {
     /// The scene: a built-in name (attic, city, box), an .obj file or a .json scene file.
     pub scene: String,
-    /// A light, e.g. `dir:0.3,0.5,0.8` (toward the light); repeat for several.
-    #[arg(long = "light", required = true)]
+    /// A light: `dir:x,y,z` (toward the light), `point:x,y,z` or
+    /// `spot:px,py,pz/dx,dy,dz/cone_deg`; repeat for several.
+    #[arg(long = "light")]
     pub lights: Vec<String>,
-    /// RGB colour of every light, `r,g,b` (default white).
+    /// A light rig JSON file (every light type: area, projector…), added to --light.
+    #[arg(long)]
+    pub rig: Option<PathBuf>,
+    /// RGB colour of every --light, `r,g,b` (default white).
     #[arg(long)]
     pub color: Option<String>,
     /// Camera: cylindrical[:FOV], equirect, perspective[:FOV] or orthographic[:HEIGHT]
@@ -59,6 +63,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         emitters.push(Emitter::from_light(&light).with_context(|| format!("light `{spec}`"))?);
     }
+    if let Some(rig) = &args.rig {
+        emitters.extend(
+            Emitter::from_rig_file(rig)
+                .with_context(|| format!("reading the rig {}", rig.display()))?,
+        );
+    }
+    anyhow::ensure!(!emitters.is_empty(), "give at least one --light or a --rig");
     let projection = args
         .camera
         .as_deref()

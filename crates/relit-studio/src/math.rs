@@ -55,7 +55,7 @@ impl V3 {
         v3(self.x.max(o.x), self.y.max(o.y), self.z.max(o.z))
     }
     /// Component-wise product (colours).
-    pub fn mul(self, o: V3) -> V3 {
+    pub fn modulate(self, o: V3) -> V3 {
         v3(self.x * o.x, self.y * o.y, self.z * o.z)
     }
     /// Component `axis` (0 = x, 1 = y, 2 = z).

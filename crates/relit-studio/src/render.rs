@@ -262,9 +262,10 @@ impl<'s> Renderer<'s> {
 
     /// Direct light on one sample plus its one-bounce indirect light.
     fn shade(&self, sample: &Sample, index: usize, emitters: &[Emitter], rays: &mut u64) -> V3 {
+        let pixel = index / self.samples_per_pixel;
         let mut direct = V3::ZERO;
         for emitter in emitters {
-            emitter.illuminate(sample.origin, &mut |incident| {
+            emitter.illuminate(sample.origin, pixel, &mut |incident| {
                 // Light from behind the geometric surface never reaches the side we see.
                 if sample.geometric_normal.dot(incident.direction) <= 0.0 {
                     return;
@@ -282,7 +283,7 @@ impl<'s> Renderer<'s> {
                     .scene
                     .occluded(sample.origin, incident.direction, incident.distance)
                 {
-                    direct += f.mul(incident.irradiance);
+                    direct += f.modulate(incident.irradiance);
                 }
             });
         }
@@ -295,7 +296,7 @@ impl<'s> Renderer<'s> {
         let mut gathered = V3::ZERO;
         for bounce in self.bounces[index * k..(index + 1) * k].iter().flatten() {
             for emitter in emitters {
-                emitter.illuminate(bounce.origin, &mut |incident| {
+                emitter.illuminate(bounce.origin, pixel, &mut |incident| {
                     let cos = bounce.shading_normal.dot(incident.direction);
                     if bounce.geometric_normal.dot(incident.direction) <= 0.0 || cos <= 0.0 {
                         return;
@@ -305,12 +306,12 @@ impl<'s> Renderer<'s> {
                         .scene
                         .occluded(bounce.origin, incident.direction, incident.distance)
                     {
-                        gathered += bounce.albedo.mul(incident.irradiance) * cos;
+                        gathered += bounce.albedo.modulate(incident.irradiance) * cos;
                     }
                 });
             }
         }
-        direct + sample.reflectance.albedo.mul(gathered) * (1.0 / k as f32)
+        direct + sample.reflectance.albedo.modulate(gathered) * (1.0 / k as f32)
     }
 }
 

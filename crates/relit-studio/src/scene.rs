@@ -101,18 +101,24 @@ impl SceneBuilder {
                 "scene `{name}` has no triangle with an area"
             )));
         }
-        let casts: Vec<bool> = self
-            .material_of
+        // Shadow rays see only the surfaces that block light. When some do not (the
+        // shell of an interior), they get a tree of their own: the shell's large
+        // triangles would otherwise be tested, and skipped, by nearly every shadow ray.
+        let casters: Vec<[V3; 3]> = self
+            .triangles
             .iter()
-            .map(|&m| self.materials[m as usize].casts_shadows)
+            .zip(&self.material_of)
+            .filter(|(_, &m)| self.materials[m as usize].casts_shadows)
+            .map(|(t, _)| t.p)
             .collect();
+        let shadow_bvh = (casters.len() < positions.len()).then(|| Bvh::build(&casters));
         Ok(Scene {
             name: name.into(),
             triangles: self.triangles,
             material_of: self.material_of,
             materials: self.materials,
-            casts,
             bvh,
+            shadow_bvh,
             camera,
             warnings: self.warnings,
         })
@@ -126,9 +132,9 @@ pub struct Scene {
     triangles: Vec<Triangle>,
     material_of: Vec<u32>,
     materials: Vec<Material>,
-    /// Per triangle: whether it blocks shadow rays.
-    casts: Vec<bool>,
     bvh: Bvh,
+    /// The shadow-casting triangles, when not all of them cast shadows.
+    shadow_bvh: Option<Bvh>,
     /// The camera the scene was designed for.
     pub camera: CameraSpec,
     /// Problems met while loading that did not stop it, for the caller to show.
@@ -225,9 +231,7 @@ impl Scene {
 
     /// Whether a shadow-casting surface lies on the ray before `t_max`.
     pub fn occluded(&self, origin: V3, direction: V3, t_max: f32) -> bool {
-        self.bvh
-            .occluded(&TraceRay::new(origin, direction), t_max, |tri| {
-                self.casts[tri as usize]
-            })
+        let tree = self.shadow_bvh.as_ref().unwrap_or(&self.bvh);
+        tree.occluded(&TraceRay::new(origin, direction), t_max)
     }
 }

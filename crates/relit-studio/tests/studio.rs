@@ -168,6 +168,27 @@ fn a_shadow_falls_where_the_geometry_says() {
         (under_plate_now_lit[0] - ALBEDO * std::f32::consts::FRAC_1_SQRT_2).abs() < 1e-5,
         "{under_plate_now_lit:?}"
     );
+    // A point light 1 m above the plate throws a shadow twice its size: the floor
+    // 0.3 m from the centre is dark, though the overhead sun lit it.
+    let lamp = Emitter::from_light(&relit::light::Light::point([0.0, 2.0, 0.0], [1.0; 3])).unwrap();
+    let under_lamp = renderer.render(&[lamp]).image;
+    assert_eq!(
+        pixel_value(&under_lamp, &camera, Vec3::new(0.3, 0.0, 0.0)),
+        [0.0; 3]
+    );
+    assert!(pixel_value(&overhead, &camera, Vec3::new(0.3, 0.0, 0.0))[0] > 0.4);
+    // Elsewhere the floor reads albedo · cos θ / r² (inverse square, unit intensity at
+    // 1 m), at the very point the pixel sees (P = E + d·V from the depth map).
+    let [x, y] = camera.pixel(Vec3::new(1.5, 0.0, 0.0)).unwrap();
+    let (x, y) = (x as usize, y as usize);
+    let seen = camera.position(x, y, renderer.depth()[y * camera.width() + x] as f64);
+    let r = (Vec3::new(0.0, 2.0, 0.0) - seen).length();
+    let expected = ALBEDO as f64 * (2.0 / r) / (r * r);
+    let lamp_lit = under_lamp.get(x, y)[0] as f64;
+    assert!(
+        (lamp_lit - expected).abs() < 1e-4 * expected,
+        "{lamp_lit} vs {expected}"
+    );
     // A material that lets light through casts nothing.
     let (open_scene, _) = plate_scene(false);
     let open = Renderer::new(&open_scene, &camera, &RenderOptions::default(), &Silent).unwrap();

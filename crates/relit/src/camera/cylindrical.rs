@@ -54,7 +54,7 @@ impl CameraModel for Cylindrical {
 
     fn pixel(&self, p: Vec3) -> Option<[f64; 2]> {
         let radius = p.x.hypot(p.z);
-        if !(radius > 1e-300) || !p.is_finite() {
+        if !p.is_finite() || radius <= 1e-300 {
             return None;
         }
         let x = panorama_column(panorama_azimuth(p), self.width);
