@@ -112,6 +112,10 @@ impl EngineLight {
                     ((centre - p).dot(normal) / along).abs()
                 }
             }
+            // Lights the engine gains later without a position (an environment given
+            // as basis weights) reach the tracer as lights at infinity, if at all.
+            #[allow(unreachable_patterns)]
+            _ => f64::INFINITY,
         }
     }
 }
