@@ -1,0 +1,745 @@
+//! [`GpuRelighter`]: coefficient maps resident on a GPU, relit by a compute shader.
+//!
+//! The maps are cut into *slabs* of whole rows so that no buffer exceeds the adapter's
+//! binding limit; each slab holds its `3k` planes (padded to a common stride) in the
+//! chosen [`Storage`], and, when the file has depth, the surface point of every pixel
+//! (computed once from camera and depth, as the CPU engine does). A frame is one
+//! dispatch per slab that meets the region of interest, each writing its rows of the
+//! region into its own output buffer; a readback copies them, in order, into one
+//! staging buffer, which is the region's interleaved RGB image.
+
+use crate::error::{invalid, GpuError, Result};
+use crate::lighting::{Lighting, MAX_K};
+use crate::roi::Roi;
+use crate::storage::{PlaneCoding, Storage, STRIDE_ALIGN};
+use bytemuck::{Pod, Zeroable};
+use relit::basis::{Basis, BasisSpec, SphericalHarmonics, MAX_BANDS};
+use relit::camera::Camera;
+use relit::image::ImageRgb;
+use relit::light::{Light, LightRig, PreparedLight};
+use relit::maps::{MapSpace, RelightableImage};
+use std::path::Path;
+use std::sync::{mpsc, Arc, Mutex};
+use std::time::{Duration, Instant};
+use wgpu::util::DeviceExt;
+
+/// Invocations per workgroup (`@workgroup_size` in relight.wgsl).
+const WORKGROUP: u64 = 256;
+/// The largest buffer a slab uses unless the adapter allows less: large enough that
+/// a frame is a handful of dispatches, small enough for any desktop GPU's allocator.
+const DEFAULT_SLAB_BYTES: u64 = 1 << 30;
+/// Bytes per pixel of a slab's surface points (`vec4<f32>`: xyz, w = 1 where hit).
+const POSITION_BYTES: u64 = 16;
+/// Bytes per pixel of the output (RGB `f32`).
+const OUT_BYTES: u64 = 12;
+
+/// How a [`GpuRelighter`] stores its maps.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct GpuOptions {
+    /// The value type of the planes on the GPU.
+    pub storage: Storage,
+    /// Cap on the bytes of one slab buffer (the adapter's limit applies anyway); small
+    /// values force many slabs, which tests use.
+    pub max_slab_bytes: Option<u64>,
+}
+
+/// What the GPU engine runs on, for reports.
+#[derive(Clone, Debug)]
+pub struct AdapterSummary {
+    pub name: String,
+    pub backend: String,
+    pub device_type: String,
+    pub driver: String,
+}
+
+impl std::fmt::Display for AdapterSummary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} ({}, {}", self.name, self.backend, self.device_type)?;
+        if !self.driver.is_empty() {
+            write!(f, ", {}", self.driver)?;
+        }
+        write!(f, ")")
+    }
+}
+
+impl From<&wgpu::AdapterInfo> for AdapterSummary {
+    fn from(info: &wgpu::AdapterInfo) -> Self {
+        Self {
+            name: info.name.clone(),
+            backend: format!("{:?}", info.backend),
+            device_type: format!("{:?}", info.device_type),
+            driver: [info.driver.as_str(), info.driver_info.as_str()]
+                .iter()
+                .filter(|s| !s.is_empty())
+                .copied()
+                .collect::<Vec<_>>()
+                .join(" "),
+        }
+    }
+}
+
+/// `Setup` in relight.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct SetupGpu {
+    dims: [u32; 4],
+    norm: [[f32; 4]; 16],
+    scale: [[f32; 4]; MAX_K],
+    bias: [[f32; 4]; MAX_K],
+}
+
+/// Whole rows of the maps on the GPU.
+struct Slab {
+    row0: usize,
+    rows: usize,
+    /// Pixels between consecutive planes (`rows · width` rounded up to [`STRIDE_ALIGN`]).
+    stride: usize,
+    planes: wgpu::Buffer,
+    positions: Option<wgpu::Buffer>,
+}
+
+/// One slab's share of a region: its dispatch and output.
+struct Part {
+    bind: wgpu::BindGroup,
+    out: wgpu::Buffer,
+    groups: [u32; 2],
+    bytes: u64,
+    offset: u64,
+}
+
+/// Everything a region needs per frame, kept while the region stays the same.
+struct Target {
+    roi: Roi,
+    parts: Vec<Part>,
+    staging: wgpu::Buffer,
+}
+
+/// Coefficient maps on a GPU, relit by a compute shader (see the module docs).
+pub struct GpuRelighter {
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    adapter: AdapterSummary,
+    errors: Arc<Mutex<Vec<String>>>,
+    pipeline: wgpu::ComputePipeline,
+    layout: wgpu::BindGroupLayout,
+    setup: wgpu::Buffer,
+    frame: wgpu::Buffer,
+    no_positions: wgpu::Buffer,
+    slabs: Vec<Slab>,
+    width: usize,
+    height: usize,
+    basis: SphericalHarmonics,
+    display: bool,
+    storage: Storage,
+    coding: PlaneCoding,
+    /// Why positional lights cannot be used (no depth, bad camera), if so.
+    no_positions_reason: Option<String>,
+    max_groups: u32,
+    max_buffer: u64,
+    resident_bytes: u64,
+    target: Mutex<Option<Target>>,
+}
+
+/// The adapter relit would use, without opening a device: `Err(NoAdapter)` tells a
+/// caller (a test, the benchmark) to skip GPU work, with the reason.
+pub fn probe() -> Result<AdapterSummary> {
+    let instance =
+        wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+    let adapter = request_adapter(&instance)?;
+    Ok(AdapterSummary::from(&adapter.get_info()))
+}
+
+fn request_adapter(instance: &wgpu::Instance) -> Result<wgpu::Adapter> {
+    let options = wgpu::RequestAdapterOptions {
+        power_preference: wgpu::PowerPreference::HighPerformance,
+        force_fallback_adapter: false,
+        compatible_surface: None,
+        ..Default::default()
+    };
+    pollster::block_on(instance.request_adapter(&options)).map_err(|e| {
+        GpuError::NoAdapter(format!(
+            "{e} (install a Vulkan, Metal or DX12 driver; on Debian `mesa-vulkan-drivers` gives a software one)"
+        ))
+    })
+}
+
+/// `K_lm` (m = 0) and `√2·K_lm` (m > 0) at `l · 8 + m`, the normalisation of
+/// crates/relit/src/basis/sh.rs, in the layout of `Setup.norm`.
+fn sh_norms(bands: usize) -> [[f32; 4]; 16] {
+    let mut out = [[0f32; 4]; 16];
+    for l in 0..bands {
+        for m in 0..=l {
+            let ratio: f64 = ((l - m + 1)..=(l + m)).map(|f| 1.0 / f as f64).product();
+            let k = ((2 * l + 1) as f64 / (4.0 * std::f64::consts::PI) * ratio).sqrt();
+            let k = if m == 0 {
+                k
+            } else {
+                std::f64::consts::SQRT_2 * k
+            };
+            let j = l * MAX_BANDS + m;
+            out[j / 4][j % 4] = k as f32;
+        }
+    }
+    out
+}
+
+impl GpuRelighter {
+    /// Upload `image` in `f32` storage.
+    pub fn new(image: &RelightableImage) -> Result<Self> {
+        Self::with_options(image, GpuOptions::default())
+    }
+
+    /// Upload `image` with `options`.
+    pub fn with_options(image: &RelightableImage, options: GpuOptions) -> Result<Self> {
+        let (width, height, k) = (image.maps.width, image.maps.height, image.maps.k);
+        let bands = match image.meta.basis {
+            BasisSpec::Sh { bands } => bands,
+        };
+        let basis = SphericalHarmonics::new(bands)?;
+        if basis.len() != k || k > MAX_K {
+            return Err(invalid(format!(
+                "the maps hold {k} coefficients but the basis has {}",
+                basis.len()
+            )));
+        }
+        if width == 0 || height == 0 || image.maps.data.len() != 3 * k * width * height {
+            return Err(invalid(format!(
+                "{width}×{height} maps of {k} coefficients need {} values, got {}",
+                3 * k * width * height,
+                image.maps.data.len()
+            )));
+        }
+        let (camera, no_positions_reason) = match positions_source(image) {
+            Ok(c) => (Some(c), None),
+            Err(why) => (None, Some(why)),
+        };
+
+        let instance =
+            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let adapter = request_adapter(&instance)?;
+        let summary = AdapterSummary::from(&adapter.get_info());
+        let limits = adapter.limits();
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("relit"),
+            required_limits: limits.clone(),
+            ..Default::default()
+        }))
+        .map_err(|e| GpuError::Device(format!("{summary}: {e}")))?;
+        let errors: Arc<Mutex<Vec<String>>> = Arc::default();
+        let sink = errors.clone();
+        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+            sink.lock()
+                .unwrap_or_else(|p| p.into_inner())
+                .push(e.to_string());
+        }));
+
+        let storage = options.storage;
+        let bpv = storage.bytes_per_value() as u64;
+        let limit = limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size)
+            .min(options.max_slab_bytes.unwrap_or(DEFAULT_SLAB_BYTES))
+            .min(u32::MAX as u64);
+        let plane_bytes = |rows: usize| {
+            let stride = (rows * width).div_ceil(STRIDE_ALIGN) * STRIDE_ALIGN;
+            3 * k as u64 * stride as u64 * bpv
+        };
+        let per_pixel = (3 * k as u64 * bpv).max(POSITION_BYTES).max(OUT_BYTES);
+        let mut rows_per_slab = ((limit / (per_pixel * width as u64)) as usize).min(height);
+        while rows_per_slab > 0 && plane_bytes(rows_per_slab) > limit {
+            rows_per_slab -= 1;
+        }
+        if rows_per_slab == 0 {
+            return Err(GpuError::TooLarge(format!(
+                "one row of {width} pixels × {k} coefficients needs more than the {limit}-byte buffer limit of {summary}"
+            )));
+        }
+
+        let coding = storage.coding(&image.maps);
+        let mut slabs = Vec::new();
+        let mut resident_bytes = 0;
+        let mut scratch = Vec::new();
+        let n = width * height;
+        for row0 in (0..height).step_by(rows_per_slab) {
+            let rows = rows_per_slab.min(height - row0);
+            let stride = (rows * width).div_ceil(STRIDE_ALIGN) * STRIDE_ALIGN;
+            let size = plane_bytes(rows);
+            let planes = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("relit planes"),
+                size,
+                usage: wgpu::BufferUsages::STORAGE,
+                mapped_at_creation: true,
+            });
+            {
+                let mut view = planes
+                    .slice(..)
+                    .get_mapped_range_mut()
+                    .map_err(|e| GpuError::Device(e.to_string()))?;
+                for j in 0..3 * k {
+                    let src = &image.maps.data[j * n + row0 * width..j * n + (row0 + rows) * width];
+                    storage.encode(src, coding.scale[j], coding.bias[j], &mut scratch);
+                    let at = j * stride * bpv as usize;
+                    view.slice(at..at + scratch.len()).copy_from_slice(&scratch);
+                }
+            }
+            planes.unmap();
+            resident_bytes += size;
+            let positions = match (&camera, &image.depth) {
+                (Some(camera), Some(depth)) => {
+                    let mut points = vec![[0f32; 4]; rows * width];
+                    for (q, point) in points.iter_mut().enumerate() {
+                        let (x, y) = (q % width, row0 + q / width);
+                        let d = depth[y * width + x];
+                        if d.is_finite() && d > 0.0 {
+                            let p = camera.position(x, y, d as f64);
+                            *point = [p.x as f32, p.y as f32, p.z as f32, 1.0];
+                        }
+                    }
+                    resident_bytes += (points.len() * 16) as u64;
+                    Some(
+                        device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                            label: Some("relit surface points"),
+                            contents: bytemuck::cast_slice(&points),
+                            usage: wgpu::BufferUsages::STORAGE,
+                        }),
+                    )
+                }
+                _ => None,
+            };
+            slabs.push(Slab {
+                row0,
+                rows,
+                stride,
+                planes,
+                positions,
+            });
+        }
+
+        let mut setup = SetupGpu::zeroed();
+        let display = image.meta.color_space == MapSpace::Srgb;
+        setup.dims = [width as u32, k as u32, bands as u32, display as u32];
+        setup.norm = sh_norms(bands);
+        for i in 0..k {
+            for c in 0..3 {
+                setup.scale[i][c] = coding.scale[3 * i + c];
+                setup.bias[i][c] = coding.bias[3 * i + c];
+            }
+        }
+        let setup = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("relit setup"),
+            contents: bytemuck::bytes_of(&setup),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let frame = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("relit frame"),
+            size: std::mem::size_of::<crate::lighting::FrameGpu>() as u64,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let no_positions = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("relit no surface points"),
+            size: POSITION_BYTES,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
+        let source = format!(
+            "{}\n{}",
+            storage.shader_fetch(),
+            include_str!("../shaders/relight.wgsl")
+        );
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("relit relight"),
+            source: wgpu::ShaderSource::Wgsl(source.into()),
+        });
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("relit relight"),
+            layout: None,
+            module: &module,
+            entry_point: Some("main"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        let layout = pipeline.get_bind_group_layout(0);
+        let engine = Self {
+            device,
+            queue,
+            adapter: summary,
+            errors,
+            pipeline,
+            layout,
+            setup,
+            frame,
+            no_positions,
+            slabs,
+            width,
+            height,
+            basis,
+            display,
+            storage,
+            coding,
+            no_positions_reason,
+            max_groups: limits.max_compute_workgroups_per_dimension.max(1),
+            max_buffer: limits.max_buffer_size,
+            resident_bytes,
+            target: Mutex::new(None),
+        };
+        engine.wait()?;
+        engine.check_errors()?;
+        Ok(engine)
+    }
+
+    /// The adapter in use.
+    pub fn adapter(&self) -> &AdapterSummary {
+        &self.adapter
+    }
+
+    /// The storage type of the planes.
+    pub fn storage(&self) -> Storage {
+        self.storage
+    }
+
+    /// Bytes resident on the GPU for the maps and surface points.
+    pub fn resident_bytes(&self) -> u64 {
+        self.resident_bytes
+    }
+
+    /// Slabs the maps were cut into.
+    pub fn slab_count(&self) -> usize {
+        self.slabs.len()
+    }
+
+    /// An empty lighting for this engine, to which uniform lights (environment
+    /// weights) can be added with [`Lighting::add_uniform`].
+    pub fn empty_lighting(&self) -> Lighting {
+        Lighting::new(self.basis.len(), self.display)
+    }
+
+    /// The lighting of `rig` at `exposure` stops. The GPU relights directional, point
+    /// and spot lights; other types are [`GpuError::Unsupported`].
+    pub fn lighting(&self, rig: &LightRig, exposure: f64) -> Result<Lighting> {
+        if !exposure.is_finite() {
+            return Err(invalid("the exposure must be finite"));
+        }
+        let scale = 2f64.powf(exposure);
+        let mut lighting = self.empty_lighting();
+        for (i, light) in rig.lights.iter().enumerate() {
+            match light {
+                Light::Directional(_) | Light::Point(_) | Light::Spot(_) => {}
+                other => {
+                    return Err(GpuError::Unsupported(format!(
+                        "lights[{i}] is a {} light; the GPU engine relights directional, point and spot lights",
+                        other.kind()
+                    )))
+                }
+            }
+            let prepared = light
+                .prepare(Path::new(""))
+                .map_err(|e| invalid(format!("lights[{i}] ({}): {e}", light.kind())))?;
+            match &prepared {
+                PreparedLight::Directional { direction, rgb } => {
+                    let y = self.basis.values(*direction);
+                    lighting.add_uniform([y.clone(), y.clone(), y], rgb.map(|v| v * scale))?;
+                }
+                positional => lighting.add_positional(positional, scale)?,
+            }
+        }
+        Ok(lighting)
+    }
+
+    /// Relight the whole image with `rig`.
+    pub fn relight(&self, rig: &LightRig, exposure: f64) -> Result<ImageRgb> {
+        self.render(&self.lighting(rig, exposure)?, None)
+    }
+
+    /// Relight only `roi`: the result is `roi.width × roi.height`.
+    pub fn relight_roi(&self, rig: &LightRig, exposure: f64, roi: Roi) -> Result<ImageRgb> {
+        self.render(&self.lighting(rig, exposure)?, Some(roi))
+    }
+
+    /// Render `lighting` over `roi` (the whole image when `None`) and read it back.
+    pub fn render(&self, lighting: &Lighting, roi: Option<Roi>) -> Result<ImageRgb> {
+        let roi = self.upload(lighting, roi)?;
+        let mut guard = self.target.lock().unwrap_or_else(|p| p.into_inner());
+        let target = self.target_for(&mut guard, roi)?;
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        self.encode(&mut encoder, target);
+        for part in &target.parts {
+            encoder.copy_buffer_to_buffer(&part.out, 0, &target.staging, part.offset, part.bytes);
+        }
+        self.queue.submit([encoder.finish()]);
+        let slice = target.staging.slice(..);
+        let (tx, rx) = mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        self.wait()?;
+        rx.recv()
+            .map_err(|_| GpuError::Device("the readback was dropped".into()))?
+            .map_err(|e| GpuError::Device(format!("readback: {e}")))?;
+        let mut image = ImageRgb::new(roi.width, roi.height);
+        {
+            let view = slice
+                .get_mapped_range()
+                .map_err(|e| GpuError::Device(format!("readback: {e}")))?;
+            bytemuck::cast_slice_mut::<f32, u8>(&mut image.data).copy_from_slice(&view);
+        }
+        target.staging.unmap();
+        self.check_errors()?;
+        Ok(image)
+    }
+
+    /// Run `frames` frames of `lighting` over `roi` without reading them back and return
+    /// the mean wall time per frame (after one warm-up frame), for benchmarks.
+    pub fn time_frames(
+        &self,
+        lighting: &Lighting,
+        roi: Option<Roi>,
+        frames: usize,
+    ) -> Result<Duration> {
+        let roi = self.upload(lighting, roi)?;
+        let mut guard = self.target.lock().unwrap_or_else(|p| p.into_inner());
+        let target = self.target_for(&mut guard, roi)?;
+        let frame = |engine: &Self| {
+            let mut encoder = engine.device.create_command_encoder(&Default::default());
+            engine.encode(&mut encoder, target);
+            engine.queue.submit([encoder.finish()]);
+        };
+        frame(self);
+        self.wait()?;
+        let start = Instant::now();
+        for _ in 0..frames {
+            frame(self);
+        }
+        self.wait()?;
+        let elapsed = start.elapsed();
+        self.check_errors()?;
+        Ok(elapsed / frames.max(1) as u32)
+    }
+
+    /// Check `lighting` and `roi` against this engine and write the frame's lights.
+    fn upload(&self, lighting: &Lighting, roi: Option<Roi>) -> Result<Roi> {
+        let roi = roi.unwrap_or(Roi::full(self.width, self.height));
+        roi.validate(self.width, self.height)?;
+        if lighting.k() != self.basis.len() || lighting.display() != self.display {
+            return Err(invalid("the lighting was built for other maps"));
+        }
+        if lighting.has_positional() {
+            if let Some(why) = &self.no_positions_reason {
+                return Err(invalid(why.clone()));
+            }
+        }
+        let frame = lighting.to_gpu(&self.coding)?;
+        self.queue
+            .write_buffer(&self.frame, 0, bytemuck::bytes_of(frame.as_ref()));
+        Ok(roi)
+    }
+
+    /// The cached per-region buffers, rebuilt when the region changes.
+    fn target_for<'g>(&self, slot: &'g mut Option<Target>, roi: Roi) -> Result<&'g Target> {
+        if slot.as_ref().is_some_and(|t| t.roi == roi) {
+            return Ok(slot.as_ref().expect("checked"));
+        }
+        *slot = None;
+        let total = roi.pixels() as u64 * OUT_BYTES;
+        if total > self.max_buffer {
+            return Err(GpuError::TooLarge(format!(
+                "a {}×{} region needs a {total}-byte readback buffer; {} allows {}: relight a smaller region",
+                roi.width, roi.height, self.adapter, self.max_buffer
+            )));
+        }
+        let mut parts = Vec::new();
+        let mut offset = 0;
+        for slab in &self.slabs {
+            let lo = slab.row0.max(roi.y);
+            let hi = (slab.row0 + slab.rows).min(roi.y + roi.height);
+            if lo >= hi {
+                continue;
+            }
+            let rows = hi - lo;
+            let threads = (roi.width * rows) as u64;
+            let span: [u32; 8] = [
+                slab.row0 as u32,
+                slab.stride as u32,
+                roi.x as u32,
+                lo as u32,
+                roi.width as u32,
+                rows as u32,
+                0,
+                0,
+            ];
+            let span = self
+                .device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("relit span"),
+                    contents: bytemuck::bytes_of(&span),
+                    usage: wgpu::BufferUsages::UNIFORM,
+                });
+            let bytes = threads * OUT_BYTES;
+            let out = self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("relit out"),
+                size: bytes,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            });
+            let positions = slab.positions.as_ref().unwrap_or(&self.no_positions);
+            let buffers = [
+                &self.setup,
+                &span,
+                &self.frame,
+                &slab.planes,
+                positions,
+                &out,
+            ];
+            let entries: Vec<wgpu::BindGroupEntry> = buffers
+                .iter()
+                .enumerate()
+                .map(|(i, b)| wgpu::BindGroupEntry {
+                    binding: i as u32,
+                    resource: b.as_entire_binding(),
+                })
+                .collect();
+            let bind = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("relit slab"),
+                layout: &self.layout,
+                entries: &entries,
+            });
+            let groups = threads.div_ceil(WORKGROUP);
+            let gx = groups.min(self.max_groups as u64);
+            let gy = groups.div_ceil(gx);
+            parts.push(Part {
+                bind,
+                out,
+                groups: [gx as u32, gy as u32],
+                bytes,
+                offset,
+            });
+            offset += bytes;
+        }
+        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("relit readback"),
+            size: total,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        self.check_errors()?;
+        Ok(slot.insert(Target {
+            roi,
+            parts,
+            staging,
+        }))
+    }
+
+    fn encode(&self, encoder: &mut wgpu::CommandEncoder, target: &Target) {
+        let mut pass = encoder.begin_compute_pass(&Default::default());
+        pass.set_pipeline(&self.pipeline);
+        for part in &target.parts {
+            pass.set_bind_group(0, &part.bind, &[]);
+            pass.dispatch_workgroups(part.groups[0], part.groups[1], 1);
+        }
+    }
+
+    fn wait(&self) -> Result<()> {
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map(|_| ())
+            .map_err(|e| GpuError::Device(e.to_string()))
+    }
+
+    fn check_errors(&self) -> Result<()> {
+        let errors = std::mem::take(&mut *self.errors.lock().unwrap_or_else(|p| p.into_inner()));
+        if errors.is_empty() {
+            Ok(())
+        } else {
+            Err(GpuError::Device(errors.join("; ")))
+        }
+    }
+}
+
+/// The camera that turns depth into surface points, or why there is none.
+fn positions_source(image: &RelightableImage) -> std::result::Result<Camera, String> {
+    let depth = image.depth.as_ref().ok_or_else(|| {
+        "lights with a position need a depth map: fit a capture that has one (a manifest `depth`, or `relit capture`)".to_string()
+    })?;
+    let camera = relit::engine::Relighter::new(image)
+        .and_then(|r| r.camera())
+        .map_err(|e| e.to_string())?;
+    if depth.len() != camera.width() * camera.height()
+        || camera.width() != image.width()
+        || camera.height() != image.height()
+    {
+        return Err(format!(
+            "the depth map has {} values and the camera is {}×{}, but the maps are {}×{}",
+            depth.len(),
+            camera.width(),
+            camera.height(),
+            image.width(),
+            image.height()
+        ));
+    }
+    Ok(camera)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use relit::sphere::{fibonacci, Vec3};
+
+    /// The recurrence of relight.wgsl's `shade`, transcribed in f32 with the same norm
+    /// table, returning the basis values instead of their dot product.
+    fn shader_basis(bands: usize, norm: &[[f32; 4]; 16], d: [f32; 3]) -> Vec<f32> {
+        let [x, y, z] = d;
+        let mut out = vec![0f32; bands * bands];
+        let (mut cm, mut sm, mut pmm) = (1f32, 0f32, 1f32);
+        for m in 0..bands {
+            if m > 0 {
+                let (c, s) = (x * cm - y * sm, x * sm + y * cm);
+                cm = c;
+                sm = s;
+                pmm *= -((2 * m - 1) as f32);
+            }
+            let (mut p_prev, mut p_cur) = (0f32, pmm);
+            for l in m..bands {
+                if l == m + 1 {
+                    p_prev = p_cur;
+                    p_cur = (2 * m + 1) as f32 * z * pmm;
+                } else if l > m + 1 {
+                    let next = ((2 * l - 1) as f32 * z * p_cur - (l + m - 1) as f32 * p_prev)
+                        / (l - m) as f32;
+                    p_prev = p_cur;
+                    p_cur = next;
+                }
+                let j = l * MAX_BANDS + m;
+                let kp = norm[j / 4][j % 4] * p_cur;
+                let base = l * (l + 1);
+                if m == 0 {
+                    out[base] = kp;
+                } else {
+                    out[base + m] = kp * cm;
+                    out[base - m] = kp * sm;
+                }
+            }
+        }
+        out
+    }
+
+    /// |Y| ≤ 1.2 for 8 bands; f32 recurrences keep ~1e-6 relative accuracy.
+    const SHADER_BASIS_TOLERANCE: f64 = 2e-5;
+
+    #[test]
+    fn the_shader_recurrence_equals_the_cpu_basis_for_every_band() {
+        for bands in 1..=MAX_BANDS {
+            let sh = SphericalHarmonics::new(bands).unwrap();
+            let norm = sh_norms(bands);
+            for d in fibonacci(50).into_iter().chain([Vec3::new(0.0, 0.0, -1.0)]) {
+                let want = sh.values(d);
+                let got = shader_basis(bands, &norm, [d.x as f32, d.y as f32, d.z as f32]);
+                for (i, (g, w)) in got.iter().zip(&want).enumerate() {
+                    assert!(
+                        (*g as f64 - w).abs() < SHADER_BASIS_TOLERANCE,
+                        "bands {bands}, Y{i}: {g} vs {w}"
+                    );
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,35 @@
+//! # relit-gpu — relighting on a GPU with wgpu compute shaders
+//!
+//! [`GpuRelighter`] uploads a [`relit::maps::RelightableImage`] once and relights it
+//! with directional, point and spot lights, or with any folded weight vector (an
+//! environment light's `relit::envmap::EnvironmentLight::light_weights`), over the whole
+//! image or a region of interest. Results equal the CPU engine's
+//! ([`relit::engine::relight`]) to f32 rounding; the tests state the bound.
+//!
+//! ```no_run
+//! # fn main() -> Result<(), relit_gpu::GpuError> {
+//! use relit::light::{Light, LightRig};
+//! # let image: relit::maps::RelightableImage = unimplemented!();
+//! let gpu = relit_gpu::GpuRelighter::new(&image)?; // Err(NoAdapter) without a GPU
+//! let rig = LightRig::new(vec![Light::directional([-1.0, 1.0, 1.0], [1.0; 3])]);
+//! let frame = gpu.relight(&rig, 0.0)?;
+//! # Ok(()) }
+//! ```
+//!
+//! The kernel is `shaders/relight.wgsl`; one `shaders/fetch_*.wgsl` per [`Storage`]
+//! type supplies how a stored value is read. Frames of linear maps cost one pass over
+//! the planes whatever the number of uniform lights (they fold into one weight per
+//! plane, as on the CPU); positional lights evaluate the SH basis per pixel with the
+//! trig-free recurrence of `relit::basis::SphericalHarmonics`, in f32.
+
+mod engine;
+mod error;
+mod lighting;
+mod roi;
+mod storage;
+
+pub use engine::{probe, AdapterSummary, GpuOptions, GpuRelighter};
+pub use error::{GpuError, Result};
+pub use lighting::{Lighting, MAX_PASSES, MAX_POSITIONAL};
+pub use roi::Roi;
+pub use storage::{PlaneCoding, Storage, STRIDE_ALIGN};
