@@ -2,6 +2,7 @@
 //!
 //! Exit codes: 0 success, 1 the work failed (bad input, I/O…), 2 bad command line.
 
+mod cmd_bench;
 mod cmd_capture;
 mod cmd_demo;
 mod cmd_eval;
@@ -37,6 +38,8 @@ enum Command {
     Capture(cmd_capture::Args),
     /// Render a scene directly under lights: the ground truth relighting is compared with.
     RenderTruth(cmd_render_truth::Args),
+    /// Measure relighting speed (CPU and GPU) against the machine's memory bandwidth.
+    Bench(cmd_bench::Args),
 }
 
 fn main() {
@@ -49,6 +52,7 @@ fn main() {
         Command::Demo(args) => cmd_demo::run(args),
         Command::Capture(args) => cmd_capture::run(args),
         Command::RenderTruth(args) => cmd_render_truth::run(args),
+        Command::Bench(args) => cmd_bench::run(args),
     };
     if let Err(err) = result {
         eprintln!("relit: error: {err}");
