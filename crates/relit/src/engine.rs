@@ -14,9 +14,10 @@
 //! through a pixel still relights with the shadow the capture recorded, because the
 //! pixel's function knows only directions, not distances.
 
-use crate::basis::Basis;
+use crate::basis::{Basis, BasisSpec};
 use crate::camera::{Camera, CameraSpec};
 use crate::color;
+use crate::envmap::EnvironmentLight;
 use crate::image::ImageRgb;
 use crate::light::{Light, LightRig, PreparedLight};
 use crate::maps::{MapSpace, RelightableImage};
@@ -55,6 +56,8 @@ pub struct Relighter<'a> {
     basis: Box<dyn Basis>,
     points: OnceLock<Result<Vec<Option<Vec3>>, String>>,
     slides: Mutex<HashMap<PathBuf, Arc<ImageRgb>>>,
+    /// Environment maps with their unrotated SH projection, by file.
+    environments: Mutex<HashMap<PathBuf, Arc<(EnvironmentLight, [Vec<f64>; 3])>>>,
 }
 
 impl<'a> Relighter<'a> {
@@ -72,6 +75,7 @@ impl<'a> Relighter<'a> {
             basis,
             points: OnceLock::new(),
             slides: Mutex::new(HashMap::new()),
+            environments: Mutex::new(HashMap::new()),
         })
     }
 
@@ -101,7 +105,48 @@ impl<'a> Relighter<'a> {
         points.as_deref().map_err(|e| Error::invalid(e.clone()))
     }
 
+    /// The basis weights of an environment light for these maps: the map's SH projection
+    /// (computed once per file) rotated and windowed, times the light's colour.
+    pub fn environment_weights(
+        &self,
+        light: &crate::light::EnvironmentMapLight,
+        resource_dir: &std::path::Path,
+    ) -> Result<[Vec<f64>; 3]> {
+        light.validate()?;
+        let BasisSpec::Sh { bands } = self.image.meta.basis;
+        let path = resource_dir.join(&light.map);
+        let entry = {
+            let mut cache = self.environments.lock().expect("environment cache");
+            match cache.get(&path) {
+                Some(e) => e.clone(),
+                None => {
+                    let env = EnvironmentLight::load(&path)?;
+                    let projection = env.project(bands)?;
+                    let e = Arc::new((env, projection));
+                    cache.insert(path, e.clone());
+                    e
+                }
+            }
+        };
+        let (env, projection) = &*entry;
+        let env = env
+            .clone()
+            .with_rotation(light.rotation()?)?
+            .with_window(light.window)?;
+        let mut weights = env.weights_from_projection(projection)?;
+        let rgb = Light::Environment(light.clone()).rgb();
+        for (c, w) in weights.iter_mut().enumerate() {
+            w.iter_mut().for_each(|v| *v *= rgb[c]);
+        }
+        Ok(weights)
+    }
+
     fn prepare(&self, light: &Light, options: &RelightOptions) -> Result<PreparedLight> {
+        if let Light::Environment(env) = light {
+            return Ok(PreparedLight::Weights(
+                self.environment_weights(env, &options.resource_dir)?,
+            ));
+        }
         if let Light::Projector(p) = light {
             p.validate()?;
             let path = options.resource_dir.join(&p.slide);

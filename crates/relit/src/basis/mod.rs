@@ -96,14 +96,15 @@ impl BasisSpec {
     pub fn parse_short(s: &str) -> Result<Self> {
         let s = s.trim().to_ascii_lowercase();
         if let Some(rest) = s.strip_prefix("sh") {
-            let bands: usize = rest
-                .trim_start_matches(':')
-                .parse()
-                .map_err(|_| Error::parse(format!("bad basis `{s}`: expected e.g. `sh5` (5 bands)")))?;
+            let bands: usize = rest.trim_start_matches(':').parse().map_err(|_| {
+                Error::parse(format!("bad basis `{s}`: expected e.g. `sh5` (5 bands)"))
+            })?;
             let spec = BasisSpec::Sh { bands };
             spec.build()?;
             return Ok(spec);
         }
-        Err(Error::parse(format!("unknown basis `{s}` (known: sh1..sh8)")))
+        Err(Error::parse(format!(
+            "unknown basis `{s}` (known: sh1..sh8)"
+        )))
     }
 }

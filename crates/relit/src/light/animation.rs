@@ -246,6 +246,15 @@ fn lerp_light(a: &Light, b: &Light, s: f64) -> Light {
                 ..x.clone()
             })
         }
+        (Light::Environment(x), Light::Environment(y)) => {
+            let mut l = x.clone();
+            l.yaw_deg = lerp(x.yaw_deg, y.yaw_deg, s);
+            l.pitch_deg = lerp(x.pitch_deg, y.pitch_deg, s);
+            l.roll_deg = lerp(x.roll_deg, y.roll_deg, s);
+            l.color = lerp3(x.color, y.color, s);
+            l.intensity = lerp(x.intensity, y.intensity, s);
+            Light::Environment(l)
+        }
         _ => a.clone(),
     }
 }

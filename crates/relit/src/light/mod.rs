@@ -10,7 +10,8 @@
 //!   { "type": "point", "position": [0, 1.5, -2], "intensity": 4, "attenuation": "inverse_square" },
 //!   { "type": "spot", "position": [0, 2.5, -3], "direction": [0, -1, 0], "cone_deg": 25, "softness_deg": 5 },
 //!   { "type": "projector", "position": [0, 1, 0], "direction": [0, 0, -1], "fov_deg": 40, "slide": "slide.png" },
-//!   { "type": "area", "shape": { "rect": { "center": [0, 2.9, -3], "u": [0.5, 0, 0], "v": [0, 0, 0.5] } }, "samples": 16 }
+//!   { "type": "area", "shape": { "rect": { "center": [0, 2.9, -3], "u": [0.5, 0, 0], "v": [0, 0, 0.5] } }, "samples": 16 },
+//!   { "type": "environment", "map": "sky.hdr", "yaw_deg": 90, "window": { "type": "hann" } }
 //! ] }
 //! ```
 //!
@@ -21,11 +22,13 @@
 //! light's intensity is the irradiance it gives at distance 1 relative to that (with
 //! the default inverse-square falloff); an area light's is its emitted radiance.
 //! Lights with a position need the file's depth map and camera (seed 004 eq. 3).
-//! Slide files are resolved relative to the rig file.
+//! Slide and environment-map files are resolved relative to the rig file. Environment
+//! lights need spherical-harmonic maps.
 
 mod animation;
 mod area;
 mod directional;
+mod environment;
 mod point;
 mod projector;
 mod spot;
@@ -33,6 +36,7 @@ mod spot;
 pub use animation::{Animation, Keyframe, RigFile};
 pub use area::{AreaLight, AreaShape};
 pub use directional::DirectionalLight;
+pub use environment::EnvironmentMapLight;
 pub use point::PointLight;
 pub use projector::{PreparedProjector, ProjectorLight};
 pub use spot::SpotLight;
@@ -94,6 +98,7 @@ pub enum Light {
     Spot(SpotLight),
     Projector(ProjectorLight),
     Area(AreaLight),
+    Environment(EnvironmentMapLight),
 }
 
 impl Light {
@@ -124,6 +129,7 @@ impl Light {
             Light::Spot(_) => "spot",
             Light::Projector(_) => "projector",
             Light::Area(_) => "area",
+            Light::Environment(_) => "environment",
         }
     }
 
@@ -134,6 +140,7 @@ impl Light {
             Light::Spot(l) => (l.color, l.intensity),
             Light::Projector(l) => (l.color, l.intensity),
             Light::Area(l) => (l.color, l.intensity),
+            Light::Environment(l) => (l.color, l.intensity),
         }
     }
 
@@ -151,12 +158,13 @@ impl Light {
             Light::Spot(l) => l.color = color,
             Light::Projector(l) => l.color = color,
             Light::Area(l) => l.color = color,
+            Light::Environment(l) => l.color = color,
         }
     }
 
     /// Whether the light has one light vector for every pixel (needs no depth).
     pub fn is_uniform(&self) -> bool {
-        matches!(self, Light::Directional(_))
+        matches!(self, Light::Directional(_) | Light::Environment(_))
     }
 
     /// Check the light's parameters.
@@ -172,10 +180,13 @@ impl Light {
             Light::Spot(l) => l.validate(),
             Light::Projector(l) => l.validate(),
             Light::Area(l) => l.validate(),
+            Light::Environment(l) => l.validate(),
         }
     }
 
     /// Load what the light refers to (a projector's slide, relative to `base`).
+    /// Environment lights depend on the maps' basis: prepare them with
+    /// [`crate::engine::Relighter`].
     pub fn prepare(&self, base: &Path) -> Result<PreparedLight> {
         self.validate()?;
         let rgb = self.rgb();
@@ -188,6 +199,11 @@ impl Light {
             Light::Spot(l) => PreparedLight::Spot(l.clone(), rgb),
             Light::Projector(l) => PreparedLight::Projector(Box::new(l.prepare(base)?), rgb),
             Light::Area(l) => PreparedLight::Area(l.clone(), rgb),
+            Light::Environment(_) => {
+                return Err(Error::invalid(
+                    "environment lights are prepared by the engine, which knows the basis",
+                ))
+            }
         })
     }
 
@@ -230,7 +246,12 @@ impl Light {
 /// A light ready to shine: files loaded, frames computed.
 #[derive(Clone, Debug)]
 pub enum PreparedLight {
-    Directional { direction: Vec3, rgb: [f64; 3] },
+    Directional {
+        direction: Vec3,
+        rgb: [f64; 3],
+    },
+    /// A light given directly as basis weights per colour channel (an environment).
+    Weights([Vec<f64>; 3]),
     Point(PointLight, [f64; 3]),
     Spot(SpotLight, [f64; 3]),
     Projector(Box<PreparedProjector>, [f64; 3]),
@@ -243,6 +264,8 @@ impl PreparedLight {
     pub fn illuminate(&self, p: Vec3, pixel: usize, emit: &mut Emit) {
         match self {
             PreparedLight::Directional { direction, rgb } => emit(*direction, *rgb),
+            // Uniform by construction: the engine folds it into the plane weights.
+            PreparedLight::Weights(_) => {}
             PreparedLight::Point(l, rgb) => l.illuminate(p, *rgb, emit),
             PreparedLight::Spot(l, rgb) => l.illuminate(p, *rgb, emit),
             PreparedLight::Projector(l, rgb) => l.illuminate(p, *rgb, emit),
@@ -252,7 +275,10 @@ impl PreparedLight {
 
     /// Whether every pixel shares one light vector.
     pub fn is_uniform(&self) -> bool {
-        matches!(self, PreparedLight::Directional { .. })
+        matches!(
+            self,
+            PreparedLight::Directional { .. } | PreparedLight::Weights(_)
+        )
     }
 }
 
