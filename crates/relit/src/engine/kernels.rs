@@ -1,0 +1,802 @@
+//! The CPU engine's inner loops, vectorised: every `unsafe` of the engine lives here.
+//!
+//! Each kernel has one body, written as plain loops over slices (or, for half floats,
+//! with `core::arch` intrinsics on values, no pointers), marked `#[inline(always)]` and
+//! compiled twice: once for the baseline target and once inside a
+//! `#[target_feature(enable = "avx2,fma,f16c")]` wrapper, where LLVM turns the loops
+//! into 8-wide FMA code (checked in the disassembly of the release build: `vfmadd…ps
+//! ymm`, `vcvtph2ps ymm`). [`Simd::detect`] checks the CPU once; the public functions
+//! call the wrapper only when it said yes, which is the whole safety argument of the
+//! `unsafe` blocks below.
+//!
+//! Measured alternatives (1024×256, k = 16, 2 cores): one plane per pass over a tile
+//! (`acc += w·plane`) moves the accumulator through L1 once per plane and reached 70 %
+//! of the speed of four planes per pass; a dot product over all planes per 32-pixel
+//! block (accumulators in registers) reads k streams at once and was 30 % slower than
+//! four planes per pass, which is what [`Simd::axpy`] does.
+
+use half::f16;
+
+/// Pixels per block of the per-pixel (positional light) kernels: their scratch
+/// arrays, a few per block, stay in L1.
+pub(crate) const BLOCK: usize = 64;
+
+/// Whether the CPU runs the AVX2 + FMA + F16C versions (x86-64 only).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Simd {
+    avx2: bool,
+}
+
+impl Simd {
+    /// Check the CPU once per call site (cheap: `is_x86_feature_detected!` caches).
+    pub(crate) fn detect() -> Self {
+        #[cfg(target_arch = "x86_64")]
+        {
+            Self {
+                avx2: is_x86_feature_detected!("avx2")
+                    && is_x86_feature_detected!("fma")
+                    && is_x86_feature_detected!("f16c"),
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            Self { avx2: false }
+        }
+    }
+
+    /// Which versions run: `avx2+fma+f16c` or `portable`.
+    pub(crate) fn name(self) -> &'static str {
+        if self.avx2 {
+            "avx2+fma+f16c"
+        } else {
+            "portable"
+        }
+    }
+
+    /// The portable versions only (tests compare both).
+    #[cfg(test)]
+    pub(crate) fn baseline() -> Self {
+        Self { avx2: false }
+    }
+
+    /// `acc[p] += Σ_j w[j]·planes[j][p]` for `N` planes of any stored type.
+    pub(crate) fn axpy<T: Stored, const N: usize>(
+        self,
+        acc: &mut [f32],
+        planes: [&[T]; N],
+        w: [f32; N],
+    ) {
+        let n = acc.len();
+        let planes = planes.map(|p| &p[..n]);
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: `detect` found avx2, fma and f16c on this CPU.
+            return unsafe { T::axpy_avx2(acc, planes, w) };
+        }
+        axpy_body::<T, N, false>(acc, planes, w)
+    }
+
+    /// `out[p] = scale·stored[p] + bias`: values of a plane segment as f32.
+    pub(crate) fn decode<T: Stored>(self, out: &mut [f32], stored: &[T], scale: f32, bias: f32) {
+        let stored = &stored[..out.len()];
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: as in `axpy`.
+            return unsafe { T::decode_avx2(out, stored, scale, bias) };
+        }
+        for (o, &s) in out.iter_mut().zip(stored) {
+            *o = s.to_f32() * scale + bias;
+        }
+    }
+
+    /// `acc[c][p] += Σ_i Y_i(dir_p)·v(3i + c)[p]` over one block: the SH basis of
+    /// `bands` bands at the unit vectors `(x, y, z)` (the recurrence of
+    /// `basis::sh`, in f32), dotted with the block's coefficient values, row `j` of
+    /// which is `values[j·stride + offset ..][..BLOCK]` (plane order).
+    pub(crate) fn sh_dot(
+        self,
+        bands: usize,
+        norm: &ShNorms,
+        dir: &[[f32; BLOCK]; 3],
+        values: Rows,
+        acc: &mut [[f32; BLOCK]; 3],
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: as in `axpy`.
+            return unsafe { sh_dot_avx2(bands, norm, dir, values, acc) };
+        }
+        sh_dot_body::<false>(bands, norm, dir, values, acc)
+    }
+
+    /// Ask the CPU to start loading `data` into L2 (a hint: no effect on results).
+    pub(crate) fn prefetch<T>(self, data: &[T]) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T1};
+            let bytes = std::mem::size_of_val(data);
+            let start = data.as_ptr() as *const i8;
+            for offset in (0..bytes).step_by(64) {
+                // SAFETY: prefetching never faults and reads nothing the program sees;
+                // the address lies inside `data` (SSE is part of x86-64).
+                unsafe { _mm_prefetch::<_MM_HINT_T1>(start.wrapping_add(offset)) };
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = data;
+    }
+
+    /// Interleave three channel rows into RGB pixels: `dst[3p + c] = rows[c][p]`.
+    pub(crate) fn interleave(self, dst: &mut [f32], rows: [&[f32]; 3]) {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: as in `axpy`.
+            return unsafe { interleave_avx2(dst, rows) };
+        }
+        interleave_body(dst, rows)
+    }
+}
+
+/// How a positional light's irradiance falls off with distance `d` (as
+/// `light::Attenuation`, in f32; `d` is clamped to 1e-9 first).
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Falloff {
+    InverseSquare,
+    InverseDistance(f32),
+    None,
+}
+
+/// A spotlight's cone: unit axis from the light into the scene, cosines of the outer
+/// and inner half-angles (`SpotLight::cone_factor`, in f32).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Cone {
+    pub axis: [f32; 3],
+    pub outer: f32,
+    pub inner: f32,
+}
+
+impl Simd {
+    /// Unit light vectors from a block of surface points `at` (NaN where nothing was
+    /// hit) toward `position`, and the factor (falloff × cone) of each; pixels without
+    /// a surface point, or on the light, get a zero vector and factor 0.
+    pub(crate) fn light_block(
+        self,
+        position: [f32; 3],
+        falloff: Falloff,
+        cone: Option<Cone>,
+        at: &[[f32; BLOCK]; 3],
+        dir: &mut [[f32; BLOCK]; 3],
+        factor: &mut [f32; BLOCK],
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: as in `axpy`.
+            return unsafe { light_block_avx2(position, falloff, cone, at, dir, factor) };
+        }
+        light_block_body(position, falloff, cone, at, dir, factor)
+    }
+}
+
+#[inline(always)]
+fn light_block_body(
+    position: [f32; 3],
+    falloff: Falloff,
+    cone: Option<Cone>,
+    at: &[[f32; BLOCK]; 3],
+    dir: &mut [[f32; BLOCK]; 3],
+    factor: &mut [f32; BLOCK],
+) {
+    let mut dist = [0f32; BLOCK];
+    for p in 0..BLOCK {
+        let d = [
+            position[0] - at[0][p],
+            position[1] - at[1][p],
+            position[2] - at[2][p],
+        ];
+        let r = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        // NaN (no surface point) fails both comparisons.
+        let ok = r > 1e-12 && r < f32::INFINITY;
+        let inv = if ok { 1.0 / r } else { 0.0 };
+        for a in 0..3 {
+            dir[a][p] = if ok { d[a] * inv } else { 0.0 };
+        }
+        dist[p] = if ok { r.max(1e-9) } else { 0.0 };
+    }
+    match falloff {
+        Falloff::InverseSquare => {
+            for p in 0..BLOCK {
+                factor[p] = if dist[p] > 0.0 {
+                    1.0 / (dist[p] * dist[p])
+                } else {
+                    0.0
+                };
+            }
+        }
+        Falloff::InverseDistance(c0) => {
+            for p in 0..BLOCK {
+                factor[p] = if dist[p] > 0.0 { c0 / dist[p] } else { 0.0 };
+            }
+        }
+        Falloff::None => {
+            for p in 0..BLOCK {
+                factor[p] = if dist[p] > 0.0 { 1.0 } else { 0.0 };
+            }
+        }
+    }
+    if let Some(Cone { axis, outer, inner }) = cone {
+        let soft = inner > outer;
+        let scale = if soft { 1.0 / (inner - outer) } else { 0.0 };
+        for p in 0..BLOCK {
+            let cos = -(dir[0][p] * axis[0] + dir[1][p] * axis[1] + dir[2][p] * axis[2]);
+            let edge = if soft {
+                let t = ((cos - outer) * scale).clamp(0.0, 1.0);
+                t * t * (3.0 - 2.0 * t)
+            } else if cos >= inner {
+                1.0
+            } else {
+                0.0
+            };
+            factor[p] *= edge;
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,f16c")]
+unsafe fn light_block_avx2(
+    position: [f32; 3],
+    falloff: Falloff,
+    cone: Option<Cone>,
+    at: &[[f32; BLOCK]; 3],
+    dir: &mut [[f32; BLOCK]; 3],
+    factor: &mut [f32; BLOCK],
+) {
+    light_block_body(position, falloff, cone, at, dir, factor)
+}
+
+/// A stored coefficient type: f32, f16 (as bits) or 8-bit.
+pub(crate) trait Stored: Copy + Send + Sync + 'static {
+    fn to_f32(self) -> f32;
+    /// The slice itself when the values are already f32 (no decoding needed).
+    fn as_f32(data: &[Self]) -> Option<&[f32]> {
+        let _ = data;
+        None
+    }
+    /// # Safety
+    /// The CPU must support avx2, fma and f16c.
+    #[cfg(target_arch = "x86_64")]
+    unsafe fn axpy_avx2<const N: usize>(acc: &mut [f32], planes: [&[Self]; N], w: [f32; N]);
+    /// # Safety
+    /// As `axpy_avx2`.
+    #[cfg(target_arch = "x86_64")]
+    unsafe fn decode_avx2(out: &mut [f32], stored: &[Self], scale: f32, bias: f32);
+}
+
+#[inline(always)]
+fn madd<const FMA: bool>(a: f32, b: f32, c: f32) -> f32 {
+    if FMA {
+        a.mul_add(b, c)
+    } else {
+        a * b + c
+    }
+}
+
+#[inline(always)]
+fn axpy_body<T: Stored, const N: usize, const FMA: bool>(
+    acc: &mut [f32],
+    planes: [&[T]; N],
+    w: [f32; N],
+) {
+    for (p, a) in acc.iter_mut().enumerate() {
+        let mut v = *a;
+        for j in 0..N {
+            v = madd::<FMA>(planes[j][p].to_f32(), w[j], v);
+        }
+        *a = v;
+    }
+}
+
+impl Stored for f32 {
+    #[inline(always)]
+    fn to_f32(self) -> f32 {
+        self
+    }
+    fn as_f32(data: &[f32]) -> Option<&[f32]> {
+        Some(data)
+    }
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma,f16c")]
+    unsafe fn axpy_avx2<const N: usize>(acc: &mut [f32], planes: [&[f32]; N], w: [f32; N]) {
+        axpy_body::<f32, N, true>(acc, planes, w)
+    }
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma,f16c")]
+    unsafe fn decode_avx2(out: &mut [f32], stored: &[f32], scale: f32, bias: f32) {
+        for (o, &s) in out.iter_mut().zip(stored) {
+            *o = s.mul_add(scale, bias);
+        }
+    }
+}
+
+impl Stored for u8 {
+    #[inline(always)]
+    fn to_f32(self) -> f32 {
+        self as f32
+    }
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma,f16c")]
+    unsafe fn axpy_avx2<const N: usize>(acc: &mut [f32], planes: [&[u8]; N], w: [f32; N]) {
+        axpy_body::<u8, N, true>(acc, planes, w)
+    }
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma,f16c")]
+    unsafe fn decode_avx2(out: &mut [f32], stored: &[u8], scale: f32, bias: f32) {
+        for (o, &s) in out.iter_mut().zip(stored) {
+            *o = (s as f32).mul_add(scale, bias);
+        }
+    }
+}
+
+/// Half floats, stored as their bits.
+impl Stored for u16 {
+    #[inline(always)]
+    fn to_f32(self) -> f32 {
+        f16::from_bits(self).to_f32()
+    }
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma,f16c")]
+    unsafe fn axpy_avx2<const N: usize>(acc: &mut [f32], planes: [&[u16]; N], w: [f32; N]) {
+        use std::arch::x86_64::*;
+        let n = acc.len();
+        let mut weights = [_mm256_setzero_ps(); N];
+        for (v, &x) in weights.iter_mut().zip(&w) {
+            *v = _mm256_set1_ps(x);
+        }
+        let mut p = 0;
+        while p + 8 <= n {
+            let chunk: [f32; 8] = acc[p..p + 8].try_into().expect("8 lanes");
+            let mut a: __m256 = bytemuck::cast(chunk);
+            for j in 0..N {
+                let bits: [u16; 8] = planes[j][p..p + 8].try_into().expect("8 lanes");
+                let v = _mm256_cvtph_ps(bytemuck::cast::<[u16; 8], __m128i>(bits));
+                a = _mm256_fmadd_ps(v, weights[j], a);
+            }
+            acc[p..p + 8].copy_from_slice(&bytemuck::cast::<__m256, [f32; 8]>(a));
+            p += 8;
+        }
+        axpy_body::<u16, N, true>(&mut acc[p..], planes.map(|s| &s[p..]), w);
+    }
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma,f16c")]
+    unsafe fn decode_avx2(out: &mut [f32], stored: &[u16], scale: f32, bias: f32) {
+        use std::arch::x86_64::*;
+        let n = out.len();
+        let (s, b) = (_mm256_set1_ps(scale), _mm256_set1_ps(bias));
+        let mut p = 0;
+        while p + 8 <= n {
+            let bits: [u16; 8] = stored[p..p + 8].try_into().expect("8 lanes");
+            let v = _mm256_cvtph_ps(bytemuck::cast::<[u16; 8], __m128i>(bits));
+            out[p..p + 8].copy_from_slice(&bytemuck::cast::<__m256, [f32; 8]>(_mm256_fmadd_ps(
+                v, s, b,
+            )));
+            p += 8;
+        }
+        for (o, &h) in out[p..].iter_mut().zip(&stored[p..]) {
+            *o = h.to_f32().mul_add(scale, bias);
+        }
+    }
+}
+
+/// Rows of [`BLOCK`] values at a stride: row `j` is `data[j·stride + offset ..][..BLOCK]`.
+#[derive(Clone, Copy)]
+pub(crate) struct Rows<'a> {
+    pub data: &'a [f32],
+    pub stride: usize,
+    pub offset: usize,
+}
+
+impl Rows<'_> {
+    #[inline(always)]
+    fn row(&self, j: usize) -> &[f32; BLOCK] {
+        let at = j * self.stride + self.offset;
+        self.data[at..at + BLOCK].try_into().expect("a block")
+    }
+}
+
+/// `K_lm` (m = 0) and `√2·K_lm` (m > 0) at `l · 8 + m`: the normalisation of
+/// `basis::sh`, and the recurrence's `(2l − 1)/(l − m)`, `(l + m − 1)/(l − m)`.
+#[derive(Clone, Debug)]
+pub(crate) struct ShNorms {
+    k: [f32; 64],
+    a: [f32; 64],
+    b: [f32; 64],
+}
+
+impl ShNorms {
+    pub(crate) fn new() -> Self {
+        let mut out = Self {
+            k: [0.0; 64],
+            a: [0.0; 64],
+            b: [0.0; 64],
+        };
+        for l in 0..8usize {
+            for m in 0..=l {
+                let ratio: f64 = ((l - m + 1)..=(l + m)).map(|f| 1.0 / f as f64).product();
+                let k = ((2 * l + 1) as f64 / (4.0 * std::f64::consts::PI) * ratio).sqrt();
+                let j = l * 8 + m;
+                out.k[j] = if m == 0 {
+                    k
+                } else {
+                    std::f64::consts::SQRT_2 * k
+                } as f32;
+                if l > m + 1 {
+                    out.a[j] = ((2 * l - 1) as f64 / (l - m) as f64) as f32;
+                    out.b[j] = ((l + m - 1) as f64 / (l - m) as f64) as f32;
+                }
+            }
+        }
+        out
+    }
+}
+
+#[inline(always)]
+fn sh_dot_body<const FMA: bool>(
+    bands: usize,
+    norm: &ShNorms,
+    dir: &[[f32; BLOCK]; 3],
+    values: Rows,
+    acc: &mut [[f32; BLOCK]; 3],
+) {
+    let [x, y, z] = dir;
+    let mut cm = [1f32; BLOCK];
+    let mut sm = [0f32; BLOCK];
+    let mut p_prev = [0f32; BLOCK];
+    let mut p_cur = [0f32; BLOCK];
+    let mut pmm = 1f32;
+    for m in 0..bands {
+        if m > 0 {
+            for p in 0..BLOCK {
+                let c = x[p] * cm[p] - y[p] * sm[p];
+                let s = x[p] * sm[p] + y[p] * cm[p];
+                cm[p] = c;
+                sm[p] = s;
+            }
+            pmm *= -((2 * m - 1) as f32);
+        }
+        for l in m..bands {
+            let j = l * 8 + m;
+            if l == m {
+                p_cur = [pmm; BLOCK];
+            } else if l == m + 1 {
+                let f = (2 * m + 1) as f32 * pmm;
+                for p in 0..BLOCK {
+                    p_prev[p] = p_cur[p];
+                    p_cur[p] = f * z[p];
+                }
+            } else {
+                let (a, b) = (norm.a[j], norm.b[j]);
+                for p in 0..BLOCK {
+                    let next = madd::<FMA>(a * z[p], p_cur[p], -b * p_prev[p]);
+                    p_prev[p] = p_cur[p];
+                    p_cur[p] = next;
+                }
+            }
+            let k = norm.k[j];
+            let base = l * (l + 1);
+            if m == 0 {
+                let v = [0, 1, 2].map(|c| values.row(3 * base + c));
+                for p in 0..BLOCK {
+                    let yv = k * p_cur[p];
+                    for c in 0..3 {
+                        acc[c][p] = madd::<FMA>(yv, v[c][p], acc[c][p]);
+                    }
+                }
+            } else {
+                let vc = [0, 1, 2].map(|c| values.row(3 * (base + m) + c));
+                let vs = [0, 1, 2].map(|c| values.row(3 * (base - m) + c));
+                for p in 0..BLOCK {
+                    let kp = k * p_cur[p];
+                    let (yc, ys) = (kp * cm[p], kp * sm[p]);
+                    for c in 0..3 {
+                        acc[c][p] = madd::<FMA>(yc, vc[c][p], madd::<FMA>(ys, vs[c][p], acc[c][p]));
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,f16c")]
+unsafe fn sh_dot_avx2(
+    bands: usize,
+    norm: &ShNorms,
+    dir: &[[f32; BLOCK]; 3],
+    values: Rows,
+    acc: &mut [[f32; BLOCK]; 3],
+) {
+    sh_dot_body::<true>(bands, norm, dir, values, acc)
+}
+
+impl Simd {
+    /// The SH basis of `bands` bands at a block of unit vectors: `out[i][p] = Y_i(dir_p)`
+    /// (`out` holds at least `bands²` rows), the recurrence of [`Simd::sh_dot`].
+    pub(crate) fn sh_values(
+        self,
+        bands: usize,
+        norm: &ShNorms,
+        dir: &[[f32; BLOCK]; 3],
+        out: &mut [[f32; BLOCK]],
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: as in `axpy`.
+            return unsafe { sh_values_avx2(bands, norm, dir, out) };
+        }
+        sh_values_body::<false>(bands, norm, dir, out)
+    }
+}
+
+#[inline(always)]
+fn sh_values_body<const FMA: bool>(
+    bands: usize,
+    norm: &ShNorms,
+    dir: &[[f32; BLOCK]; 3],
+    out: &mut [[f32; BLOCK]],
+) {
+    let [x, y, z] = dir;
+    let mut cm = [1f32; BLOCK];
+    let mut sm = [0f32; BLOCK];
+    let mut p_prev = [0f32; BLOCK];
+    let mut p_cur = [0f32; BLOCK];
+    let mut pmm = 1f32;
+    for m in 0..bands {
+        if m > 0 {
+            for p in 0..BLOCK {
+                let c = x[p] * cm[p] - y[p] * sm[p];
+                let s = x[p] * sm[p] + y[p] * cm[p];
+                cm[p] = c;
+                sm[p] = s;
+            }
+            pmm *= -((2 * m - 1) as f32);
+        }
+        for l in m..bands {
+            let j = l * 8 + m;
+            if l == m {
+                p_cur = [pmm; BLOCK];
+            } else if l == m + 1 {
+                let f = (2 * m + 1) as f32 * pmm;
+                for p in 0..BLOCK {
+                    p_prev[p] = p_cur[p];
+                    p_cur[p] = f * z[p];
+                }
+            } else {
+                let (a, b) = (norm.a[j], norm.b[j]);
+                for p in 0..BLOCK {
+                    let next = madd::<FMA>(a * z[p], p_cur[p], -b * p_prev[p]);
+                    p_prev[p] = p_cur[p];
+                    p_cur[p] = next;
+                }
+            }
+            let k = norm.k[j];
+            let base = l * (l + 1);
+            if m == 0 {
+                for p in 0..BLOCK {
+                    out[base][p] = k * p_cur[p];
+                }
+            } else {
+                let (lo, hi) = out.split_at_mut(base + m);
+                let (minus, plus) = (&mut lo[base - m], &mut hi[0]);
+                for p in 0..BLOCK {
+                    let kp = k * p_cur[p];
+                    plus[p] = kp * cm[p];
+                    minus[p] = kp * sm[p];
+                }
+            }
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,f16c")]
+unsafe fn sh_values_avx2(
+    bands: usize,
+    norm: &ShNorms,
+    dir: &[[f32; BLOCK]; 3],
+    out: &mut [[f32; BLOCK]],
+) {
+    sh_values_body::<true>(bands, norm, dir, out)
+}
+
+#[inline(always)]
+fn interleave_body(dst: &mut [f32], rows: [&[f32]; 3]) {
+    for (p, px) in dst.chunks_exact_mut(3).enumerate() {
+        px[0] = rows[0][p];
+        px[1] = rows[1][p];
+        px[2] = rows[2][p];
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,f16c")]
+unsafe fn interleave_avx2(dst: &mut [f32], rows: [&[f32]; 3]) {
+    interleave_body(dst, rows)
+}
+
+/// Independent FMA chains of [`Simd::fma_chains`]: enough 8-lane registers to cover the
+/// FMA latency on two pipes (10 × 8 lanes).
+const CHAINS: usize = 10;
+
+impl Simd {
+    /// Run `iters × 80` multiply-adds on registers (no memory traffic) and return a sum
+    /// that depends on all of them: the compute-bound rate the engine's loops can reach.
+    pub(crate) fn fma_chains(self, iters: usize, seed: f32) -> f32 {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: as in `axpy`.
+            return unsafe { fma_chains_avx2(iters, seed) };
+        }
+        fma_chains_body::<false>(iters, seed)
+    }
+}
+
+fn fma_chains_body<const FMA: bool>(iters: usize, seed: f32) -> f32 {
+    let mut acc = [[seed; 8]; CHAINS];
+    let (a, b) = (0.999_999_9f32, 1e-7f32);
+    for _ in 0..iters {
+        for r in acc.iter_mut() {
+            for v in r.iter_mut() {
+                *v = madd::<FMA>(*v, a, b);
+            }
+        }
+    }
+    acc.iter().flatten().sum()
+}
+
+/// Written with intrinsics: LLVM keeps plain arrays of 80 values on the stack.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,f16c")]
+unsafe fn fma_chains_avx2(iters: usize, seed: f32) -> f32 {
+    use std::arch::x86_64::*;
+    let mut acc = [_mm256_set1_ps(seed); CHAINS];
+    let (a, b) = (_mm256_set1_ps(0.999_999_9), _mm256_set1_ps(1e-7));
+    for _ in 0..iters {
+        for r in acc.iter_mut() {
+            *r = _mm256_fmadd_ps(*r, a, b);
+        }
+    }
+    acc.iter()
+        .flat_map(|r| bytemuck::cast::<__m256, [f32; 8]>(*r))
+        .sum()
+}
+
+/// Multiply-adds per iteration of [`Simd::fma_chains`].
+pub(crate) const FMA_PER_ITER: usize = CHAINS * 8;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::basis::{Basis, SphericalHarmonics};
+    use crate::sphere::{fibonacci, Vec3};
+
+    fn both() -> [Simd; 2] {
+        [Simd::baseline(), Simd::detect()]
+    }
+
+    #[test]
+    fn axpy_adds_weighted_planes_for_every_type_and_count() {
+        let n = 37;
+        let a: Vec<f32> = (0..n).map(|i| i as f32 * 0.25 - 3.0).collect();
+        let b: Vec<f32> = (0..n).map(|i| (i * i % 7) as f32).collect();
+        let half_a: Vec<u16> = a.iter().map(|&v| f16::from_f32(v).to_bits()).collect();
+        let half_b: Vec<u16> = b.iter().map(|&v| f16::from_f32(v).to_bits()).collect();
+        let byte_b: Vec<u8> = b.iter().map(|&v| v as u8).collect();
+        for simd in both() {
+            let mut acc = vec![1f32; n];
+            simd.axpy(&mut acc, [&a[..], &b[..]], [2.0, -1.0]);
+            let mut acc16 = vec![1f32; n];
+            simd.axpy(&mut acc16, [&half_a[..], &half_b[..]], [2.0, -1.0]);
+            let mut acc8 = vec![1f32; n];
+            simd.axpy(&mut acc8, [&byte_b[..]], [-1.0]);
+            for p in 0..n {
+                let want = 1.0 + 2.0 * a[p] - b[p];
+                // The values are exact in f16 (quarters below 2048).
+                assert_eq!(acc[p], want, "{simd:?} f32 {p}");
+                assert_eq!(acc16[p], want, "{simd:?} f16 {p}");
+                assert_eq!(acc8[p], 1.0 - b[p], "{simd:?} u8 {p}");
+            }
+            let mut out = vec![0f32; n];
+            simd.decode(&mut out, &byte_b, 0.5, 1.0);
+            assert_eq!(out[3], 0.5 * b[3] + 1.0);
+            simd.decode(&mut out, &half_a, 1.0, 0.0);
+            assert_eq!(out, a);
+        }
+    }
+
+    /// |Y| ≤ 1.2 for 8 bands; the f32 recurrence keeps ~1e-6 relative accuracy.
+    const F32_SH_TOLERANCE: f64 = 2e-5;
+
+    /// The fast f32 evaluator equals `SphericalHarmonics::eval` for every band count and
+    /// every (l, m): each coefficient plane is a one-hot, so `acc` is `Y_i` itself.
+    #[test]
+    fn f32_sh_equals_the_basis_for_every_band() {
+        let dirs: Vec<Vec3> = fibonacci(BLOCK - 2)
+            .into_iter()
+            .chain([Vec3::new(0.0, 0.0, 1.0), Vec3::new(0.0, 0.0, -1.0)])
+            .collect();
+        let mut dir = [[0f32; BLOCK]; 3];
+        for (p, d) in dirs.iter().enumerate() {
+            dir[0][p] = d.x as f32;
+            dir[1][p] = d.y as f32;
+            dir[2][p] = d.z as f32;
+        }
+        let norm = ShNorms::new();
+        for simd in both() {
+            for bands in 1..=8 {
+                let sh = SphericalHarmonics::new(bands).unwrap();
+                let k = bands * bands;
+                for i in 0..k {
+                    // Channel c of coefficient i holds c + 1, every other value 0.
+                    let mut values = vec![0f32; 3 * k * BLOCK];
+                    for c in 0..3 {
+                        values[(3 * i + c) * BLOCK..(3 * i + c + 1) * BLOCK].fill((c + 1) as f32);
+                    }
+                    let rows = Rows {
+                        data: &values,
+                        stride: BLOCK,
+                        offset: 0,
+                    };
+                    let mut acc = [[0f32; BLOCK]; 3];
+                    simd.sh_dot(bands, &norm, &dir, rows, &mut acc);
+                    for (p, d) in dirs.iter().enumerate() {
+                        let want = sh.values(*d)[i];
+                        for (c, row) in acc.iter().enumerate() {
+                            let got = row[p] as f64 / (c + 1) as f64;
+                            assert!(
+                                (got - want).abs() < F32_SH_TOLERANCE,
+                                "{simd:?} bands {bands} Y{i} at {d:?}: {got} vs {want}"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn f32_sh_values_equal_the_basis() {
+        let dirs = fibonacci(BLOCK);
+        let mut dir = [[0f32; BLOCK]; 3];
+        for (p, d) in dirs.iter().enumerate() {
+            dir[0][p] = d.x as f32;
+            dir[1][p] = d.y as f32;
+            dir[2][p] = d.z as f32;
+        }
+        let norm = ShNorms::new();
+        for simd in both() {
+            for bands in 1..=8 {
+                let sh = SphericalHarmonics::new(bands).unwrap();
+                let mut out = vec![[0f32; BLOCK]; bands * bands];
+                simd.sh_values(bands, &norm, &dir, &mut out);
+                for (p, d) in dirs.iter().enumerate() {
+                    for (i, want) in sh.values(*d).into_iter().enumerate() {
+                        assert!(
+                            (out[i][p] as f64 - want).abs() < F32_SH_TOLERANCE,
+                            "{simd:?} bands {bands} Y{i}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn interleave_makes_rgb_pixels() {
+        let rows = [[1f32, 2.0], [3.0, 4.0], [5.0, 6.0]];
+        for simd in both() {
+            let mut dst = [0f32; 6];
+            simd.interleave(&mut dst, [&rows[0], &rows[1], &rows[2]]);
+            assert_eq!(dst, [1.0, 3.0, 5.0, 2.0, 4.0, 6.0]);
+        }
+    }
+}

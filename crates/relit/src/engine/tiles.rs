@@ -1,0 +1,299 @@
+//! One tile of a frame: a run of `TILE` consecutive pixels, relit by uniform passes
+//! (one weight per plane, the planes streamed four at a time) and by point and spot
+//! lights (per block of [`BLOCK`] pixels: light vectors, falloff, then the f32 SH
+//! basis dotted with the block's coefficients). Lights of other types (projector,
+//! area) are added afterwards by the engine's per-pixel path.
+
+use super::kernels::{Cone, Falloff, Rows, ShNorms, Simd, Stored, BLOCK};
+use super::planes::Planes;
+use crate::color;
+use crate::light::{Attenuation, PreparedLight};
+
+/// Pixels per tile: each plane's segment (16 KiB in f32) is read in one sequential run,
+/// and the three channel accumulators (48 KiB) stay in L2.
+pub(crate) const TILE: usize = 4096;
+
+/// A uniform pass: weights per channel and coefficient on the stored values (plane
+/// scale folded in), a constant (plane bias folded in), and the RGB tint applied after
+/// the sRGB decode of display-referred maps.
+pub(crate) struct UniformPass {
+    pub weights: [Vec<f32>; 3],
+    pub offset: [f32; 3],
+    pub tint: [f32; 3],
+}
+
+impl UniformPass {
+    /// The pass of coefficient weights `w[c][i]` (f64) on `planes`.
+    pub(crate) fn new(w: &[Vec<f64>; 3], tint: [f32; 3], planes: &Planes) -> Self {
+        let mut weights: [Vec<f32>; 3] = Default::default();
+        let mut offset = [0f32; 3];
+        for c in 0..3 {
+            let mut o = 0f64;
+            weights[c] = w[c]
+                .iter()
+                .enumerate()
+                .map(|(i, &v)| {
+                    let (scale, bias) = planes.coding(3 * i + c);
+                    o += v * bias as f64;
+                    (v * scale as f64) as f32
+                })
+                .collect();
+            offset[c] = o as f32;
+        }
+        Self {
+            weights,
+            offset,
+            tint,
+        }
+    }
+}
+
+/// A point or spot light in f32, its RGB scaled by the exposure.
+pub(crate) struct FastLight {
+    position: [f32; 3],
+    rgb: [f32; 3],
+    falloff: Falloff,
+    cone: Option<Cone>,
+}
+
+impl FastLight {
+    /// The fast form of a prepared point or spot light; `None` for other types.
+    pub(crate) fn new(light: &PreparedLight, scale: f64) -> Option<Self> {
+        let f3 = |v: crate::sphere::Vec3| [v.x as f32, v.y as f32, v.z as f32];
+        let rgb = |rgb: &[f64; 3]| rgb.map(|c| (c * scale) as f32);
+        let falloff = |a: Attenuation| match a {
+            Attenuation::InverseSquare => Falloff::InverseSquare,
+            Attenuation::InverseDistance(c0) => Falloff::InverseDistance(c0 as f32),
+            Attenuation::None => Falloff::None,
+        };
+        match light {
+            PreparedLight::Point(l, c) => Some(Self {
+                position: f3(l.position),
+                rgb: rgb(c),
+                falloff: falloff(l.attenuation),
+                cone: None,
+            }),
+            PreparedLight::Spot(l, c) => {
+                let axis = l.direction.normalized()?;
+                let outer = l.cone_deg.to_radians().cos() as f32;
+                let inner = (l.cone_deg - l.softness_deg).max(0.0).to_radians().cos() as f32;
+                Some(Self {
+                    position: f3(l.position),
+                    rgb: rgb(c),
+                    falloff: falloff(l.attenuation),
+                    cone: Some(Cone {
+                        axis: f3(axis),
+                        outer,
+                        inner,
+                    }),
+                })
+            }
+            _ => None,
+        }
+    }
+}
+
+/// Pixels whose coefficients the positional path decodes at once: each plane's run
+/// (4 KiB in f32) is read sequentially, and the `3k` runs (up to 768 KiB) stay in L2.
+/// Reading 64-pixel blocks straight from the `3k` planes was 2× slower (too many
+/// short streams for the prefetchers).
+const RUN: usize = 1024;
+
+/// Per-worker buffers, reused across tiles.
+pub(crate) struct Scratch {
+    acc: [Vec<f32>; 3],
+    /// `3k` rows of [`RUN`] decoded values.
+    values: Vec<f32>,
+}
+
+impl Scratch {
+    /// Buffers for `k` coefficients; the value rows only for frames with positional
+    /// lights.
+    pub(crate) fn new(k: usize, positional: bool) -> Self {
+        Self {
+            acc: std::array::from_fn(|_| vec![0f32; TILE]),
+            values: if positional {
+                vec![0f32; 3 * k * RUN]
+            } else {
+                Vec::new()
+            },
+        }
+    }
+}
+
+/// Everything a frame's tiles share.
+pub(crate) struct Frame<'a> {
+    pub simd: Simd,
+    pub planes: &'a Planes<'a>,
+    /// Pixels per plane.
+    pub n: usize,
+    pub k: usize,
+    pub bands: usize,
+    pub display: bool,
+    pub passes: &'a [UniformPass],
+    pub lights: &'a [FastLight],
+    /// Surface points (x, y, z rows; NaN where nothing was hit), when `lights` is not empty.
+    pub points: Option<&'a [Vec<f32>; 3]>,
+    pub norms: &'a ShNorms,
+}
+
+impl Frame<'_> {
+    /// Relight pixels `p0 .. p0 + dst.len() / 3` into `dst` (interleaved RGB),
+    /// overwriting it.
+    pub(crate) fn tile(&self, p0: usize, dst: &mut [f32], scratch: &mut Scratch) {
+        match self.planes {
+            Planes::F32(d) => self.tile_typed(d, p0, dst, scratch),
+            Planes::F16(d) => self.tile_typed(d, p0, dst, scratch),
+            Planes::U8 { data, .. } => self.tile_typed(data, p0, dst, scratch),
+        }
+    }
+
+    fn tile_typed<T: Stored>(&self, data: &[T], p0: usize, dst: &mut [f32], scratch: &mut Scratch) {
+        let len = dst.len() / 3;
+        let n = self.n;
+        let plane = |j: usize| &data[j * n + p0..j * n + p0 + len];
+        if self.passes.is_empty() {
+            dst.fill(0.0);
+        }
+        for (index, pass) in self.passes.iter().enumerate() {
+            for c in 0..3 {
+                let acc = &mut scratch.acc[c][..len];
+                acc.fill(pass.offset[c]);
+                let w = &pass.weights[c];
+                let mut i = 0;
+                while i + 4 <= self.k {
+                    let j = |d: usize| plane(3 * (i + d) + c);
+                    self.simd.axpy(
+                        acc,
+                        [j(0), j(1), j(2), j(3)],
+                        [w[i], w[i + 1], w[i + 2], w[i + 3]],
+                    );
+                    i += 4;
+                }
+                for (i, &wi) in w.iter().enumerate().skip(i) {
+                    self.simd.axpy(acc, [plane(3 * i + c)], [wi]);
+                }
+                if self.display {
+                    for v in acc.iter_mut() {
+                        *v = pass.tint[c] * color::srgb_to_linear(v.clamp(0.0, 1.0));
+                    }
+                } else if pass.tint[c] != 1.0 {
+                    acc.iter_mut().for_each(|v| *v *= pass.tint[c]);
+                }
+            }
+            let [r, g, b] = &scratch.acc;
+            if index == 0 {
+                self.simd.interleave(dst, [&r[..len], &g[..len], &b[..len]]);
+            } else {
+                for (p, px) in dst.chunks_exact_mut(3).enumerate() {
+                    px[0] += r[p];
+                    px[1] += g[p];
+                    px[2] += b[p];
+                }
+            }
+        }
+        let Some(points) = self.points.filter(|_| !self.lights.is_empty()) else {
+            return;
+        };
+        // f32 planes are read in place; other types are decoded run by run.
+        let direct = T::as_f32(data);
+        for r0 in (0..len).step_by(RUN) {
+            let rl = RUN.min(len - r0);
+            let planes = 3 * self.k;
+            for (j, row) in scratch
+                .values
+                .chunks_exact_mut(RUN)
+                .enumerate()
+                .filter(|_| direct.is_none())
+            {
+                let (scale, bias) = self.planes.coding(j);
+                let at = j * n + p0 + r0;
+                self.simd
+                    .decode(&mut row[..rl], &data[at..at + rl], scale, bias);
+                row[rl..].fill(0.0);
+            }
+            // The next run (maybe the next tile's) streams in while this one is shaded.
+            let next = (p0 + r0 + RUN).min(n)..(p0 + r0 + 2 * RUN).min(n);
+            let blocks = rl.div_ceil(BLOCK);
+            for (index, b) in (0..rl).step_by(BLOCK).enumerate() {
+                for j in (index..planes).step_by(blocks) {
+                    self.simd
+                        .prefetch(&data[j * n + next.start..j * n + next.end]);
+                }
+                let bl = BLOCK.min(rl - b);
+                let values = match direct {
+                    // Whole blocks only: the last partial block of the image is decoded.
+                    Some(d) if p0 + r0 + b + BLOCK <= n => Rows {
+                        data: d,
+                        stride: n,
+                        offset: p0 + r0 + b,
+                    },
+                    _ => {
+                        if let Some(d) = direct {
+                            for (j, row) in scratch.values.chunks_exact_mut(RUN).enumerate() {
+                                let at = j * n + p0 + r0 + b;
+                                row[b..b + bl].copy_from_slice(&d[at..at + bl]);
+                                row[b + bl..b + BLOCK].fill(0.0);
+                            }
+                        }
+                        Rows {
+                            data: &scratch.values,
+                            stride: RUN,
+                            offset: b,
+                        }
+                    }
+                };
+                self.positional_block(p0 + r0 + b, r0 + b, bl, values, points, dst);
+            }
+        }
+    }
+
+    /// Add the positional lights over pixels `q0 .. q0 + bl` (`b0` within the tile).
+    fn positional_block(
+        &self,
+        q0: usize,
+        b0: usize,
+        bl: usize,
+        values: Rows,
+        points: &[Vec<f32>; 3],
+        dst: &mut [f32],
+    ) {
+        let mut dir = [[0f32; BLOCK]; 3];
+        let mut factor = [0f32; BLOCK];
+        let mut at = [[f32::NAN; BLOCK]; 3];
+        for (a, row) in at.iter_mut().enumerate() {
+            row[..bl].copy_from_slice(&points[a][q0..q0 + bl]);
+            row[bl..].fill(f32::NAN);
+        }
+        for light in self.lights {
+            self.simd.light_block(
+                light.position,
+                light.falloff,
+                light.cone,
+                &at,
+                &mut dir,
+                &mut factor,
+            );
+            let mut acc = [[0f32; BLOCK]; 3];
+            self.simd
+                .sh_dot(self.bands, self.norms, &dir, values, &mut acc);
+            for (c, row) in acc.iter_mut().enumerate() {
+                if self.display {
+                    row.iter_mut()
+                        .for_each(|v| *v = color::srgb_to_linear(v.clamp(0.0, 1.0)));
+                }
+                let rgb = light.rgb[c];
+                for (v, &f) in row.iter_mut().zip(&factor) {
+                    // Pixels the light does not reach add nothing, even where their
+                    // coefficients are not finite.
+                    *v = if f != 0.0 { rgb * f * *v } else { 0.0 };
+                }
+            }
+            for (p, px) in dst[3 * b0..3 * (b0 + bl)].chunks_exact_mut(3).enumerate() {
+                px[0] += acc[0][p];
+                px[1] += acc[1][p];
+                px[2] += acc[2][p];
+            }
+        }
+    }
+}
