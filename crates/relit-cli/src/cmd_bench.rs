@@ -4,17 +4,23 @@
 //! coefficients, a depth map, a cylindrical camera at the origin) and times three cases:
 //!
 //! * `directional` — one directional light: one weight per plane, one pass over the maps;
-//! * `environment` — a synthetic lat-long sky (blue gradient and a small sun). The GPU
-//!   takes its SH projection (`EnvironmentLight::light_weights`) as one folded weight
-//!   vector per channel; the CPU engine, which has no weights input yet, takes the sky as
-//!   64 directional lights (`EnvironmentLight::weights_for_directions` on Fibonacci
-//!   directions), which it folds into one weight vector before touching a pixel. Both
-//!   measure the same thing: one pass over the maps with one weight per plane;
-//! * `point` — one point light near the eye: per-pixel light vector and SH evaluation.
+//! * `environment` — a synthetic lat-long sky (blue gradient and a small sun), given to
+//!   both engines as its SH projection (`EnvironmentLight::light_weights`, the
+//!   `PreparedLight::Weights` a rig's environment light becomes): one folded weight
+//!   vector per channel, one pass over the maps like `directional`;
+//! * `point` — one point light near the eye: per-pixel light vector and SH evaluation;
+//! * `sh_eval` (CPU) — the per-pixel SH basis alone (`relit::engine::ShEvaluator`, the
+//!   f32 recurrence of the point case) at every pixel's light vector, reported in
+//!   pixels per second (`pixels_per_s`); no coefficient is read.
 //!
-//! on the CPU engine (`relit::engine::Relighter`, rayon over all cores) and on the GPU
-//! engine (`relit-gpu`, skipped with the reason when no adapter exists) for each GPU
-//! storage type. GPU frames are timed without readback.
+//! on the CPU engine (`relit::engine::Relighter`, rayon over all cores) for each plane
+//! storage (`f32`, `f16`, `u8`) and on the GPU engine (`relit-gpu`, skipped with the
+//! reason when no adapter exists) for each GPU storage type. GPU frames are timed
+//! without readback.
+//!
+//! Before the cases it measures the machine's f32 multiply-add rate on registers
+//! (`relit::engine::fma_throughput`, all threads); every CPU uniform case reports
+//! `fma_fraction`, the share of that rate its `3·k·pixels` multiply-adds per frame reach.
 //!
 //! In the same run it measures the memory read bandwidth over the maps' own bytes (a
 //! multithreaded sum of the f32 buffer, best of three) and reports, for every case, the
@@ -34,7 +40,7 @@ use anyhow::{bail, Context};
 use rayon::prelude::*;
 use relit::basis::BasisSpec;
 use relit::camera::{CameraSpec, Pose, Projection};
-use relit::engine::Relighter;
+use relit::engine::{PlaneStorage, Relighter, ShEvaluator};
 use relit::envmap::EnvironmentLight;
 use relit::image::ImageRgb;
 use relit::light::{Light, PreparedLight};
@@ -72,6 +78,13 @@ pub struct Args {
     /// Skip the CPU engine.
     #[arg(long)]
     pub no_cpu: bool,
+    /// CPU plane storage types (`f32`, `f16`, `u8`; repeatable). Default: all three.
+    #[arg(long = "cpu-storage")]
+    pub cpu_storage: Vec<String>,
+    /// Write the synthetic maps of the first --size and --k to this relightable EXR
+    /// (f16, with depth and camera) and exit: a large test file for `relit relight`.
+    #[arg(long)]
+    pub write_maps: Option<std::path::PathBuf>,
 }
 
 /// One measured case; also the JSON form.
@@ -87,6 +100,8 @@ struct Row {
     /// CPU threads, or the GPU adapter.
     engine: String,
     fps: f64,
+    /// Pixels relit (or, for `sh_eval`, basis evaluations) per second.
+    pixels_per_s: f64,
     ms_per_frame: f64,
     frames: usize,
     /// Bytes of the maps in this storage: what one streaming frame must read.
@@ -95,6 +110,8 @@ struct Row {
     read_bandwidth_gbs: f64,
     /// `fps × map_bytes ÷ bandwidth`; null where host bandwidth does not bound the device.
     bandwidth_fraction: Option<f64>,
+    /// `fps × 3·k·pixels ÷ peak multiply-add rate` (CPU uniform cases).
+    fma_fraction: Option<f64>,
 }
 
 const CASES: [&str; 3] = ["directional", "environment", "point"];
@@ -156,7 +173,42 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         eprintln!("relit bench: GPU skipped: {why}");
     }
 
+    let cpu_storage: Vec<PlaneStorage> = if args.cpu_storage.is_empty() {
+        PlaneStorage::ALL.to_vec()
+    } else {
+        args.cpu_storage
+            .iter()
+            .map(|s| {
+                PlaneStorage::parse(s)
+                    .with_context(|| format!("--cpu-storage `{s}`: expected f32, f16 or u8"))
+            })
+            .collect::<anyhow::Result<_>>()?
+    };
+    if let Some(path) = &args.write_maps {
+        let (width, height) = sizes[0];
+        let bands = bands_of(ks[0]).expect("checked");
+        let image = synthetic_image(width, height, bands)?;
+        relit::codec::exr::write(path, &image, relit::codec::Storage::Half)?;
+        println!(
+            "wrote {} ({width}×{height}, k = {}, {} of f32 maps)",
+            path.display(),
+            ks[0],
+            relit::memory::mib(image.maps.bytes() as u64)
+        );
+        return Ok(());
+    }
+
     let threads = rayon::current_num_threads();
+    let fma_peak = if args.no_cpu {
+        f64::NAN
+    } else {
+        let peak = relit::engine::fma_throughput(if args.quick { 0.05 } else { 0.3 });
+        eprintln!(
+            "relit bench: peak f32 multiply-add rate {:.1} G/s ({threads} threads)",
+            peak / 1e9
+        );
+        peak
+    };
     let mut rows = Vec::new();
     for &(width, height) in &sizes {
         for &k in &ks {
@@ -171,46 +223,73 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             );
             let env = Environment::new(bands)?;
             let n = (width * height) as u64;
-            let bytes_of = |s: Storage| 3 * k as u64 * n * s.bytes_per_value() as u64;
-            let row = |case, storage: Storage, device, engine: String, secs: f64, frames| {
+            let row = |case,
+                       storage: &'static str,
+                       bytes_per_value: usize,
+                       device,
+                       engine: String,
+                       secs: f64,
+                       frames| {
                 let fps = 1.0 / secs;
-                let map_bytes = bytes_of(storage);
+                let map_bytes = 3 * k as u64 * n * bytes_per_value as u64;
                 Row {
                     case,
                     width,
                     height,
                     k,
-                    storage: storage.name(),
+                    storage,
                     device,
                     engine,
                     fps,
+                    pixels_per_s: fps * n as f64,
                     ms_per_frame: secs * 1e3,
                     frames,
                     map_bytes,
                     read_bandwidth_gbs: bandwidth / 1e9,
                     bandwidth_fraction: Some(fps * map_bytes as f64 / bandwidth),
+                    fma_fraction: None,
                 }
             };
 
             if !args.no_cpu {
-                let relighter = Relighter::new(&image)?;
-                for case in CASES {
-                    let lights = cpu_lights(case, &env)?;
-                    let (secs, frames) = time_cpu(seconds, || {
-                        black_box(relighter.relight_prepared(&lights, 0.0)?);
-                        Ok(())
-                    })?;
-                    let r = row(
-                        case,
-                        Storage::F32,
-                        "cpu",
-                        format!("{threads} threads"),
-                        secs,
-                        frames,
-                    );
-                    report(&r, args.json);
-                    rows.push(r);
+                for &storage in &cpu_storage {
+                    let relighter = Relighter::with_storage(&image, storage)?;
+                    let engine = format!("{threads} threads, {}", relighter.kernels());
+                    for case in CASES {
+                        let lights = cpu_lights(case, &env)?;
+                        let (secs, frames) = time_cpu(seconds, || {
+                            black_box(relighter.relight_prepared(&lights, 0.0)?);
+                            Ok(())
+                        })?;
+                        let mut r = row(
+                            case,
+                            storage.name(),
+                            storage.bytes_per_value(),
+                            "cpu",
+                            engine.clone(),
+                            secs,
+                            frames,
+                        );
+                        if case != "point" {
+                            r.fma_fraction = Some(r.fps * (3 * k) as f64 * n as f64 / fma_peak);
+                        }
+                        report(&r, args.json);
+                        rows.push(r);
+                    }
                 }
+                let (secs, frames) = time_sh_eval(&image, bands, seconds)?;
+                let mut r = row(
+                    "sh_eval",
+                    "-",
+                    0,
+                    "cpu",
+                    format!("{threads} threads"),
+                    secs,
+                    frames,
+                );
+                r.bandwidth_fraction = None;
+                report(&r, args.json);
+                rows.push(r);
             }
 
             if gpu_skip.is_none() {
@@ -240,7 +319,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                         let (secs, frames) = time_gpu(&gpu, &lighting, seconds)?;
                         let mut r = row(
                             case,
-                            storage,
+                            storage.name(),
+                            storage.bytes_per_value(),
                             "gpu",
                             gpu.adapter().to_string(),
                             secs,
@@ -337,27 +417,16 @@ fn synthetic_image(width: usize, height: usize, bands: usize) -> anyhow::Result<
     })
 }
 
-/// A synthetic sky as the two engines take it.
+/// A synthetic sky as both engines take it: SH light weights per channel.
 struct Environment {
-    /// SH light weights per channel (GPU).
     weights: [Vec<f64>; 3],
-    /// The same sky as directional lights (CPU).
-    samples: Vec<Light>,
 }
 
 impl Environment {
     fn new(bands: usize) -> anyhow::Result<Self> {
         let sky = EnvironmentLight::from_image(sky())?;
-        let dirs = relit::sphere::fibonacci(64);
-        let samples = sky
-            .weights_for_directions(&dirs)?
-            .into_iter()
-            .zip(&dirs)
-            .map(|(rgb, d)| Light::directional(*d, rgb))
-            .collect();
         Ok(Self {
             weights: sky.light_weights(bands)?,
-            samples,
         })
     }
 }
@@ -391,7 +460,7 @@ fn directional_light() -> Light {
 fn cpu_lights(case: &str, env: &Environment) -> anyhow::Result<Vec<PreparedLight>> {
     let lights = match case {
         "directional" => vec![directional_light()],
-        "environment" => env.samples.clone(),
+        "environment" => return Ok(vec![PreparedLight::Weights(env.weights.clone())]),
         _ => vec![point_light()],
     };
     Ok(lights
@@ -442,6 +511,56 @@ fn time_gpu(gpu: &GpuRelighter, lighting: &Lighting, seconds: f64) -> anyhow::Re
     ))
 }
 
+/// Seconds per evaluation of the SH basis at every pixel's light vector (toward the
+/// `point` case's light), and the number of timed passes: rayon over chunks of 4096
+/// pixels, each evaluated into a per-thread buffer (no coefficient read, nothing
+/// written to memory beyond L2).
+fn time_sh_eval(
+    image: &RelightableImage,
+    bands: usize,
+    seconds: f64,
+) -> anyhow::Result<(f64, usize)> {
+    const CHUNK: usize = 4096;
+    let eval = ShEvaluator::new(bands)?;
+    let camera = Relighter::new(image)?.camera()?;
+    let depth = image.depth.as_ref().context("synthetic maps have depth")?;
+    let Light::Point(light) = point_light() else {
+        unreachable!()
+    };
+    let w = image.width();
+    let n = depth.len();
+    let mut dirs: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0f32; n]);
+    {
+        let [xs, ys, zs] = &mut dirs;
+        xs.par_iter_mut()
+            .zip(ys.par_iter_mut())
+            .zip(zs.par_iter_mut())
+            .enumerate()
+            .for_each(|(p, ((x, y), z))| {
+                let s = camera.position(p % w, p / w, depth[p] as f64);
+                let l = (light.position - s)
+                    .normalized()
+                    .unwrap_or(relit::sphere::Vec3::new(0.0, 0.0, 1.0));
+                (*x, *y, *z) = (l.x as f32, l.y as f32, l.z as f32);
+            });
+    }
+    let k = eval.len();
+    time_cpu(seconds, || {
+        dirs[0]
+            .par_chunks(CHUNK)
+            .zip(dirs[1].par_chunks(CHUNK))
+            .zip(dirs[2].par_chunks(CHUNK))
+            .for_each_init(
+                || vec![0f32; k * CHUNK],
+                |out, ((x, y), z)| {
+                    eval.eval(x, y, z, &mut out[..k * x.len()]);
+                    black_box(&out);
+                },
+            );
+        Ok(())
+    })
+}
+
 /// Bytes per second of a multithreaded read of `data` (best of three): the bound for
 /// any pass that streams these bytes once.
 fn read_bandwidth(data: &[f32]) -> f64 {
@@ -471,13 +590,17 @@ fn sum(chunk: &[f32]) -> f32 {
 fn report(row: &Row, json: bool) {
     if !json {
         eprintln!(
-            "  {:<11} {:>4}  {:<3} {:>9.1} fps  {}",
+            "  {:<11} {:>4}  {:<3} {:>9.1} fps  {:>8.1} Mpx/s  {}{}",
             row.case,
             row.device,
             row.storage,
             row.fps,
+            row.pixels_per_s / 1e6,
             row.bandwidth_fraction
                 .map(|f| format!("{:.0} % of bandwidth", f * 100.0))
+                .unwrap_or_default(),
+            row.fma_fraction
+                .map(|f| format!(", {:.0} % of FMA peak", f * 100.0))
                 .unwrap_or_default()
         );
     }
@@ -485,23 +608,27 @@ fn report(row: &Row, json: bool) {
 
 fn print_summary(rows: &[Row]) {
     println!(
-        "{:<11} {:>10} {:>3} {:<4} {:<4} {:>10} {:>10} {:>8} {:>9}  engine",
-        "case", "size", "k", "stor", "dev", "fps", "ms/frame", "GB/s", "of bound"
+        "{:<11} {:>10} {:>3} {:<4} {:<4} {:>10} {:>10} {:>10} {:>8} {:>9} {:>8}  engine",
+        "case", "size", "k", "stor", "dev", "fps", "Mpx/s", "ms/frame", "GB/s", "of bw", "of FMA"
     );
+    let pct = |f: Option<f64>| {
+        f.map(|f| format!("{:.1} %", f * 100.0))
+            .unwrap_or_else(|| "-".into())
+    };
     for r in rows {
         println!(
-            "{:<11} {:>10} {:>3} {:<4} {:<4} {:>10.1} {:>10.2} {:>8.1} {:>9}  {}",
+            "{:<11} {:>10} {:>3} {:<4} {:<4} {:>10.1} {:>10.1} {:>10.3} {:>8.1} {:>9} {:>8}  {}",
             r.case,
             format!("{}×{}", r.width, r.height),
             r.k,
             r.storage,
             r.device,
             r.fps,
+            r.pixels_per_s / 1e6,
             r.ms_per_frame,
             r.read_bandwidth_gbs,
-            r.bandwidth_fraction
-                .map(|f| format!("{:.1} %", f * 100.0))
-                .unwrap_or_else(|| "-".into()),
+            pct(r.bandwidth_fraction),
+            pct(r.fma_fraction),
             r.engine
         );
     }

@@ -3,9 +3,12 @@
 use crate::shared::Bars;
 use anyhow::{bail, Context};
 use relit::codec::exr;
-use relit::engine::{RelightOptions, Relighter};
+use relit::engine::{PlaneStorage, RelightOptions, Relighter, Roi};
+use relit::image::ImageRgb;
 use relit::light::{parse_triple, Light, LightRig, RigFile};
+use relit::maps::RelightableImage;
 use relit::progress::Progress;
+use relit_gpu::{GpuOptions, GpuRelighter};
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
@@ -38,6 +41,105 @@ pub struct Args {
     /// Frame file extension for --out: png or exr.
     #[arg(long, default_value = "png")]
     pub frame_format: String,
+    /// Relight only the region `x,y,w,h` (pixels, top-left origin): the output image is
+    /// that region alone (`w × h`), equal to the same crop of the full frame.
+    #[arg(long)]
+    pub roi: Option<String>,
+    /// Relight on the GPU (wgpu compute shaders; any Vulkan/Metal/DX12 adapter,
+    /// including Mesa's software lavapipe). Directional, environment, point and spot
+    /// lights.
+    #[arg(long)]
+    pub gpu: bool,
+    /// Value type of the planes the engine reads: f32 (the file's values, no copy), f16
+    /// or u8 (per-plane scale and bias; a compact copy is made first).
+    #[arg(long, default_value = "f32")]
+    pub storage: String,
+    /// Also relight on the CPU and print the largest absolute difference (with --gpu,
+    /// or with --storage f16/u8 against the f32 maps).
+    #[arg(long)]
+    pub compare: bool,
+    /// Print the process's peak memory and the bytes of maps + output image.
+    #[arg(long)]
+    pub memory: bool,
+}
+
+/// The engine that renders frames: the CPU relighter, or the GPU one.
+enum Engine<'a> {
+    Cpu(Relighter<'a>),
+    Gpu {
+        gpu: Box<GpuRelighter>,
+        /// For environment weights (and --compare).
+        cpu: Relighter<'a>,
+    },
+}
+
+impl Engine<'_> {
+    fn render(
+        &self,
+        rig: &LightRig,
+        options: &RelightOptions,
+        roi: Roi,
+    ) -> anyhow::Result<ImageRgb> {
+        match self {
+            Engine::Cpu(r) => Ok(r.relight_roi(rig, options, roi)?),
+            Engine::Gpu { gpu, cpu } => {
+                let (env, rest): (Vec<&Light>, Vec<&Light>) = rig
+                    .lights
+                    .iter()
+                    .partition(|l| matches!(l, Light::Environment(_)));
+                let rest = LightRig::new(rest.into_iter().cloned().collect());
+                let mut lighting = gpu.lighting(&rest, options.exposure)?;
+                let scale = 2f64.powf(options.exposure);
+                for light in env {
+                    let Light::Environment(e) = light else {
+                        unreachable!()
+                    };
+                    let weights = cpu.environment_weights(e, &options.resource_dir)?;
+                    lighting.add_uniform(weights, [scale; 3])?;
+                }
+                let roi = relit_gpu::Roi {
+                    x: roi.x,
+                    y: roi.y,
+                    width: roi.width,
+                    height: roi.height,
+                };
+                Ok(gpu.render(&lighting, Some(roi))?)
+            }
+        }
+    }
+}
+
+fn max_abs_difference(a: &ImageRgb, b: &ImageRgb) -> (f32, f32) {
+    let diff = a
+        .data
+        .iter()
+        .zip(&b.data)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0f32, f32::max);
+    let peak = b.data.iter().map(|v| v.abs()).fold(0f32, f32::max);
+    (diff, peak)
+}
+
+fn build_engine<'a>(image: &'a RelightableImage, args: &Args) -> anyhow::Result<Engine<'a>> {
+    let storage = PlaneStorage::parse(&args.storage)
+        .with_context(|| format!("--storage `{}`: expected f32, f16 or u8", args.storage))?;
+    if !args.gpu {
+        return Ok(Engine::Cpu(Relighter::with_storage(image, storage)?));
+    }
+    let gpu_storage = relit_gpu::Storage::parse(storage.name()).expect("same names");
+    let gpu = GpuRelighter::with_options(
+        image,
+        GpuOptions {
+            storage: gpu_storage,
+            ..Default::default()
+        },
+    )
+    .context("--gpu")?;
+    eprintln!("relit relight: GPU {} ({})", gpu.adapter(), storage.name());
+    Ok(Engine::Gpu {
+        gpu: Box::new(gpu),
+        cpu: Relighter::new(image)?,
+    })
 }
 
 fn flag_lights(args: &Args) -> anyhow::Result<Vec<Light>> {
@@ -75,7 +177,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         resource_dir,
     };
     let image = exr::read(&args.file)?;
-    let relighter = Relighter::new(&image)?;
+    let roi = match &args.roi {
+        Some(s) => {
+            let roi = Roi::parse(s)?;
+            roi.validate(image.width(), image.height())
+                .context("--roi")?;
+            roi
+        }
+        None => Roi::full(image.width(), image.height()),
+    };
+    let relighter = build_engine(&image, &args)?;
 
     if let Some(RigFile::Animation(anim)) = &rig_file {
         let frames = args.frames.context("an animated rig needs --frames N")?;
@@ -95,7 +206,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let start = std::time::Instant::now();
         for (f, mut rig) in rigs.into_iter().enumerate() {
             rig.lights.extend(extra.iter().cloned());
-            let frame = relighter.relight(&rig, &options)?;
+            let frame = relighter.render(&rig, &options, roi)?;
             let path = out.join(format!("frame_{f:04}.{}", args.frame_format));
             relit::image::save(&path, &frame, 0.0)
                 .with_context(|| format!("writing {}", path.display()))?;
@@ -124,8 +235,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .context("give -o OUTPUT (or --out FOLDER with an animated --rig)")?;
     let rig = LightRig::new(lights);
     let start = std::time::Instant::now();
-    let frame = relighter.relight(&rig, &options)?;
+    let frame = relighter.render(&rig, &options, roi)?;
     let seconds = start.elapsed().as_secs_f64();
+    if args.compare {
+        let reference = Relighter::new(&image)?.relight_roi(&rig, &options, roi)?;
+        let (diff, peak) = max_abs_difference(&frame, &reference);
+        println!(
+            "largest absolute difference from the CPU engine on f32 maps: {diff:.3e} (peak {peak:.3e}, {:.2e} of it)",
+            diff / peak.max(f32::MIN_POSITIVE)
+        );
+    }
     relit::image::save(output, &frame, 0.0)
         .with_context(|| format!("writing {}", output.display()))?;
     println!(
@@ -137,5 +256,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         if rig.lights.len() == 1 { "" } else { "s" },
         seconds * 1e3
     );
+    if args.memory {
+        let maps = image.maps.bytes() as u64;
+        let out = (frame.data.len() * 4) as u64;
+        let peak = relit::memory::peak_rss_bytes().unwrap_or(0);
+        println!(
+            "peak memory {} for {} of maps + {} of output ({:.3}×)",
+            relit::memory::mib(peak),
+            relit::memory::mib(maps),
+            relit::memory::mib(out),
+            peak as f64 / (maps + out) as f64
+        );
+    }
     Ok(())
 }
