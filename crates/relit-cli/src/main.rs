@@ -6,10 +6,12 @@ mod cmd_bench;
 mod cmd_capture;
 mod cmd_demo;
 mod cmd_eval;
+mod cmd_export_web;
 mod cmd_fit;
 mod cmd_info;
 mod cmd_relight;
 mod cmd_render_truth;
+mod cmd_view;
 mod shared;
 
 use clap::{Parser, Subcommand};
@@ -40,6 +42,10 @@ enum Command {
     RenderTruth(cmd_render_truth::Args),
     /// Measure relighting speed (CPU and GPU) against the machine's memory bandwidth.
     Bench(cmd_bench::Args),
+    /// Serve the interactive relighting viewer (WebGL2) for a file on 127.0.0.1.
+    View(cmd_view::Args),
+    /// Write the viewer and a file's data as a static folder for any web server.
+    ExportWeb(cmd_export_web::Args),
 }
 
 fn main() {
@@ -53,6 +59,8 @@ fn main() {
         Command::Capture(args) => cmd_capture::run(args),
         Command::RenderTruth(args) => cmd_render_truth::run(args),
         Command::Bench(args) => cmd_bench::run(args),
+        Command::View(args) => cmd_view::run(args),
+        Command::ExportWeb(args) => cmd_export_web::run(args),
     };
     if let Err(err) = result {
         eprintln!("relit: error: {err}");

@@ -1,0 +1,34 @@
+//! `relit export-web`: the viewer and a file's data as a static web folder.
+
+use relit_viewer::{export_web, BundleOptions, PlaneStorage};
+use std::path::PathBuf;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// A relightable EXR written by `relit fit`.
+    pub file: PathBuf,
+    /// Output folder (created; an earlier export there is replaced).
+    pub dir: PathBuf,
+    /// Plane storage: u8 (8-bit PNG, scale/bias per plane) or f16 (half floats).
+    #[arg(long, default_value = "u8")]
+    pub storage: PlaneStorage,
+    /// Lat-long environment maps (.hdr/.exr) offered as environment lights. Repeatable.
+    #[arg(long = "env")]
+    pub envs: Vec<PathBuf>,
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let options = BundleOptions {
+        storage: args.storage,
+        environments: args.envs.clone(),
+        source_name: String::new(),
+    };
+    let summary = export_web(&args.file, &args.dir, &options)?;
+    println!(
+        "wrote {} ({} files, {:.1} MiB); host it with any static web server",
+        args.dir.display(),
+        summary.files,
+        summary.bytes as f64 / (1024.0 * 1024.0)
+    );
+    Ok(())
+}

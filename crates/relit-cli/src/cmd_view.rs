@@ -1,0 +1,66 @@
+//! `relit view`: serve the interactive relighting viewer for one file.
+
+use relit_viewer::{serve, BundleOptions, PlaneStorage, WebBundle};
+use std::path::PathBuf;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// A relightable EXR written by `relit fit`.
+    pub file: PathBuf,
+    /// Port to listen on (0 or absent: an ephemeral port).
+    #[arg(long, default_value_t = 0)]
+    pub port: u16,
+    /// Address to listen on.
+    #[arg(long, default_value = "127.0.0.1")]
+    pub host: String,
+    /// Open the viewer in the default browser.
+    #[arg(long)]
+    pub open: bool,
+    /// How coefficient planes are sent: f16 (half floats) or u8 (quantised 8-bit PNG).
+    #[arg(long, default_value = "f16")]
+    pub storage: PlaneStorage,
+    /// Lat-long environment maps (.hdr/.exr) offered as environment lights. Repeatable.
+    #[arg(long = "env")]
+    pub envs: Vec<PathBuf>,
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let image = relit::codec::exr::read(&args.file)?;
+    let options = BundleOptions {
+        storage: args.storage,
+        environments: args.envs.clone(),
+        source_name: args
+            .file
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default(),
+    };
+    let bundle = WebBundle::build(&image, &options)?;
+    let bytes = bundle.bytes();
+    drop(image);
+    let server = serve(bundle, &args.host, args.port)?;
+    let url = server.url();
+    println!("{url}");
+    eprintln!(
+        "relit view: serving {} ({:.1} MiB of {} planes) at {url}; Ctrl-C stops",
+        args.file.display(),
+        bytes as f64 / (1024.0 * 1024.0),
+        args.storage.name()
+    );
+    use std::io::Write;
+    let _ = std::io::stdout().flush();
+    if args.open {
+        let opener = if cfg!(target_os = "macos") {
+            "open"
+        } else if cfg!(windows) {
+            "explorer"
+        } else {
+            "xdg-open"
+        };
+        if let Err(e) = std::process::Command::new(opener).arg(&url).spawn() {
+            eprintln!("relit view: could not open a browser ({opener}: {e}); open {url} yourself");
+        }
+    }
+    server.wait();
+    Ok(())
+}

@@ -1,0 +1,82 @@
+// The light-rig JSON shared with the CLI (`relit relight --rig`) and the library
+// (crates/relit/src/light/mod.rs): the viewer edits these objects directly, so a saved
+// rig is exactly what the CLI reads.
+
+export const TYPES = ['directional', 'point', 'spot', 'projector', 'environment'];
+
+/** Colour × intensity. */
+export function lightRgb(light) {
+  const c = light.color || [1, 1, 1];
+  const i = light.intensity != null ? light.intensity : 1;
+  return [c[0] * i, c[1] * i, c[2] * i];
+}
+
+/** [mode, c0]: 0 inverse square, 1 c0/d, 2 none (serde form of `Attenuation`). */
+export function attenuationOf(a) {
+  if (a == null || a === 'inverse_square') return [0, 0];
+  if (a === 'none') return [2, 0];
+  if (typeof a === 'object' && a.inverse_distance != null) return [1, Number(a.inverse_distance)];
+  throw new Error(`unknown attenuation ${JSON.stringify(a)}`);
+}
+
+/** A new light of `type` with sensible defaults for the scene `info`. */
+export function newLight(type, info, from) {
+  const keep = from ? { color: from.color, intensity: from.intensity } : {};
+  const color = keep.color || [1, 1, 1];
+  const intensity = keep.intensity != null ? keep.intensity : 1;
+  const pos = from && from.position ? [...from.position] : [0, 0.5, -1];
+  switch (type) {
+    case 'directional':
+      return { type, direction: from && from.type === 'directional' ? [...from.direction] : [-0.5, 0.5, 0.7], color, intensity };
+    case 'point':
+      return { type, position: pos, color, intensity, attenuation: 'inverse_square' };
+    case 'spot':
+      return { type, position: pos, direction: [0, -1, -0.3], cone_deg: 30, softness_deg: 5, color, intensity, attenuation: 'inverse_square' };
+    case 'projector':
+      return { type, position: pos, direction: [0, 0, -1], up: [0, 1, 0], fov_deg: 40, slide: 'slide.png', color, intensity, attenuation: 'inverse_square' };
+    case 'environment': {
+      const env = (info.environments || [])[0];
+      return { type, map: env ? env.map : 'sky.hdr', yaw_deg: 0, pitch_deg: 0, roll_deg: 0, window: { type: 'none' }, color, intensity };
+    }
+    default:
+      throw new Error(`unknown light type ${type}`);
+  }
+}
+
+const FIELDS = {
+  directional: ['direction', 'color', 'intensity'],
+  point: ['position', 'color', 'intensity', 'attenuation'],
+  spot: ['position', 'direction', 'cone_deg', 'softness_deg', 'color', 'intensity', 'attenuation'],
+  projector: ['position', 'direction', 'up', 'fov_deg', 'slide', 'color', 'intensity', 'attenuation'],
+  area: ['shape', 'color', 'intensity', 'two_sided', 'samples'],
+  environment: ['map', 'yaw_deg', 'pitch_deg', 'roll_deg', 'window', 'color', 'intensity'],
+};
+
+const vec3 = (v, what) => {
+  if (!Array.isArray(v) || v.length !== 3 || v.some(x => typeof x !== 'number' || !isFinite(x))) throw new Error(`${what} must be three finite numbers`);
+  return v;
+};
+
+/** Check a parsed rig (the same rules as the library, in short); throws with the light. */
+export function checkRig(rig) {
+  if (!rig || !Array.isArray(rig.lights)) throw new Error('a rig is { "lights": [ … ] }');
+  for (const key of Object.keys(rig)) if (key !== 'lights') throw new Error(`unknown field “${key}” in the rig (animations: load one keyframe's rig)`);
+  rig.lights.forEach((l, i) => {
+    const where = `lights[${i}]`;
+    if (!FIELDS[l.type]) throw new Error(`${where}: unknown type “${l.type}”`);
+    for (const key of Object.keys(l)) if (key !== 'type' && !FIELDS[l.type].includes(key)) throw new Error(`${where}: unknown field “${key}” for a ${l.type} light`);
+    if (l.color != null) vec3(l.color, `${where}.color`);
+    if (l.intensity != null && !isFinite(l.intensity)) throw new Error(`${where}.intensity must be finite`);
+    if (l.direction != null) vec3(l.direction, `${where}.direction`);
+    if (l.position != null) vec3(l.position, `${where}.position`);
+    if (['point', 'spot', 'projector'].includes(l.type) && l.position == null) throw new Error(`${where}: needs a position`);
+    if (['directional', 'spot', 'projector'].includes(l.type) && l.direction == null) throw new Error(`${where}: needs a direction`);
+    if (l.attenuation != null) attenuationOf(l.attenuation);
+  });
+  return rig;
+}
+
+/** The rig as the JSON text the CLI reads. */
+export function rigToJson(rig) {
+  return JSON.stringify({ lights: rig.lights }, null, 2) + '\n';
+}

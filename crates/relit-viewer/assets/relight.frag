@@ -1,0 +1,225 @@
+#version 300 es
+// Lazy relighting: every frame, each pixel on screen finds the source pixel it shows and
+// relights it from the coefficient layers (crates/relit-viewer/src/bundle.rs): one
+// weight vec4 per layer for every light with one light vector (directional and
+// environment lights folded on the CPU), and per-pixel SH for lights with a position,
+// L = S − P with P = O + d·V from the file's camera and depth, as the CPU engine does.
+precision highp float;
+precision highp int;
+precision highp sampler2DArray;
+
+#define MAX_LAYERS 48
+#define MAX_LIGHTS 8
+#define MAX_K 64
+
+uniform highp sampler2DArray uPlanes;
+uniform highp sampler2D uDepth;
+uniform sampler2D uSlide0;
+uniform sampler2D uSlide1;
+uniform sampler2D uSlide2;
+uniform sampler2D uSlide3;
+
+uniform int uN;                 // layers per colour channel
+uniform int uBands;
+uniform float uNorm[64];        // SH normalisation, index l*8+m
+uniform vec4 uScale[MAX_LAYERS];
+uniform vec4 uBias[MAX_LAYERS];
+uniform vec4 uW[MAX_LAYERS];    // folded uniform lights, per layer
+uniform bool uHasUniform;
+uniform bool uDisplay;          // display-referred (sRGB) maps
+uniform bool uHasDepth;
+uniform vec2 uImage;            // width, height in pixels
+
+uniform int uViewMode;          // 0 flat pan/zoom, 1 perspective view of a panorama
+uniform vec2 uCanvas;
+uniform vec2 uCenter;           // flat: image position at the canvas centre
+uniform float uZoom;            // flat: screen pixels per image pixel
+uniform bool uWrapX;            // flat: repeat panoramas horizontally
+uniform mat3 uView;             // perspective: view ray (x, y, 1) -> panorama camera frame
+uniform float uTanHalfFov;
+
+uniform int uProj;              // 0 perspective, 1 orthographic, 2 cylindrical, 3 equirectangular
+uniform vec2 uHalf;             // planar: half width and height of the image plane
+uniform float uSpan;            // cylindrical: height span of the unit cylinder
+uniform vec3 uEye;
+uniform mat3 uPose;             // columns right, up, back
+
+uniform float uExposure;        // 2^stops
+uniform vec3 uBackground;
+
+uniform int uNumLights;
+uniform int uLType[MAX_LIGHTS]; // 0 directional (display maps only), 1 point, 2 spot, 3 projector
+uniform vec3 uLPos[MAX_LIGHTS];
+uniform vec3 uLDir[MAX_LIGHTS]; // directional: toward the light; spot/projector: unit axis into the scene
+uniform vec3 uLRgb[MAX_LIGHTS];
+uniform vec2 uLAtt[MAX_LIGHTS]; // mode (0 1/d², 1 c0/d, 2 none), c0
+uniform vec4 uLCone[MAX_LIGHTS];// spot: cos outer, cos inner; projector: tan½x, tan½y, slide
+uniform vec3 uLRight[MAX_LIGHTS];
+uniform vec3 uLUp[MAX_LIGHTS];
+
+out vec4 outColor;
+
+const float PI = 3.14159265358979;
+
+float srgbToLinear(float v) {
+  return v <= 0.04045 ? v / 12.92 : pow((v + 0.055) / 1.055, 2.4);
+}
+float linearToSrgb(float v) {
+  v = clamp(v, 0.0, 1.0);
+  return v <= 0.0031308 ? v * 12.92 : 1.055 * pow(v, 1.0 / 2.4) - 0.055;
+}
+
+// The source position (continuous pixel coordinates) shown at this fragment; false
+// when the fragment shows nothing.
+bool sourcePosition(out vec2 pos) {
+  vec2 frag = vec2(gl_FragCoord.x, uCanvas.y - gl_FragCoord.y);
+  if (uViewMode == 0) {
+    pos = uCenter + (frag - 0.5 * uCanvas) / uZoom;
+    if (uWrapX) pos.x = mod(pos.x, uImage.x);
+  } else {
+    vec2 ndc = (2.0 * frag - uCanvas) / uCanvas.y;
+    vec3 d = uView * vec3(ndc.x * uTanHalfFov, -ndc.y * uTanHalfFov, 1.0);
+    float r = length(d.xz);
+    float az = atan(d.x, -d.z);
+    pos.x = mod((az / (2.0 * PI) + 0.5) * uImage.x, uImage.x);
+    if (uProj == 3) {
+      pos.y = (0.5 - atan(d.y, r) / PI) * uImage.y;
+    } else {
+      if (r < 1e-12) return false;
+      pos.y = (0.5 - d.y / r / uSpan) * uImage.y;
+    }
+  }
+  return pos.x >= 0.0 && pos.y >= 0.0 && pos.x < uImage.x && pos.y < uImage.y;
+}
+
+// The surface point of pixel t at depth d (crates/relit/src/camera/*.rs).
+vec3 surfacePoint(ivec2 t, float d) {
+  float x = float(t.x) + 0.5, y = float(t.y) + 0.5;
+  vec3 o = vec3(0.0), v;
+  if (uProj == 0) {
+    float u = (2.0 * x / uImage.x - 1.0) * uHalf.x, w = (1.0 - 2.0 * y / uImage.y) * uHalf.y;
+    v = normalize(vec3(u, w, -1.0));
+  } else if (uProj == 1) {
+    o = vec3((2.0 * x / uImage.x - 1.0) * uHalf.x, (1.0 - 2.0 * y / uImage.y) * uHalf.y, 0.0);
+    v = vec3(0.0, 0.0, -1.0);
+  } else if (uProj == 2) {
+    float phi = (x / uImage.x - 0.5) * 2.0 * PI;
+    float h = (0.5 - y / uImage.y) * uSpan;
+    v = vec3(sin(phi), h, -cos(phi)) / sqrt(1.0 + h * h);
+  } else {
+    float phi = (x / uImage.x - 0.5) * 2.0 * PI;
+    float lat = (0.5 - y / uImage.y) * PI;
+    v = vec3(cos(lat) * sin(phi), sin(lat), -cos(lat) * cos(phi));
+  }
+  return uEye + uPose * (o + d * v);
+}
+
+// Y_i(L) packed four per vec4 (crates/relit/src/basis/sh.rs).
+void evalSh(vec3 L, out vec4 Y[16]) {
+  float y[MAX_K];
+  for (int i = 0; i < MAX_K; i++) y[i] = 0.0;
+  float cm = 1.0, sm = 0.0, pmm = 1.0;
+  for (int m = 0; m < uBands; m++) {
+    if (m > 0) {
+      float c = L.x * cm - L.y * sm, s = L.x * sm + L.y * cm;
+      cm = c; sm = s;
+      pmm *= -float(2 * m - 1);
+    }
+    float pPrev = 0.0, pCur = pmm;
+    for (int l = m; l < uBands; l++) {
+      if (l == m + 1) { pPrev = pCur; pCur = float(2 * m + 1) * L.z * pmm; }
+      else if (l > m + 1) {
+        float next = (float(2 * l - 1) * L.z * pCur - float(l + m - 1) * pPrev) / float(l - m);
+        pPrev = pCur; pCur = next;
+      }
+      int base = l * (l + 1);
+      float k = uNorm[l * 8 + m];
+      if (m == 0) y[base] = k * pCur;
+      else { y[base + m] = k * pCur * cm; y[base - m] = k * pCur * sm; }
+    }
+  }
+  for (int j = 0; j < 16; j++) Y[j] = vec4(y[4 * j], y[4 * j + 1], y[4 * j + 2], y[4 * j + 3]);
+}
+
+float attenuation(int i, float d) {
+  d = max(d, 1e-9);
+  int mode = int(uLAtt[i].x + 0.5);
+  if (mode == 0) return 1.0 / (d * d);
+  if (mode == 1) return uLAtt[i].y / d;
+  return 1.0;
+}
+
+vec3 slide(int s, vec2 uv) {
+  if (s == 0) return texture(uSlide0, uv).rgb;
+  if (s == 1) return texture(uSlide1, uv).rgb;
+  if (s == 2) return texture(uSlide2, uv).rgb;
+  return texture(uSlide3, uv).rgb;
+}
+
+void main() {
+  vec2 pos;
+  if (!sourcePosition(pos)) { outColor = vec4(uBackground, 1.0); return; }
+  ivec2 t = ivec2(floor(pos));
+  vec4 C[MAX_LAYERS];
+  int layers = 3 * uN;
+  for (int l = 0; l < layers; l++) C[l] = uBias[l] + uScale[l] * texelFetch(uPlanes, ivec3(t, l), 0);
+
+  vec3 col = vec3(0.0);
+  if (uHasUniform) {
+    vec3 u = vec3(0.0);
+    for (int j = 0; j < uN; j++) {
+      u.r += dot(C[j], uW[j]);
+      u.g += dot(C[uN + j], uW[uN + j]);
+      u.b += dot(C[2 * uN + j], uW[2 * uN + j]);
+    }
+    if (uDisplay) u = vec3(srgbToLinear(clamp(u.r, 0.0, 1.0)), srgbToLinear(clamp(u.g, 0.0, 1.0)), srgbToLinear(clamp(u.b, 0.0, 1.0)));
+    col += u;
+  }
+  if (uNumLights > 0) {
+    float depth = uHasDepth ? texelFetch(uDepth, t, 0).r : 0.0;
+    bool hasPoint = depth > 0.0;
+    vec3 P = hasPoint ? surfacePoint(t, depth) : vec3(0.0);
+    vec4 Y[16];
+    for (int i = 0; i < uNumLights; i++) {
+      int type = uLType[i];
+      vec3 rgb = uLRgb[i], L;
+      if (type == 0) {
+        L = uLDir[i];
+      } else {
+        if (!hasPoint) continue;
+        vec3 toLight = uLPos[i] - P;
+        float dist = length(toLight);
+        if (dist <= 0.0) continue;
+        L = toLight / dist;
+        if (type == 2) {
+          float ca = dot(-L, uLDir[i]), outer = uLCone[i].x, inner = uLCone[i].y, f;
+          if (ca >= inner) f = 1.0;
+          else if (ca <= outer || inner <= outer) f = 0.0;
+          else { float s = (ca - outer) / (inner - outer); f = s * s * (3.0 - 2.0 * s); }
+          if (f <= 0.0) continue;
+          rgb *= f;
+        } else if (type == 3) {
+          vec3 dp = P - uLPos[i];
+          float z = dot(dp, uLDir[i]);
+          if (z <= 1e-9) continue;
+          float sx = dot(dp, uLRight[i]) / (z * uLCone[i].x);
+          float sy = dot(dp, uLUp[i]) / (z * uLCone[i].y);
+          if (abs(sx) > 1.0 || abs(sy) > 1.0) continue;
+          rgb *= slide(int(uLCone[i].z + 0.5), vec2((sx + 1.0) * 0.5, (1.0 - sy) * 0.5));
+        }
+        rgb *= attenuation(i, dist);
+      }
+      evalSh(L, Y);
+      vec3 v = vec3(0.0);
+      for (int j = 0; j < uN; j++) {
+        v.r += dot(C[j], Y[j]);
+        v.g += dot(C[uN + j], Y[j]);
+        v.b += dot(C[2 * uN + j], Y[j]);
+      }
+      if (uDisplay) v = vec3(srgbToLinear(clamp(v.r, 0.0, 1.0)), srgbToLinear(clamp(v.g, 0.0, 1.0)), srgbToLinear(clamp(v.b, 0.0, 1.0)));
+      col += rgb * v;
+    }
+  }
+  col *= uExposure;
+  outColor = vec4(linearToSrgb(col.r), linearToSrgb(col.g), linearToSrgb(col.b), 1.0);
+}

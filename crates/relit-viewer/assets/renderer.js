@@ -1,0 +1,368 @@
+// WebGL2 renderer: coefficient layers in a texture array, relit per screen pixel by
+// relight.frag. Also the CPU-side geometry (screen -> source pixel -> surface point)
+// used to place lights by clicking.
+import { shNorm, shEval, normalize, cross, dot, sub, environmentWeights, rotationYawPitchRoll } from './sh.js';
+import { lightRgb, attenuationOf } from './lights.js';
+
+const MAX_LIGHTS = 8, MAX_SLIDES = 4;
+
+async function fetchOk(url, kind) {
+  const r = await fetch(url);
+  if (!r.ok) throw new Error(`${url}: HTTP ${r.status}`);
+  return kind === 'json' ? r.json() : kind === 'text' ? r.text() : kind === 'blob' ? r.blob() : r.arrayBuffer();
+}
+
+export class Renderer {
+  constructor(canvas) {
+    this.canvas = canvas;
+    const gl = canvas.getContext('webgl2', { preserveDrawingBuffer: true, antialias: false, alpha: false, premultipliedAlpha: false });
+    if (!gl) throw new Error('this browser has no WebGL2');
+    this.gl = gl;
+    this.slides = new Map(); // name -> { tex, aspect }
+    this.envCache = new Map();
+    this.warnings = [];
+  }
+
+  /** Load the shaders and the data folder (`base` ends with a slash). */
+  async load(base = 'data/') {
+    const gl = this.gl;
+    const [vs, fs, info] = await Promise.all([fetchOk('quad.vert', 'text'), fetchOk('relight.frag', 'text'), fetchOk(base + 'info.json', 'json')]);
+    if (info.format !== 'relit-web') throw new Error('info.json is not a relit-web bundle');
+    this.info = info;
+    this.program = this.compile(vs, fs);
+    this.uniforms = {};
+    const n = gl.getProgramParameter(this.program, gl.ACTIVE_UNIFORMS);
+    for (let i = 0; i < n; i++) {
+      const u = gl.getActiveUniform(this.program, i);
+      const name = u.name.replace(/\[0\]$/, '');
+      this.uniforms[name] = gl.getUniformLocation(this.program, u.name);
+    }
+    const { width: W, height: H } = info;
+    const maxSide = gl.getParameter(gl.MAX_TEXTURE_SIZE);
+    if (W > maxSide || H > maxSide) throw new Error(`the image (${W}×${H}) exceeds this GPU's textures (${maxSide})`);
+    const layers = info.layers.length;
+    gl.pixelStorei(gl.UNPACK_FLIP_Y_WEBGL, false);
+    gl.pixelStorei(gl.UNPACK_PREMULTIPLY_ALPHA_WEBGL, false);
+    gl.pixelStorei(gl.UNPACK_COLORSPACE_CONVERSION_WEBGL, gl.NONE);
+    gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
+    this.planes = gl.createTexture();
+    gl.activeTexture(gl.TEXTURE0);
+    gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.planes);
+    const u8 = info.storage === 'u8';
+    gl.texStorage3D(gl.TEXTURE_2D_ARRAY, 1, u8 ? gl.RGBA8 : gl.RGBA16F, W, H, layers);
+    this.setNearest(gl.TEXTURE_2D_ARRAY);
+    await Promise.all(info.layers.map(async (layer, l) => {
+      if (u8) {
+        const blob = await fetchOk(base + layer.file, 'blob');
+        const bmp = await createImageBitmap(blob, { premultiplyAlpha: 'none', colorSpaceConversion: 'none' });
+        gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.planes);
+        gl.texSubImage3D(gl.TEXTURE_2D_ARRAY, 0, 0, 0, l, W, H, 1, gl.RGBA, gl.UNSIGNED_BYTE, bmp);
+        bmp.close();
+      } else {
+        const buf = await fetchOk(base + layer.file, 'buffer');
+        if (buf.byteLength !== W * H * 8) throw new Error(`${layer.file}: ${buf.byteLength} bytes, expected ${W * H * 8}`);
+        gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.planes);
+        gl.texSubImage3D(gl.TEXTURE_2D_ARRAY, 0, 0, 0, l, W, H, 1, gl.RGBA, gl.HALF_FLOAT, new Uint16Array(buf));
+      }
+    }));
+    this.depthTex = gl.createTexture();
+    gl.activeTexture(gl.TEXTURE1);
+    gl.bindTexture(gl.TEXTURE_2D, this.depthTex);
+    this.setNearest(gl.TEXTURE_2D);
+    if (info.depth) {
+      const buf = await fetchOk(base + info.depth.file, 'buffer');
+      this.depth = new Float32Array(buf);
+      gl.texImage2D(gl.TEXTURE_2D, 0, gl.R32F, W, H, 0, gl.RED, gl.FLOAT, this.depth);
+    } else {
+      this.depth = null;
+      gl.texImage2D(gl.TEXTURE_2D, 0, gl.R32F, 1, 1, 0, gl.RED, gl.FLOAT, new Float32Array([0]));
+    }
+    this.dummySlide = gl.createTexture();
+    gl.activeTexture(gl.TEXTURE2);
+    gl.bindTexture(gl.TEXTURE_2D, this.dummySlide);
+    gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA8, 1, 1, 0, gl.RGBA, gl.UNSIGNED_BYTE, new Uint8Array([255, 255, 255, 255]));
+    this.setNearest(gl.TEXTURE_2D);
+    this.setupCamera();
+    this.norm = shNorm(info.bands);
+    this.vao = gl.createVertexArray();
+    return info;
+  }
+
+  setNearest(target) {
+    const gl = this.gl;
+    gl.texParameteri(target, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
+    gl.texParameteri(target, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
+    gl.texParameteri(target, gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE);
+    gl.texParameteri(target, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
+  }
+
+  compile(vsText, fsText) {
+    const gl = this.gl;
+    const shader = (type, text) => {
+      const s = gl.createShader(type);
+      gl.shaderSource(s, text);
+      gl.compileShader(s);
+      if (!gl.getShaderParameter(s, gl.COMPILE_STATUS)) throw new Error('shader: ' + gl.getShaderInfoLog(s));
+      return s;
+    };
+    const p = gl.createProgram();
+    gl.attachShader(p, shader(gl.VERTEX_SHADER, vsText));
+    gl.attachShader(p, shader(gl.FRAGMENT_SHADER, fsText));
+    gl.linkProgram(p);
+    if (!gl.getProgramParameter(p, gl.LINK_STATUS)) throw new Error('program: ' + gl.getProgramInfoLog(p));
+    return p;
+  }
+
+  /** Camera constants of the file (crates/relit/src/camera/*.rs). */
+  setupCamera() {
+    const cam = this.info.camera, W = this.info.width, H = this.info.height;
+    const proj = cam.projection;
+    const c = { proj: 0, half: [1, 1], span: 1 };
+    if (proj.type === 'planar' && proj.fov_y_deg != null) {
+      c.proj = 0;
+      const hh = Math.tan((proj.fov_y_deg * Math.PI) / 360);
+      c.half = [hh * W / H, hh];
+    } else if (proj.type === 'planar') {
+      c.proj = 1;
+      const hh = (cam.orthographic_height != null ? cam.orthographic_height : 2) / 2;
+      c.half = [hh * W / H, hh];
+    } else if (proj.type === 'cylindrical') {
+      c.proj = 2;
+      c.span = proj.fov_y_deg != null ? 2 * Math.tan((proj.fov_y_deg * Math.PI) / 360) : (2 * Math.PI * H) / W;
+    } else {
+      c.proj = 3;
+    }
+    const pose = cam.pose || { eye: [0, 0, 0], right: [1, 0, 0], up: [0, 1, 0], back: [0, 0, 1] };
+    c.pose = pose;
+    this.cam = c;
+    this.isPanorama = c.proj >= 2;
+  }
+
+  /** World surface point of pixel (i, j) at depth d, and the ray origin. */
+  surfacePoint(i, j, d) {
+    const { proj, half, span, pose } = this.cam, W = this.info.width, H = this.info.height;
+    const x = i + 0.5, y = j + 0.5;
+    let o = [0, 0, 0], v;
+    if (proj === 0) v = normalize([(2 * x / W - 1) * half[0], (1 - 2 * y / H) * half[1], -1]);
+    else if (proj === 1) { o = [(2 * x / W - 1) * half[0], (1 - 2 * y / H) * half[1], 0]; v = [0, 0, -1]; }
+    else if (proj === 2) {
+      const phi = (x / W - 0.5) * 2 * Math.PI, h = (0.5 - y / H) * span, s = 1 / Math.sqrt(1 + h * h);
+      v = [Math.sin(phi) * s, h * s, -Math.cos(phi) * s];
+    } else {
+      const phi = (x / W - 0.5) * 2 * Math.PI, lat = (0.5 - y / H) * Math.PI;
+      v = [Math.cos(lat) * Math.sin(phi), Math.sin(lat), -Math.cos(lat) * Math.cos(phi)];
+    }
+    const toWorld = (p) => [0, 1, 2].map(k => pose.right[k] * p[0] + pose.up[k] * p[1] + pose.back[k] * p[2]);
+    const origin = toWorld(o).map((val, k) => val + pose.eye[k]);
+    const dir = toWorld(v);
+    return { origin, dir, point: origin.map((val, k) => val + d * dir[k]) };
+  }
+
+  /** The source pixel shown at canvas position (css pixels -> canvas pixels), or null. */
+  sourcePixel(view, cx, cy) {
+    const W = this.info.width, H = this.info.height, cw = this.canvas.width, ch = this.canvas.height;
+    let px, py;
+    if (view.mode === 'flat' || !this.isPanorama) {
+      px = view.center[0] + (cx - 0.5 * cw) / view.zoom;
+      py = view.center[1] + (cy - 0.5 * ch) / view.zoom;
+      if (this.isPanorama) px = ((px % W) + W) % W;
+    } else {
+      const m = this.viewMatrix(view), t = Math.tan((view.fov * Math.PI) / 360);
+      const nx = ((2 * cx - cw) / ch) * t, ny = -((2 * cy - ch) / ch) * t;
+      const d = [0, 1, 2].map(k => m[0][k] * nx + m[1][k] * ny + m[2][k]);
+      const r = Math.hypot(d[0], d[2]);
+      px = ((Math.atan2(d[0], -d[2]) / (2 * Math.PI) + 0.5) * W) % W;
+      py = this.cam.proj === 3 ? (0.5 - Math.atan2(d[1], r) / Math.PI) * H : (0.5 - d[1] / r / this.cam.span) * H;
+    }
+    if (!(px >= 0 && py >= 0 && px < W && py < H)) return null;
+    return [Math.floor(px), Math.floor(py)];
+  }
+
+  /** Columns right, up, forward of the view camera in the panorama's camera frame. */
+  viewMatrix(view) {
+    const yaw = (view.yaw * Math.PI) / 180, pitch = (view.pitch * Math.PI) / 180;
+    const f = [Math.sin(yaw) * Math.cos(pitch), Math.sin(pitch), -Math.cos(yaw) * Math.cos(pitch)];
+    const r = normalize(cross(f, [0, 1, 0])) || [1, 0, 0];
+    const u = cross(r, f);
+    return [r, u, f];
+  }
+
+  /** Depth and surface point at canvas position, or null where nothing was hit. */
+  pick(view, cx, cy) {
+    const px = this.sourcePixel(view, cx, cy);
+    if (!px) return null;
+    const d = this.depth ? this.depth[px[1] * this.info.width + px[0]] : 0;
+    if (!(d > 0)) return { pixel: px, depth: 0 };
+    return { pixel: px, depth: d, ...this.surfacePoint(px[0], px[1], d) };
+  }
+
+  /** Load a slide image (URL or Blob) for projectors under `name`. */
+  async loadSlide(name, source) {
+    const gl = this.gl;
+    const blob = source instanceof Blob ? source : await fetchOk(source, 'blob');
+    const bmp = await createImageBitmap(blob, { premultiplyAlpha: 'none', colorSpaceConversion: 'none' });
+    const tex = gl.createTexture();
+    gl.activeTexture(gl.TEXTURE2);
+    gl.bindTexture(gl.TEXTURE_2D, tex);
+    gl.texImage2D(gl.TEXTURE_2D, 0, gl.SRGB8_ALPHA8, gl.RGBA, gl.UNSIGNED_BYTE, bmp);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.LINEAR);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.LINEAR);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
+    this.slides.set(name, { tex, aspect: bmp.width / bmp.height });
+    bmp.close();
+  }
+
+  environment(name) {
+    return (this.info.environments || []).find(e => e.map === name);
+  }
+
+  envWeights(light) {
+    const env = this.environment(light.map);
+    if (!env) return null;
+    const key = JSON.stringify([light.map, light.yaw_deg || 0, light.pitch_deg || 0, light.roll_deg || 0, light.window || null]);
+    if (!this.envCache.has(key)) {
+      if (this.envCache.size > 64) this.envCache.clear();
+      const R = rotationYawPitchRoll(light.yaw_deg || 0, light.pitch_deg || 0, light.roll_deg || 0);
+      this.envCache.set(key, environmentWeights(env.coefficients, this.info.bands, R, light.window));
+    }
+    return this.envCache.get(key);
+  }
+
+  /** Turn a rig into shader uniforms: uniform lights folded into one weight per plane,
+   *  lights with a position passed one by one. */
+  prepare(rig) {
+    const info = this.info, k = info.k, n = info.layers_per_channel, bands = info.bands;
+    const display = info.color_space === 'srgb';
+    const w = [new Float64Array(k), new Float64Array(k), new Float64Array(k)];
+    let hasUniform = false;
+    const pos = [];
+    const warnings = [];
+    rig.lights.forEach((light, idx) => {
+      const rgb = lightRgb(light);
+      if (light.type === 'directional') {
+        const L = normalize(light.direction);
+        if (!L) { warnings.push(`light ${idx + 1}: zero direction`); return; }
+        if (display) { pos.push({ type: 0, dir: L, rgb }); return; }
+        const y = shEval(bands, L, this.norm);
+        for (let c = 0; c < 3; c++) for (let i = 0; i < k; i++) w[c][i] += rgb[c] * y[i];
+        hasUniform = true;
+      } else if (light.type === 'environment') {
+        const e = this.envWeights(light);
+        if (!e) { warnings.push(`light ${idx + 1}: environment map “${light.map}” is not in this bundle`); return; }
+        for (let c = 0; c < 3; c++) for (let i = 0; i < k; i++) w[c][i] += rgb[c] * e[c][i];
+        hasUniform = true;
+      } else if (light.type === 'point' || light.type === 'spot' || light.type === 'projector') {
+        if (!this.depth) { warnings.push(`light ${idx + 1}: ${light.type} lights need a depth map, this file has none`); return; }
+        const att = attenuationOf(light.attenuation);
+        const entry = { pos: light.position, rgb, att, dir: [0, 0, 1], cone: [0, 0, 0, 0], right: [1, 0, 0], up: [0, 1, 0] };
+        if (light.type === 'point') entry.type = 1;
+        else if (light.type === 'spot') {
+          entry.type = 2;
+          entry.dir = normalize(light.direction) || [0, -1, 0];
+          const soft = light.softness_deg != null ? light.softness_deg : 5;
+          entry.cone = [Math.cos((light.cone_deg * Math.PI) / 180), Math.cos((Math.max(0, light.cone_deg - soft) * Math.PI) / 180), 0, 0];
+        } else {
+          const s = this.slides.get(light.slide);
+          if (!s) { warnings.push(`light ${idx + 1}: load the slide “${light.slide}” to see this projector`); return; }
+          const slot = [...this.slides.keys()].indexOf(light.slide);
+          if (slot >= MAX_SLIDES) { warnings.push(`light ${idx + 1}: at most ${MAX_SLIDES} slides`); return; }
+          entry.type = 3;
+          const f = normalize(light.direction) || [0, 0, -1];
+          const r = normalize(cross(f, light.up || [0, 1, 0])) || [1, 0, 0];
+          entry.dir = f; entry.right = r; entry.up = cross(r, f);
+          const ty = Math.tan((light.fov_deg * Math.PI) / 360);
+          entry.cone = [ty * s.aspect, ty, slot, 0];
+        }
+        pos.push(entry);
+      } else {
+        warnings.push(`light ${idx + 1}: ${light.type} lights are not shown by the viewer`);
+      }
+    });
+    if (pos.length > MAX_LIGHTS) { warnings.push(`only the first ${MAX_LIGHTS} lights with a position are shown`); pos.length = MAX_LIGHTS; }
+    const uw = new Float32Array(4 * 3 * n);
+    for (let c = 0; c < 3; c++) for (let i = 0; i < k; i++) uw[4 * (c * n) + i] = w[c][i];
+    this.prepared = { uw, hasUniform, pos, display };
+    this.warnings = warnings;
+    return warnings;
+  }
+
+  /** Draw one frame of `view` with the rig last prepared; `exposure` in stops. */
+  draw(view, exposure = 0, background = [0.08, 0.08, 0.09]) {
+    const gl = this.gl, U = this.uniforms, info = this.info, p = this.prepared;
+    const n = info.layers_per_channel;
+    gl.viewport(0, 0, this.canvas.width, this.canvas.height);
+    gl.useProgram(this.program);
+    gl.bindVertexArray(this.vao);
+    const set = (name, fn, ...args) => { if (U[name] != null) gl[fn](U[name], ...args); };
+    gl.activeTexture(gl.TEXTURE0); gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.planes);
+    gl.activeTexture(gl.TEXTURE1); gl.bindTexture(gl.TEXTURE_2D, this.depthTex);
+    set('uPlanes', 'uniform1i', 0);
+    set('uDepth', 'uniform1i', 1);
+    const slideTex = [...this.slides.values()];
+    for (let s = 0; s < MAX_SLIDES; s++) {
+      gl.activeTexture(gl.TEXTURE2 + s);
+      gl.bindTexture(gl.TEXTURE_2D, slideTex[s] ? slideTex[s].tex : this.dummySlide);
+      set('uSlide' + s, 'uniform1i', 2 + s);
+    }
+    set('uN', 'uniform1i', n);
+    set('uBands', 'uniform1i', info.bands);
+    set('uNorm', 'uniform1fv', new Float32Array(this.norm));
+    const scale = new Float32Array(4 * 3 * n), bias = new Float32Array(4 * 3 * n);
+    info.layers.forEach((l, i) => { scale.set(l.scale, 4 * i); bias.set(l.bias, 4 * i); });
+    set('uScale', 'uniform4fv', scale);
+    set('uBias', 'uniform4fv', bias);
+    set('uW', 'uniform4fv', p.uw);
+    set('uHasUniform', 'uniform1i', p.hasUniform ? 1 : 0);
+    set('uDisplay', 'uniform1i', p.display ? 1 : 0);
+    set('uHasDepth', 'uniform1i', this.depth ? 1 : 0);
+    set('uImage', 'uniform2f', info.width, info.height);
+    const flat = view.mode === 'flat' || !this.isPanorama;
+    set('uViewMode', 'uniform1i', flat ? 0 : 1);
+    set('uCanvas', 'uniform2f', this.canvas.width, this.canvas.height);
+    set('uCenter', 'uniform2f', view.center[0], view.center[1]);
+    set('uZoom', 'uniform1f', view.zoom);
+    set('uWrapX', 'uniform1i', this.isPanorama ? 1 : 0);
+    const m = this.viewMatrix(view);
+    set('uView', 'uniformMatrix3fv', false, new Float32Array([...m[0], ...m[1], ...m[2]]));
+    set('uTanHalfFov', 'uniform1f', Math.tan((view.fov * Math.PI) / 360));
+    const c = this.cam;
+    set('uProj', 'uniform1i', c.proj);
+    set('uHalf', 'uniform2f', c.half[0], c.half[1]);
+    set('uSpan', 'uniform1f', c.span);
+    set('uEye', 'uniform3fv', new Float32Array(c.pose.eye));
+    set('uPose', 'uniformMatrix3fv', false, new Float32Array([...c.pose.right, ...c.pose.up, ...c.pose.back]));
+    set('uExposure', 'uniform1f', Math.pow(2, exposure));
+    set('uBackground', 'uniform3f', ...background);
+    const L = p.pos, N = L.length;
+    set('uNumLights', 'uniform1i', N);
+    if (N > 0) {
+      const f3 = (key) => new Float32Array(L.flatMap(e => e[key]));
+      set('uLType', 'uniform1iv', new Int32Array(L.map(e => e.type)));
+      set('uLPos', 'uniform3fv', new Float32Array(L.flatMap(e => e.pos || [0, 0, 0])));
+      set('uLDir', 'uniform3fv', f3('dir'));
+      set('uLRgb', 'uniform3fv', f3('rgb'));
+      set('uLAtt', 'uniform2fv', new Float32Array(L.flatMap(e => e.att || [2, 0])));
+      set('uLCone', 'uniform4fv', f3('cone'));
+      set('uLRight', 'uniform3fv', new Float32Array(L.flatMap(e => e.right || [1, 0, 0])));
+      set('uLUp', 'uniform3fv', new Float32Array(L.flatMap(e => e.up || [0, 1, 0])));
+    }
+    gl.drawArrays(gl.TRIANGLES, 0, 3);
+  }
+
+  /** Wait for the GPU (a one-pixel read-back). */
+  finish() {
+    const gl = this.gl, px = new Uint8Array(4);
+    gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, px);
+  }
+
+  /** The canvas as RGBA bytes, top row first. */
+  readPixels() {
+    const gl = this.gl, w = this.canvas.width, h = this.canvas.height;
+    const buf = new Uint8Array(w * h * 4);
+    gl.readPixels(0, 0, w, h, gl.RGBA, gl.UNSIGNED_BYTE, buf);
+    const out = new Uint8Array(w * h * 4);
+    for (let y = 0; y < h; y++) out.set(buf.subarray((h - 1 - y) * w * 4, (h - y) * w * 4), y * w * 4);
+    return out;
+  }
+}
