@@ -22,3 +22,45 @@ fi
 
 # Release mode: the real-data tests fit whole captures and are 5-10x faster optimised.
 cargo test --workspace --release --locked "$@"
+
+# The browser viewer (crates/relit-viewer): `relit view` in headless Chromium with
+# SwiftShader WebGL2, driven by Playwright; compares the canvas with `relit relight`.
+# Needs chromium, node and npm (installed with apt-get when missing) and playwright-core
+# (npm, into the git-ignored target/viewer-node). Set RELIT_SKIP_VIEWER_TEST=1 to skip.
+viewer_test() {
+  if [ "${RELIT_SKIP_VIEWER_TEST:-0}" = "1" ]; then
+    echo "viewer test: skipped (RELIT_SKIP_VIEWER_TEST=1)" >&2
+    return 0
+  fi
+  local sudo=""
+  [ "$(id -u)" -ne 0 ] && sudo="sudo -n"
+  local missing=()
+  command -v chromium >/dev/null 2>&1 || missing+=(chromium)
+  command -v node >/dev/null 2>&1 || missing+=(nodejs)
+  command -v npm >/dev/null 2>&1 || missing+=(npm)
+  if [ ${#missing[@]} -gt 0 ]; then
+    if command -v apt-get >/dev/null 2>&1; then
+      echo "viewer test: installing ${missing[*]}" >&2
+      { $sudo apt-get update -qq && DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "${missing[@]}"; } >&2 ||
+        echo "viewer test: apt-get could not install ${missing[*]}" >&2
+    fi
+  fi
+  for tool in chromium node npm; do
+    if ! command -v "$tool" >/dev/null 2>&1; then
+      echo "viewer test: SKIPPED — $tool is not installed and could not be installed" >&2
+      return 0
+    fi
+  done
+  if [ ! -d target/viewer-node/node_modules/playwright-core ]; then
+    mkdir -p target/viewer-node
+    if ! (cd target/viewer-node && { [ -f package.json ] || echo '{"private":true}' >package.json; } &&
+      npm install --no-audit --no-fund --silent playwright-core >&2); then
+      echo "viewer test: SKIPPED — npm could not install playwright-core (no registry access?)" >&2
+      return 0
+    fi
+  fi
+  cargo build --release --locked -p relit-cli
+  node crates/relit-viewer/tests/viewer/viewer.test.mjs --relit target/release/relit \
+    --out target/viewer-test --playwright target/viewer-node --chromium "$(command -v chromium)"
+}
+viewer_test

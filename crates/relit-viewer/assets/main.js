@@ -37,6 +37,7 @@ function resize() {
     canvasEl.style.width = app.fixedSize[0] + 'px';
     canvasEl.style.height = app.fixedSize[1] + 'px';
   } else {
+    canvasEl.style.width = canvasEl.style.height = '';
     const dpr = window.devicePixelRatio || 1, b = canvasEl.getBoundingClientRect();
     canvasEl.width = Math.max(1, Math.round(b.width * dpr));
     canvasEl.height = Math.max(1, Math.round(b.height * dpr));

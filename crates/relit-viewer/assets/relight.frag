@@ -10,7 +10,6 @@ precision highp sampler2DArray;
 
 #define MAX_LAYERS 48
 #define MAX_LIGHTS 8
-#define MAX_K 64
 
 uniform highp sampler2DArray uPlanes;
 uniform highp sampler2D uDepth;
@@ -19,8 +18,8 @@ uniform sampler2D uSlide1;
 uniform sampler2D uSlide2;
 uniform sampler2D uSlide3;
 
-uniform int uN;                 // layers per colour channel
-uniform int uBands;
+// N_LAYERS (layers per colour channel) and BANDS are defined by renderer.js when it
+// compiles the shader for a file, so that every loop has constant bounds.
 uniform float uNorm[64];        // SH normalisation, index l*8+m
 uniform vec4 uScale[MAX_LAYERS];
 uniform vec4 uBias[MAX_LAYERS];
@@ -115,18 +114,18 @@ vec3 surfacePoint(ivec2 t, float d) {
 }
 
 // Y_i(L) packed four per vec4 (crates/relit/src/basis/sh.rs).
-void evalSh(vec3 L, out vec4 Y[16]) {
-  float y[MAX_K];
-  for (int i = 0; i < MAX_K; i++) y[i] = 0.0;
+void evalSh(vec3 L, out vec4 Y[N_LAYERS]) {
+  float y[4 * N_LAYERS];
+  for (int i = 0; i < 4 * N_LAYERS; i++) y[i] = 0.0;
   float cm = 1.0, sm = 0.0, pmm = 1.0;
-  for (int m = 0; m < uBands; m++) {
+  for (int m = 0; m < BANDS; m++) {
     if (m > 0) {
       float c = L.x * cm - L.y * sm, s = L.x * sm + L.y * cm;
       cm = c; sm = s;
       pmm *= -float(2 * m - 1);
     }
     float pPrev = 0.0, pCur = pmm;
-    for (int l = m; l < uBands; l++) {
+    for (int l = m; l < BANDS; l++) {
       if (l == m + 1) { pPrev = pCur; pCur = float(2 * m + 1) * L.z * pmm; }
       else if (l > m + 1) {
         float next = (float(2 * l - 1) * L.z * pCur - float(l + m - 1) * pPrev) / float(l - m);
@@ -138,7 +137,7 @@ void evalSh(vec3 L, out vec4 Y[16]) {
       else { y[base + m] = k * pCur * cm; y[base - m] = k * pCur * sm; }
     }
   }
-  for (int j = 0; j < 16; j++) Y[j] = vec4(y[4 * j], y[4 * j + 1], y[4 * j + 2], y[4 * j + 3]);
+  for (int j = 0; j < N_LAYERS; j++) Y[j] = vec4(y[4 * j], y[4 * j + 1], y[4 * j + 2], y[4 * j + 3]);
 }
 
 float attenuation(int i, float d) {
@@ -160,17 +159,16 @@ void main() {
   vec2 pos;
   if (!sourcePosition(pos)) { outColor = vec4(uBackground, 1.0); return; }
   ivec2 t = ivec2(floor(pos));
-  vec4 C[MAX_LAYERS];
-  int layers = 3 * uN;
-  for (int l = 0; l < layers; l++) C[l] = uBias[l] + uScale[l] * texelFetch(uPlanes, ivec3(t, l), 0);
+  vec4 C[3 * N_LAYERS];
+  for (int l = 0; l < 3 * N_LAYERS; l++) C[l] = uBias[l] + uScale[l] * texelFetch(uPlanes, ivec3(t, l), 0);
 
   vec3 col = vec3(0.0);
   if (uHasUniform) {
     vec3 u = vec3(0.0);
-    for (int j = 0; j < uN; j++) {
+    for (int j = 0; j < N_LAYERS; j++) {
       u.r += dot(C[j], uW[j]);
-      u.g += dot(C[uN + j], uW[uN + j]);
-      u.b += dot(C[2 * uN + j], uW[2 * uN + j]);
+      u.g += dot(C[N_LAYERS + j], uW[N_LAYERS + j]);
+      u.b += dot(C[2 * N_LAYERS + j], uW[2 * N_LAYERS + j]);
     }
     if (uDisplay) u = vec3(srgbToLinear(clamp(u.r, 0.0, 1.0)), srgbToLinear(clamp(u.g, 0.0, 1.0)), srgbToLinear(clamp(u.b, 0.0, 1.0)));
     col += u;
@@ -179,7 +177,7 @@ void main() {
     float depth = uHasDepth ? texelFetch(uDepth, t, 0).r : 0.0;
     bool hasPoint = depth > 0.0;
     vec3 P = hasPoint ? surfacePoint(t, depth) : vec3(0.0);
-    vec4 Y[16];
+    vec4 Y[N_LAYERS];
     for (int i = 0; i < uNumLights; i++) {
       int type = uLType[i];
       vec3 rgb = uLRgb[i], L;
@@ -211,10 +209,10 @@ void main() {
       }
       evalSh(L, Y);
       vec3 v = vec3(0.0);
-      for (int j = 0; j < uN; j++) {
+      for (int j = 0; j < N_LAYERS; j++) {
         v.r += dot(C[j], Y[j]);
-        v.g += dot(C[uN + j], Y[j]);
-        v.b += dot(C[2 * uN + j], Y[j]);
+        v.g += dot(C[N_LAYERS + j], Y[j]);
+        v.b += dot(C[2 * N_LAYERS + j], Y[j]);
       }
       if (uDisplay) v = vec3(srgbToLinear(clamp(v.r, 0.0, 1.0)), srgbToLinear(clamp(v.g, 0.0, 1.0)), srgbToLinear(clamp(v.b, 0.0, 1.0)));
       col += rgb * v;

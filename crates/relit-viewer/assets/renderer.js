@@ -29,7 +29,8 @@ export class Renderer {
     const [vs, fs, info] = await Promise.all([fetchOk('quad.vert', 'text'), fetchOk('relight.frag', 'text'), fetchOk(base + 'info.json', 'json')]);
     if (info.format !== 'relit-web') throw new Error('info.json is not a relit-web bundle');
     this.info = info;
-    this.program = this.compile(vs, fs);
+    const defines = `#version 300 es\n#define N_LAYERS ${info.layers_per_channel}\n#define BANDS ${info.bands}\n`;
+    this.program = this.compile(vs, fs.replace('#version 300 es\n', defines));
     this.uniforms = {};
     const n = gl.getProgramParameter(this.program, gl.ACTIVE_UNIFORMS);
     for (let i = 0; i < n; i++) {
@@ -305,8 +306,6 @@ export class Renderer {
       gl.bindTexture(gl.TEXTURE_2D, slideTex[s] ? slideTex[s].tex : this.dummySlide);
       set('uSlide' + s, 'uniform1i', 2 + s);
     }
-    set('uN', 'uniform1i', n);
-    set('uBands', 'uniform1i', info.bands);
     set('uNorm', 'uniform1fv', new Float32Array(this.norm));
     const scale = new Float32Array(4 * 3 * n), bias = new Float32Array(4 * 3 * n);
     info.layers.forEach((l, i) => { scale.set(l.scale, 4 * i); bias.set(l.bias, 4 * i); });
