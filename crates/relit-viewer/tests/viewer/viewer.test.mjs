@@ -13,6 +13,7 @@ import { spawn, execFileSync } from 'node:child_process';
 import fs from 'node:fs';
 import path from 'node:path';
 import zlib from 'node:zlib';
+import http from 'node:http';
 
 const args = Object.fromEntries(process.argv.slice(2).reduce((acc, a, i, all) => (a.startsWith('--') ? acc.concat([[a.slice(2), all[i + 1]]]) : acc), []));
 const relit = path.resolve(args.relit || 'target/release/relit');
@@ -203,10 +204,27 @@ try {
   await page.screenshot({ path: path.join(out, 'viewer-screenshot.png') });
   log(`screenshot: ${path.join(out, 'viewer-screenshot.png')}`);
 
-  // 7. The same comparison with 8-bit quantised planes (reported; looser floor).
-  await open(['--storage', 'u8']);
-  await page.locator('.light').first().locator('[data-field="direction.0"]').fill('-0.4');
-  await check('directional-u8', 30);
+  // 7. `relit export-web` (8-bit quantised planes) hosted by a plain static file server.
+  const site = path.join(work, 'site');
+  run('export-web', path.join(work, 'pano.exr'), site, '--storage', 'u8', '--env', path.join(work, 'sky.hdr'));
+  const types = { html: 'text/html', js: 'text/javascript', css: 'text/css', json: 'application/json', png: 'image/png' };
+  const stat = http.createServer((req, res) => {
+    const rel = decodeURIComponent(new URL(req.url, 'http://x').pathname).replace(/^\/+/, '') || 'index.html';
+    const file = path.join(site, rel);
+    if (!file.startsWith(site + path.sep) || !fs.existsSync(file)) { res.writeHead(404); res.end(); return; }
+    res.writeHead(200, { 'Content-Type': types[rel.split('.').pop()] || 'application/octet-stream' });
+    res.end(fs.readFileSync(file));
+  });
+  await new Promise((r) => stat.listen(0, '127.0.0.1', r));
+  try {
+    await page.goto(`http://127.0.0.1:${stat.address().port}/`);
+    await page.evaluate(() => window.relit.ready);
+    await page.evaluate(([w, h]) => { window.relit.setCanvasSize(w, h); window.relit.setView({ mode: 'flat', center: [w / 2, h / 2], zoom: 1 }); }, [W, H]);
+    await page.locator('.light').first().locator('[data-field="direction.0"]').fill('-0.4');
+    await check('export-web-u8-directional');
+    await page.evaluate((p) => window.relit.setRig({ lights: [{ type: 'point', position: p, intensity: 2 }] }), pos);
+    await check('export-web-u8-point');
+  } finally { stat.close(); }
 } finally {
   await browser.close();
   for (const p of servers) p.kill();
