@@ -78,6 +78,10 @@ pub struct Args {
     /// Skip the CPU engine.
     #[arg(long)]
     pub no_cpu: bool,
+    /// Cases to run (`directional`, `environment`, `point`, `sh_eval`; repeatable).
+    /// Default: all.
+    #[arg(long = "case")]
+    pub cases: Vec<String>,
     /// CPU plane storage types (`f32`, `f16`, `u8`; repeatable). Default: all three.
     #[arg(long = "cpu-storage")]
     pub cpu_storage: Vec<String>,
@@ -198,6 +202,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return Ok(());
     }
 
+    let known = ["directional", "environment", "point", "sh_eval"];
+    if let Some(bad) = args.cases.iter().find(|c| !known.contains(&c.as_str())) {
+        bail!("--case `{bad}`: expected one of {}", known.join(", "));
+    }
+    let wanted = |case: &str| args.cases.is_empty() || args.cases.iter().any(|c| c == case);
     let threads = rayon::current_num_threads();
     let fma_peak = if args.no_cpu {
         f64::NAN
@@ -255,10 +264,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 for &storage in &cpu_storage {
                     let relighter = Relighter::with_storage(&image, storage)?;
                     let engine = format!("{threads} threads, {}", relighter.kernels());
-                    for case in CASES {
+                    let mut frame = ImageRgb::new(0, 0);
+                    let full = relit::engine::Roi::full(width, height);
+                    for case in CASES.into_iter().filter(|c| wanted(c)) {
                         let lights = cpu_lights(case, &env)?;
                         let (secs, frames) = time_cpu(seconds, || {
-                            black_box(relighter.relight_prepared(&lights, 0.0)?);
+                            relighter.relight_prepared_into(&lights, 0.0, full, &mut frame)?;
+                            black_box(&frame);
                             Ok(())
                         })?;
                         let mut r = row(
@@ -277,6 +289,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                         rows.push(r);
                     }
                 }
+            }
+            if !args.no_cpu && wanted("sh_eval") {
                 let (secs, frames) = time_sh_eval(&image, bands, seconds)?;
                 let mut r = row(
                     "sh_eval",
@@ -314,7 +328,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                         Err(e) => return Err(e.into()),
                     };
                     let host_bound = gpu.adapter().device_type == "Cpu";
-                    for case in CASES {
+                    for case in CASES.into_iter().filter(|c| wanted(c)) {
                         let lighting = gpu_lighting(&gpu, case, &env)?;
                         let (secs, frames) = time_gpu(&gpu, &lighting, seconds)?;
                         let mut r = row(

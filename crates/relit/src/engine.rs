@@ -380,6 +380,21 @@ impl<'a> Relighter<'a> {
         exposure: f64,
         roi: Roi,
     ) -> Result<ImageRgb> {
+        let mut out = ImageRgb::new(0, 0);
+        self.relight_prepared_into(lights, exposure, roi, &mut out)?;
+        Ok(out)
+    }
+
+    /// Relight `roi` into `out`, which becomes `roi.width × roi.height` and reuses its
+    /// buffer when large enough (frames of an interactive viewer or a benchmark then
+    /// allocate nothing).
+    pub fn relight_prepared_into(
+        &self,
+        lights: &[PreparedLight],
+        exposure: f64,
+        roi: Roi,
+        out: &mut ImageRgb,
+    ) -> Result<()> {
         let image = self.image;
         let width = image.width();
         roi.validate(width, image.height())?;
@@ -470,7 +485,10 @@ impl<'a> Relighter<'a> {
                 self.slow_lights(&slow, camera, depth, scale, p0, dst);
             }
         };
-        let mut out = ImageRgb::new(roi.width, roi.height);
+        out.width = roi.width;
+        out.height = roi.height;
+        // Every value is overwritten by the tiles: no need to clear a reused buffer.
+        out.data.resize(3 * roi.pixels(), 0.0);
         if roi.x == 0 && roi.width == width {
             // Whole rows: one run of consecutive pixels, cut into tiles.
             let start = roi.y * width;
@@ -492,7 +510,7 @@ impl<'a> Relighter<'a> {
                     },
                 );
         }
-        Ok(out)
+        Ok(())
     }
 
     /// Add lights without a vectorised path (projector, area) to pixels

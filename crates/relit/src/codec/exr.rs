@@ -134,12 +134,19 @@ pub fn read(path: &Path) -> Result<RelightableImage> {
             format!("{} does not exist", path.display()),
         ));
     }
-    let image = read_all_data(path)?;
-    let layer =
-        image.layer_data.into_iter().next().ok_or_else(|| {
-            Error::parse(format!("{}: the EXR file has no layer", path.display()))
-        })?;
-    let attrs = &layer.attributes;
+    // Block by block: each decompressed block goes straight into its planes, so reading
+    // holds the maps once (plus the blocks in flight), not a second copy of every channel.
+    use exr::block::reader::ChunksReader;
+    let file = std::fs::File::open(path)
+        .map_err(|e| Error::new(ErrorKind::Io, format!("{}: {e}", path.display())))?;
+    let reader = exr::block::read(std::io::BufReader::new(file), false)
+        .map_err(|e| exr_error(path, "read", e))?;
+    let header = reader
+        .headers()
+        .first()
+        .cloned()
+        .ok_or_else(|| Error::parse(format!("{}: the EXR file has no layer", path.display())))?;
+    let attrs = &header.own_attributes;
     let bad = |what: &str| Error::parse(format!("{}: not a relit file ({what})", path.display()));
     let version = match attrs.other.get(&Text::new_or_panic("relit.formatVersion")) {
         Some(AttributeValue::I32(v)) => *v as u32,
@@ -185,34 +192,74 @@ pub fn read(path: &Path) -> Result<RelightableImage> {
         Some(s) => Some(parse_json(path, "relit.fit", &s)?),
         None => None,
     };
-    let (w, h) = (layer.size.width(), layer.size.height());
+    let (w, h) = (header.layer_size.width(), header.layer_size.height());
     let k = basis.len();
     let mut maps = CoefficientMaps::zeros(w, h, k);
     let mut found = vec![false; 3 * k];
-    let mut depth = None;
-    for channel in &layer.channel_data.list {
-        let name = channel.name.to_string();
-        if name == "Z" {
-            depth = Some(channel.sample_data.values_as_f32().collect());
-            continue;
-        }
-        let Some((i, c)) = parse_channel_name(&name) else {
-            continue;
-        };
-        if i >= k {
-            return Err(bad(&format!(
-                "channel {name} beyond the basis' {k} coefficients"
-            )));
-        }
-        for (dst, v) in maps
-            .plane_mut(i, c)
-            .iter_mut()
-            .zip(channel.sample_data.values_as_f32())
-        {
-            *dst = v;
-        }
-        found[3 * i + c] = true;
+    let mut depth: Option<Vec<f32>> = None;
+    // Where each channel of the file goes: plane 3i + c, the depth map, or nowhere.
+    #[derive(Clone, Copy)]
+    enum Target {
+        Plane(usize),
+        Depth,
+        Skip,
     }
+    let mut targets = Vec::new();
+    for channel in &header.channels.list {
+        let name = channel.name.to_string();
+        targets.push(if name == "Z" {
+            depth = Some(vec![0f32; w * h]);
+            Target::Depth
+        } else if let Some((i, c)) = parse_channel_name(&name) {
+            if i >= k {
+                return Err(bad(&format!(
+                    "channel {name} beyond the basis' {k} coefficients"
+                )));
+            }
+            found[3 * i + c] = true;
+            Target::Plane(3 * i + c)
+        } else {
+            Target::Skip
+        });
+    }
+    let n = w * h;
+    reader
+        .all_chunks(false)
+        .map_err(|e| exr_error(path, "read", e))?
+        .decompress_parallel(false, |meta, block| {
+            if block.index.layer != 0 || block.index.level != exr::math::Vec2(0, 0) {
+                return Ok(());
+            }
+            let channels = &meta.headers[0].channels;
+            for line in block.lines(channels) {
+                let at = line.location.position;
+                let start = at.y() * w + at.x();
+                let count = line.location.sample_count;
+                let dst = match targets[line.location.channel] {
+                    Target::Plane(j) => &mut maps.data[j * n + start..j * n + start + count],
+                    Target::Depth => match depth.as_mut() {
+                        Some(d) => &mut d[start..start + count],
+                        None => continue,
+                    },
+                    Target::Skip => continue,
+                };
+                match channels.list[line.location.channel].sample_type {
+                    SampleType::F16 => {
+                        for (d, v) in dst.iter_mut().zip(line.read_samples::<f16>()) {
+                            *d = v?.to_f32();
+                        }
+                    }
+                    SampleType::F32 => line.read_samples_into_slice(dst)?,
+                    SampleType::U32 => {
+                        for (d, v) in dst.iter_mut().zip(line.read_samples::<u32>()) {
+                            *d = v? as f32;
+                        }
+                    }
+                }
+            }
+            Ok(())
+        })
+        .map_err(|e| exr_error(path, "read", e))?;
     if let Some(missing) = found.iter().position(|f| !f) {
         return Err(bad(&format!(
             "channel {} is missing",
