@@ -256,6 +256,8 @@ unsafe fn light_block_avx2(
 
 /// A stored coefficient type: f32, f16 (as bits) or 8-bit.
 pub(crate) trait Stored: Copy + Send + Sync + 'static {
+    /// Whether uniform passes read eight planes at once (else four).
+    const EIGHT_PER_PASS: bool = true;
     fn to_f32(self) -> f32;
     /// The slice itself when the values are already f32 (no decoding needed).
     fn as_f32(data: &[Self]) -> Option<&[f32]> {
@@ -319,6 +321,7 @@ impl Stored for f32 {
 }
 
 impl Stored for u8 {
+    const EIGHT_PER_PASS: bool = false;
     #[inline(always)]
     fn to_f32(self) -> f32 {
         self as f32

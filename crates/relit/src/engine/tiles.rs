@@ -161,6 +161,17 @@ impl Frame<'_> {
                 acc.fill(pass.offset[c]);
                 let w = &pass.weights[c];
                 let mut i = 0;
+                // Eight planes per pass halve the accumulator's trips through L1;
+                // 8-bit planes keep four (their conversions need the registers).
+                while T::EIGHT_PER_PASS && i + 8 <= self.k {
+                    let j = |d: usize| plane(3 * (i + d) + c);
+                    self.simd.axpy(
+                        acc,
+                        std::array::from_fn::<_, 8, _>(|d| j(d)),
+                        std::array::from_fn(|d| w[i + d]),
+                    );
+                    i += 8;
+                }
                 while i + 4 <= self.k {
                     let j = |d: usize| plane(3 * (i + d) + c);
                     self.simd.axpy(
