@@ -126,6 +126,9 @@ pub fn relight(
     Relighter::new(image)?.relight(rig, options)
 }
 
+/// An environment map and its unrotated SH projection per channel.
+type ProjectedEnvironment = (EnvironmentLight, [Vec<f64>; 3]);
+
 /// Relights one relightable image many times, keeping what does not depend on the lights
 /// (the planes in their storage type, the basis, the per-pixel surface points, loaded
 /// slides and environment maps).
@@ -148,7 +151,7 @@ pub struct Relighter<'a> {
     point_rows: OnceLock<Result<[Vec<f32>; 3], String>>,
     slides: Mutex<HashMap<PathBuf, Arc<ImageRgb>>>,
     /// Environment maps with their unrotated SH projection, by file.
-    environments: Mutex<HashMap<PathBuf, Arc<(EnvironmentLight, [Vec<f64>; 3])>>>,
+    environments: Mutex<HashMap<PathBuf, Arc<ProjectedEnvironment>>>,
 }
 
 impl<'a> Relighter<'a> {
@@ -887,6 +890,7 @@ mod tests {
     /// The relit frame computed the plain way: per pixel, in f64, from the values the
     /// relighter's storage holds, every light through `illuminate` (uniform weights as
     /// a dot product).
+    #[allow(clippy::needless_range_loop)]
     fn reference(r: &Relighter, lights: &[PreparedLight], exposure: f64) -> ImageRgb {
         let img = r.image;
         let (w, h) = (img.width(), img.height());

@@ -167,7 +167,7 @@ impl Frame<'_> {
                     let j = |d: usize| plane(3 * (i + d) + c);
                     self.simd.axpy(
                         acc,
-                        std::array::from_fn::<_, 8, _>(|d| j(d)),
+                        std::array::from_fn::<_, 8, _>(j),
                         std::array::from_fn(|d| w[i + d]),
                     );
                     i += 8;

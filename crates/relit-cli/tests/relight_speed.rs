@@ -1,0 +1,108 @@
+//! `relit relight --roi / --storage / --gpu` and `relit bench --write-maps`, end to end.
+
+use relit::image::{load_linear, ImageRgb};
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn relit(args: &[&str]) -> Output {
+    let out = Command::new(env!("CARGO_BIN_EXE_relit"))
+        .args(args)
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .output()
+        .expect("run relit");
+    assert!(
+        out.status.success(),
+        "relit {args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+fn load(path: &Path) -> ImageRgb {
+    load_linear(path, None).expect("read the output")
+}
+
+fn max_abs(a: &ImageRgb, b: &ImageRgb) -> f32 {
+    assert_eq!((a.width, a.height), (b.width, b.height));
+    a.data
+        .iter()
+        .zip(&b.data)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f32::max)
+}
+
+#[test]
+fn region_storage_and_gpu_frames_agree_with_the_full_cpu_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("maps.exr");
+    let p = |name: &str| dir.path().join(name).to_str().unwrap().to_string();
+    relit(&[
+        "bench",
+        "--write-maps",
+        file.to_str().unwrap(),
+        "--size",
+        "70x20",
+        "--k",
+        "9",
+    ]);
+    let file = file.to_str().unwrap();
+    for light in ["dir:0.3,0.5,0.8", "point:0.3,0.5,0.2"] {
+        relit(&["relight", file, "--light", light, "-o", &p("full.exr")]);
+        relit(&[
+            "relight",
+            file,
+            "--light",
+            light,
+            "--roi",
+            "11,3,40,9",
+            "-o",
+            &p("roi.exr"),
+        ]);
+        let full = load(Path::new(&p("full.exr")));
+        let roi = load(Path::new(&p("roi.exr")));
+        let crop = relit::engine::Roi {
+            x: 11,
+            y: 3,
+            width: 40,
+            height: 9,
+        }
+        .crop(&full);
+        assert_eq!(max_abs(&roi, &crop), 0.0, "{light}: region vs crop");
+        relit(&[
+            "relight",
+            file,
+            "--light",
+            light,
+            "--storage",
+            "u8",
+            "-o",
+            &p("u8.exr"),
+        ]);
+        let peak = full.data.iter().fold(0f32, |m, v| m.max(v.abs()));
+        assert!(max_abs(&load(Path::new(&p("u8.exr"))), &full) < 0.05 * peak);
+
+        if let Err(why) = relit_gpu::probe() {
+            eprintln!("skipping relit relight --gpu: {why}");
+            continue;
+        }
+        let out = relit(&[
+            "relight",
+            file,
+            "--light",
+            light,
+            "--gpu",
+            "--compare",
+            "--roi",
+            "11,3,40,9",
+            "-o",
+            &p("gpu.exr"),
+        ]);
+        assert!(String::from_utf8_lossy(&out.stdout).contains("largest absolute difference"));
+        let gpu = load(Path::new(&p("gpu.exr")));
+        // f32 rounding of two summation orders: the GPU tests' bound (1e-5 of the
+        // peak, here at least 1e-5 absolute).
+        let diff = max_abs(&gpu, &crop);
+        eprintln!("{light}: relit relight --gpu vs CPU: {diff:.2e} (peak {peak:.3})");
+        assert!(diff <= 1e-5 * peak.max(1.0), "{light}: GPU vs CPU {diff}");
+    }
+}
