@@ -466,7 +466,7 @@ fn best_split(items: &[BuildItem], bounds: &Aabb, centres: &Aabb) -> Option<(usi
                 continue;
             }
             let cost = cnt as f32 * acc.half_area() + right_count[split] as f32 * right_area[split];
-            if best.map_or(true, |(c, _, _)| cost < c) {
+            if best.is_none_or(|(c, _, _)| cost < c) {
                 best = Some((cost, axis, split));
             }
         }

@@ -235,6 +235,49 @@ pub fn save_png16_linear(path: &Path, image: &ImageRgb) -> Result<()> {
     })
 }
 
+/// Tile `frames` (all of one size) into a grid `columns` wide, each shrunk by an integer
+/// box filter so the sheet is at most `max_width` pixels wide, with a 2-pixel dark gutter.
+pub fn contact_sheet(frames: &[ImageRgb], columns: usize, max_width: usize) -> ImageRgb {
+    const GUTTER: usize = 2;
+    if frames.is_empty() {
+        return ImageRgb::new(0, 0);
+    }
+    let columns = columns.clamp(1, frames.len());
+    let (fw, fh) = (frames[0].width, frames[0].height);
+    let factor = ((fw * columns) as f64 / max_width.max(1) as f64)
+        .ceil()
+        .max(1.0) as usize;
+    let (tw, th) = ((fw / factor).max(1), (fh / factor).max(1));
+    let rows = frames.len().div_ceil(columns);
+    let mut sheet = ImageRgb::new(
+        columns * (tw + GUTTER) + GUTTER,
+        rows * (th + GUTTER) + GUTTER,
+    );
+    sheet.data.iter_mut().for_each(|v| *v = 0.01);
+    for (n, frame) in frames.iter().enumerate() {
+        let (ox, oy) = (
+            GUTTER + (n % columns) * (tw + GUTTER),
+            GUTTER + (n / columns) * (th + GUTTER),
+        );
+        for y in 0..th {
+            for x in 0..tw {
+                let mut sum = [0f32; 3];
+                for sy in 0..factor {
+                    for sx in 0..factor {
+                        let px =
+                            frame.get((x * factor + sx).min(fw - 1), (y * factor + sy).min(fh - 1));
+                        (0..3).for_each(|c| sum[c] += px[c]);
+                    }
+                }
+                let o = 3 * ((oy + y) * sheet.width + ox + x);
+                let norm = 1.0 / (factor * factor) as f32;
+                (0..3).for_each(|c| sheet.data[o + c] = sum[c] * norm);
+            }
+        }
+    }
+    sheet
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -282,47 +325,4 @@ mod tests {
         std::fs::write(&bad, b"not a jpeg at all").unwrap();
         assert!(load_linear(&bad, None).is_err());
     }
-}
-
-/// Tile `frames` (all of one size) into a grid `columns` wide, each shrunk by an integer
-/// box filter so the sheet is at most `max_width` pixels wide, with a 2-pixel dark gutter.
-pub fn contact_sheet(frames: &[ImageRgb], columns: usize, max_width: usize) -> ImageRgb {
-    const GUTTER: usize = 2;
-    if frames.is_empty() {
-        return ImageRgb::new(0, 0);
-    }
-    let columns = columns.clamp(1, frames.len());
-    let (fw, fh) = (frames[0].width, frames[0].height);
-    let factor = ((fw * columns) as f64 / max_width.max(1) as f64)
-        .ceil()
-        .max(1.0) as usize;
-    let (tw, th) = ((fw / factor).max(1), (fh / factor).max(1));
-    let rows = frames.len().div_ceil(columns);
-    let mut sheet = ImageRgb::new(
-        columns * (tw + GUTTER) + GUTTER,
-        rows * (th + GUTTER) + GUTTER,
-    );
-    sheet.data.iter_mut().for_each(|v| *v = 0.01);
-    for (n, frame) in frames.iter().enumerate() {
-        let (ox, oy) = (
-            GUTTER + (n % columns) * (tw + GUTTER),
-            GUTTER + (n / columns) * (th + GUTTER),
-        );
-        for y in 0..th {
-            for x in 0..tw {
-                let mut sum = [0f32; 3];
-                for sy in 0..factor {
-                    for sx in 0..factor {
-                        let px =
-                            frame.get((x * factor + sx).min(fw - 1), (y * factor + sy).min(fh - 1));
-                        (0..3).for_each(|c| sum[c] += px[c]);
-                    }
-                }
-                let o = 3 * ((oy + y) * sheet.width + ox + x);
-                let norm = 1.0 / (factor * factor) as f32;
-                (0..3).for_each(|c| sheet.data[o + c] = sum[c] * norm);
-            }
-        }
-    }
-    sheet
 }

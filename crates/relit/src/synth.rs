@@ -61,9 +61,9 @@ impl BumpyPlane {
                 } else {
                     0.0
                 };
-                for c in 0..3 {
-                    img.data[3 * (y * self.width + x) + c] =
-                        (0.8 * albedo[c] * diffuse + spec) as f32;
+                let o = 3 * (y * self.width + x);
+                for (dst, a) in img.data[o..o + 3].iter_mut().zip(albedo) {
+                    *dst = (0.8 * a * diffuse + spec) as f32;
                 }
             }
         }

@@ -141,11 +141,10 @@ pub fn read(path: &Path) -> Result<RelightableImage> {
         .map_err(|e| Error::new(ErrorKind::Io, format!("{}: {e}", path.display())))?;
     let reader = exr::block::read(std::io::BufReader::new(file), false)
         .map_err(|e| exr_error(path, "read", e))?;
-    let header = reader
-        .headers()
-        .first()
-        .cloned()
-        .ok_or_else(|| Error::parse(format!("{}: the EXR file has no layer", path.display())))?;
+    let header =
+        reader.headers().first().cloned().ok_or_else(|| {
+            Error::parse(format!("{}: the EXR file has no layer", path.display()))
+        })?;
     let attrs = &header.own_attributes;
     let bad = |what: &str| Error::parse(format!("{}: not a relit file ({what})", path.display()));
     let version = match attrs.other.get(&Text::new_or_panic("relit.formatVersion")) {

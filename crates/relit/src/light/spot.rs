@@ -35,7 +35,8 @@ impl SpotLight {
                 "a spotlight needs a finite position and a non-zero direction",
             ));
         }
-        if !(self.cone_deg > 0.0 && self.cone_deg < 180.0) || !(self.softness_deg >= 0.0) {
+        let cone_ok = self.cone_deg > 0.0 && self.cone_deg < 180.0;
+        if !cone_ok || self.softness_deg.is_nan() || self.softness_deg < 0.0 {
             return Err(Error::invalid(
                 "a spotlight's cone_deg must be in (0, 180) and softness_deg ≥ 0",
             ));
