@@ -1,4 +1,5 @@
-//! `relit eval`: fidelity against held-out captured lights.
+//! `relit eval`: fidelity against held-out captured lights, or (`--scene`) against the
+//! studio's ray-traced truth under every light type.
 
 use crate::cmd_fit::StorageArg;
 use crate::shared::{mib, Bars, FitArgs};
@@ -10,7 +11,30 @@ use std::path::PathBuf;
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// The capture: an RTI `.lp` file or a relit manifest `.json`.
-    pub capture: PathBuf,
+    #[arg(required_unless_present = "scene", conflicts_with = "scene")]
+    pub capture: Option<PathBuf>,
+    /// Instead of a capture: a studio scene (attic, city, box, .obj or scene .json) to
+    /// capture, fit, and relight under each light of `--rig` against ray-traced truth.
+    #[arg(long)]
+    pub scene: Option<String>,
+    /// With --scene: the lights to test (rig JSON); default one light of each type.
+    #[arg(long, requires = "scene")]
+    pub rig: Option<PathBuf>,
+    /// With --scene: the captured light plan (`fibonacci:N`, `grid:TxP`, `hemisphere:N`).
+    #[arg(long, default_value = "fibonacci:300", requires = "scene")]
+    pub lights: String,
+    /// With --scene: camera (cylindrical[:FOV], equirect, perspective[:FOV]; default the scene's).
+    #[arg(long, requires = "scene")]
+    pub camera: Option<String>,
+    /// With --scene: image size WIDTHxHEIGHT (default the scene's).
+    #[arg(long, requires = "scene")]
+    pub size: Option<String>,
+    /// With --scene: samples per pixel of an environment light's ray-traced truth.
+    #[arg(long, default_value_t = relit_studio::emitter::DEFAULT_ENVIRONMENT_SAMPLES, requires = "scene")]
+    pub env_samples: usize,
+    /// With --scene: write each light's truth and relit images (PNG) into this folder.
+    #[arg(long, requires = "scene")]
+    pub save: Option<PathBuf>,
     /// Images to hold out: `every:N`, `spread:N` (N evenly spread; `spread:5` is the
     /// RTI peer-baseline protocol) or indices in capture order like `0,12,24,35,47`.
     #[arg(long, default_value = "spread:5")]
@@ -35,7 +59,10 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let capture = Capture::open(&args.capture)?;
+    if args.scene.is_some() {
+        return run_scene(args);
+    }
+    let capture = Capture::open(args.capture.as_deref().expect("clap requires a capture"))?;
     let holdout: Holdout = args.holdout.parse()?;
     let mask = match &args.mask {
         Some(path) => {
@@ -105,5 +132,131 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         report.fit_seconds,
         mib(report.peak_rss_bytes)
     );
+    Ok(())
+}
+
+fn run_scene(args: Args) -> anyhow::Result<()> {
+    use anyhow::Context;
+    use relit_studio::scene_eval::{self, SceneEvalOptions};
+    use relit_studio::{plan::LightPlan, render::Renderer, setup};
+
+    let spec = args.scene.as_deref().expect("checked by the caller");
+    let scene =
+        relit_studio::open_scene(spec).with_context(|| format!("opening scene `{spec}`"))?;
+    let projection = args
+        .camera
+        .as_deref()
+        .map(setup::parse_projection)
+        .transpose()?;
+    let size = args.size.as_deref().map(setup::parse_size).transpose()?;
+    let camera = setup::scene_camera(&scene, projection.as_ref(), size)?;
+    let options = SceneEvalOptions {
+        plan: LightPlan::parse(&args.lights)?,
+        fit: args.fit.to_options()?,
+        environment_samples: args.env_samples,
+        ..SceneEvalOptions::default()
+    };
+    let bars = Bars::new(args.quiet || args.json);
+    // The default rig's slide and sky live in a scratch folder for the run.
+    let (_scratch, scratch_path) = scene_eval::scratch_dir()?;
+    let (rig, base) = match &args.rig {
+        Some(path) => (
+            relit::light::LightRig::load(path)
+                .with_context(|| format!("reading the rig {}", path.display()))?,
+            path.parent()
+                .map(|p| p.to_path_buf())
+                .unwrap_or_else(|| PathBuf::from(".")),
+        ),
+        None => {
+            let gbuffer =
+                Renderer::new(&scene, &camera, &options.render, &relit::progress::Silent)?;
+            (
+                scene_eval::default_rig(&camera, gbuffer.depth(), &scratch_path)?,
+                scratch_path.clone(),
+            )
+        }
+    };
+    if let Some(dir) = &args.save {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    // Each light's truth and relit image side by side, when asked for.
+    let mut save = |i: usize,
+                    light: &relit::light::Light,
+                    truth: &relit::image::ImageRgb,
+                    relit: &relit::image::ImageRgb|
+     -> relit::Result<()> {
+        if let Some(dir) = &args.save {
+            let pair = relit::image::contact_sheet(&[truth.clone(), relit.clone()], 1, 2048);
+            relit::image::save(&dir.join(format!("{i}_{}.png", light.kind())), &pair, 0.0)?;
+        }
+        Ok(())
+    };
+    let report = scene_eval::evaluate(
+        &scene,
+        &camera,
+        &rig,
+        &base,
+        &options,
+        &bars,
+        Some(&mut save),
+    )?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(());
+    }
+    println!(
+        "{}: {}×{} {}, {} captured lights ({}), {} coefficients, {} objective; capture {:.1} s ({:.2} Mrays/s), fit {:.1} s",
+        report.scene,
+        report.width,
+        report.height,
+        report.projection,
+        report.images,
+        report.plan,
+        report.coefficients,
+        report.fit.objective.name(),
+        report.capture_seconds,
+        report.capture_rays_per_second / 1e6,
+        report.fit.seconds
+    );
+    println!(
+        "{:<12} {:>10} {:>10} {:>11} {:>9} {:>26}",
+        "light", "linear dB", "sRGB8 dB", "relight ms", "truth s", "occlusion: px  in / out dB"
+    );
+    for l in &report.lights {
+        let occlusion = match &l.occlusion {
+            Some(o) => format!(
+                "{:>5.1}%  {} / {}",
+                100.0 * o.affected_fraction,
+                o.affected
+                    .map_or("  -  ".into(), |p| format!("{:5.1}", p.psnr_linear)),
+                o.clear
+                    .map_or("  -  ".into(), |p| format!("{:5.1}", p.psnr_linear))
+            ),
+            None => "-".into(),
+        };
+        println!(
+            "{:<12} {:>10.2} {:>10.2} {:>11.1} {:>9.2} {:>26}",
+            l.kind,
+            l.psnr_linear,
+            l.psnr_srgb8,
+            1e3 * l.relight_seconds,
+            l.truth_seconds,
+            occlusion
+        );
+    }
+    if !report.environment.is_empty() {
+        println!("environment vs brute force Σ w_j I_j over the captured images (linear dB against truth):");
+        for e in &report.environment {
+            println!(
+                "  light {} window {:<10} SH {:>6.2}  brute force {:>6.2}  gain {:>+6.2} dB  (SH vs brute force {:.2} dB)",
+                e.light,
+                format!("{:?}", e.window).to_lowercase().split(' ').next().unwrap_or(""),
+                e.relit.psnr_linear,
+                e.brute_force.psnr_linear,
+                e.gain_linear_db,
+                e.relit_vs_brute_force.psnr_linear
+            );
+        }
+    }
     Ok(())
 }

@@ -74,10 +74,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             bytes as f64 / (r.width * r.height) as f64
         );
         println!(
-            "fit: {:.2} s, {:.1} images/s, peak memory {}, λ = {:.0e}{}",
+            "fit: {:.2} s, {:.1} images/s, peak memory {}, {} objective{}, λ = {:.0e}{}",
             r.seconds,
             r.images_per_second,
             mib(r.peak_rss_bytes),
+            r.objective.name(),
+            if options.objective == relit::fit::Objective::Auto {
+                " (chosen by leave-one-out)"
+            } else {
+                ""
+            },
             r.lambda,
             if r.lambda_scores.is_empty() {
                 " (fixed)"

@@ -10,6 +10,8 @@ use std::sync::Mutex;
 /// What the fit minimises (see the library docs of `relit::fit`).
 #[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum ObjectiveArg {
+    /// Perceptual or linear, whichever predicts left-out images better on screen (leave-one-out).
+    Auto,
     /// Squared residuals weighted by the sRGB curve's slope (display-space error).
     Perceptual,
     /// Plain least squares in linear radiance.
@@ -41,7 +43,7 @@ pub struct FitArgs {
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u8).range(1..=8))]
     pub bands: u8,
     /// Fit objective.
-    #[arg(long, value_enum, default_value_t = ObjectiveArg::Perceptual)]
+    #[arg(long, value_enum, default_value_t = ObjectiveArg::Auto)]
     pub objective: ObjectiveArg,
     /// Space of the stored maps (srgb fits display values with plain least squares).
     #[arg(long, value_enum, default_value_t = SpaceArg::Linear)]
@@ -77,6 +79,7 @@ impl FitArgs {
                 bands: self.bands as usize,
             },
             objective: match self.objective {
+                ObjectiveArg::Auto => Objective::Auto,
                 ObjectiveArg::Perceptual => Objective::Perceptual,
                 ObjectiveArg::Linear => Objective::Linear,
             },

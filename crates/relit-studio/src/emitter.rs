@@ -7,13 +7,15 @@
 //! sample toward its position; an area light one per sample of its surface. The
 //! lights of relit's engine ([`relit::light`]) are shone by the engine's own code
 //! ([`EngineLight`]), so ground truth and relighting share one definition of every
-//! light: the studio adds only the shadow rays. Adding a light the engine does not
-//! have (an environment map, say) is a struct implementing [`Illuminant`] and one
-//! [`Emitter`] variant.
+//! light: the studio adds only the shadow rays. An environment map, which the engine
+//! shines as SH weights (band-limited, windowed), is instead integrated here by
+//! importance sampling the map itself ([`EnvironmentEmitter`]), so that its ground
+//! truth is free of the engine's approximations.
 
 use crate::math::V3;
 use crate::{invalid, Result};
-use relit::light::{Light, LightRig, PreparedLight};
+use relit::envmap::{latlong_direction, texel_solid_angle, EnvironmentLight};
+use relit::light::{EnvironmentMapLight, Light, LightRig, PreparedLight};
 use relit::sphere::Vec3;
 use std::path::Path;
 
@@ -139,11 +141,125 @@ impl Illuminant for EngineLight {
     }
 }
 
+/// An environment map all around the scene, integrated per shading point by sampling
+/// its texels in proportion to their power (luminance × solid angle, with a floor so
+/// that every texel can be drawn), stratified over the samples and decorrelated between
+/// pixels. Each sample is a light at infinity with irradiance `E·ΔΩ / (p·N)`, so the
+/// estimate of `∫ f E dω` is unbiased; the noise falls as `1/√N`.
+#[derive(Clone, Debug)]
+pub struct EnvironmentEmitter {
+    light: EnvironmentLight,
+    rgb: [f32; 3],
+    samples: usize,
+    /// Cumulative texel power, normalised to end at 1.
+    cdf: Vec<f64>,
+    /// Irradiance factor `ΔΩ_t / p_t` of each texel (the inverse of its draw
+    /// probability per unit solid angle).
+    inverse_pdf: Vec<f64>,
+}
+
+/// Samples per shading point of an environment emitter unless told otherwise.
+pub const DEFAULT_ENVIRONMENT_SAMPLES: usize = 256;
+
+impl EnvironmentEmitter {
+    /// The rig light `light` (map file relative to `base`), `samples` draws per point.
+    pub fn new(light: &EnvironmentMapLight, base: &Path, samples: usize) -> Result<Self> {
+        light.validate()?;
+        if samples == 0 {
+            return Err(invalid("an environment emitter needs at least one sample"));
+        }
+        let env =
+            EnvironmentLight::load(&base.join(&light.map))?.with_rotation(light.rotation()?)?;
+        let map = env.map();
+        let (w, h) = (map.width, map.height);
+        let power: Vec<f64> = (0..w * h)
+            .map(|t| {
+                let rgb = map.get(t % w, t / w);
+                let luminance = rgb.iter().map(|&c| c.max(0.0) as f64).sum::<f64>() / 3.0;
+                luminance * texel_solid_angle(w, h, t / w)
+            })
+            .collect();
+        let total: f64 = power.iter().sum();
+        // A floor of 1% of the mean keeps dark texels reachable (no bias where the
+        // map is black but a colour channel is not).
+        let floor = 0.01 * total / (w * h) as f64 + 1e-30;
+        let weights: Vec<f64> = power.iter().map(|p| p + floor).collect();
+        let sum: f64 = weights.iter().sum();
+        let mut cdf = Vec::with_capacity(w * h);
+        let mut acc = 0.0;
+        for wt in &weights {
+            acc += wt / sum;
+            cdf.push(acc);
+        }
+        let inverse_pdf = weights
+            .iter()
+            .enumerate()
+            .map(|(t, wt)| texel_solid_angle(w, h, t / w) * sum / wt)
+            .collect();
+        Ok(EnvironmentEmitter {
+            light: env,
+            rgb: Light::Environment(light.clone()).rgb().map(|c| c as f32),
+            samples,
+            cdf,
+            inverse_pdf,
+        })
+    }
+}
+
+/// A well-mixed 64-bit hash (SplitMix64's finaliser) of a pixel and a sample index.
+fn hash(a: u64, b: u64) -> u64 {
+    let mut z = a.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ b.wrapping_add(0xD1B5_4A32_D192_ED03);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+fn unit(bits: u64) -> f64 {
+    (bits >> 11) as f64 / (1u64 << 53) as f64
+}
+
+impl Illuminant for EnvironmentEmitter {
+    fn illuminate(&self, _point: V3, pixel: usize, emit: &mut dyn FnMut(Incident)) {
+        let map = self.light.map();
+        let (w, h) = (map.width, map.height);
+        let n = self.samples;
+        let rotation = self.light.rotation();
+        let offset = unit(hash(pixel as u64, 0x5eed));
+        for i in 0..n {
+            // Stratified over the CDF with one random shift per pixel.
+            let xi = ((i as f64 + offset) / n as f64).min(1.0 - 1e-16);
+            let t = self.cdf.partition_point(|&c| c <= xi).min(w * h - 1);
+            let (col, row) = (t % w, t / w);
+            let r = hash(pixel as u64, i as u64 + 1);
+            let u = (col as f64 + unit(r)) / w as f64;
+            // Uniform in cos θ inside the texel's row: uniform in solid angle.
+            let (top, bottom) = (
+                (std::f64::consts::PI * row as f64 / h as f64).cos(),
+                (std::f64::consts::PI * (row + 1) as f64 / h as f64).cos(),
+            );
+            let cos_t = top + (bottom - top) * unit(hash(r, 7));
+            let v = cos_t.clamp(-1.0, 1.0).acos() / std::f64::consts::PI;
+            let local = latlong_direction(u, v);
+            let direction = relit::basis::mat3_apply(&rotation, local);
+            let radiance = map.get(col, row);
+            let scale = self.inverse_pdf[t] / n as f64;
+            emit(Incident {
+                direction: V3::from(direction),
+                irradiance: V3::from(std::array::from_fn::<f32, 3, _>(|c| {
+                    (radiance[c] as f64 * scale) as f32 * self.rgb[c]
+                })),
+                distance: f32::INFINITY,
+            });
+        }
+    }
+}
+
 /// Every emitter the tracer knows; each method forwards to the variant.
 #[derive(Clone, Debug)]
 pub enum Emitter {
     Directional(Directional),
     Engine(EngineLight),
+    Environment(Box<EnvironmentEmitter>),
 }
 
 impl Emitter {
@@ -155,9 +271,24 @@ impl Emitter {
     /// The emitter of a relit light, so that ground truth and relighting share one
     /// description of every light. A projector's slide resolves against `base`.
     pub fn from_light_in(light: &Light, base: &Path) -> Result<Emitter> {
+        Emitter::from_light_sampled(light, base, DEFAULT_ENVIRONMENT_SAMPLES)
+    }
+
+    /// [`Emitter::from_light_in`] with `environment_samples` samples per shading point
+    /// for an environment light.
+    pub fn from_light_sampled(
+        light: &Light,
+        base: &Path,
+        environment_samples: usize,
+    ) -> Result<Emitter> {
         light.validate()?;
         match light {
             Light::Directional(d) => Emitter::directional(d.direction, light.rgb()),
+            Light::Environment(e) => Ok(Emitter::Environment(Box::new(EnvironmentEmitter::new(
+                e,
+                base,
+                environment_samples,
+            )?))),
             _ => Ok(Emitter::Engine(EngineLight::new(light, base)?)),
         }
     }
@@ -181,6 +312,7 @@ impl Emitter {
         match self {
             Emitter::Directional(d) => d,
             Emitter::Engine(e) => e,
+            Emitter::Environment(e) => e.as_ref(),
         }
     }
 }

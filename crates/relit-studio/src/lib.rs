@@ -42,6 +42,7 @@ pub mod obj;
 pub mod plan;
 pub mod render;
 pub mod scene;
+pub mod scene_eval;
 pub mod scene_file;
 pub mod scenes;
 pub mod setup;

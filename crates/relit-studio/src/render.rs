@@ -260,6 +260,50 @@ impl<'s> Renderer<'s> {
         Ok(self.render(&[Emitter::directional(direction, [1.0; 3])?]))
     }
 
+    /// Per pixel, the fraction of `emitter`'s light samples whose visibility the capture
+    /// gets wrong: the ray toward the light is blocked somewhere (so the pixel's captured
+    /// function, which knows only directions, records a shadow) but the segment up to
+    /// the light is clear (so the light really reaches the point) — an occluder
+    /// *behind* the light, seed 004 §VI's limitation seen from the other side. Pixels
+    /// without geometry, and samples arriving from behind the surface, count as right.
+    pub fn visibility_mismatch(&self, emitter: &Emitter) -> Vec<f32> {
+        let spp = self.samples_per_pixel;
+        (0..self.depth.len())
+            .into_par_iter()
+            .map(|pixel| {
+                let Some(sample) = &self.samples[pixel * spp] else {
+                    return 0.0;
+                };
+                let (mut total, mut wrong) = (0u32, 0u32);
+                emitter.illuminate(sample.origin, pixel, &mut |incident| {
+                    if sample.geometric_normal.dot(incident.direction) <= 0.0
+                        || !incident.distance.is_finite()
+                    {
+                        return;
+                    }
+                    total += 1;
+                    let towards =
+                        self.scene
+                            .occluded(sample.origin, incident.direction, f32::INFINITY);
+                    if towards
+                        && !self.scene.occluded(
+                            sample.origin,
+                            incident.direction,
+                            incident.distance,
+                        )
+                    {
+                        wrong += 1;
+                    }
+                });
+                if total == 0 {
+                    0.0
+                } else {
+                    wrong as f32 / total as f32
+                }
+            })
+            .collect()
+    }
+
     /// Direct light on one sample plus its one-bounce indirect light.
     fn shade(&self, sample: &Sample, index: usize, emitters: &[Emitter], rays: &mut u64) -> V3 {
         let pixel = index / self.samples_per_pixel;

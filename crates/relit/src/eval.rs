@@ -180,10 +180,14 @@ pub fn evaluate(
     let mut results = Vec::new();
     let mut bytes_per_pixel = f64::NAN;
     let mut fit_seconds = Vec::new();
+    let mut chosen: Vec<&'static str> = Vec::new();
     for group in &groups {
         let train: Vec<usize> = (0..n).filter(|i| !group.contains(i)).collect();
         let mut fitted = fit::fit(&capture.subset(&train), &options.fit, progress)?;
         fit_seconds.push(fitted.report.seconds);
+        if !chosen.contains(&fitted.report.objective.name()) {
+            chosen.push(fitted.report.objective.name());
+        }
         if bytes_per_pixel.is_nan() {
             bytes_per_pixel = stored_bytes(&fitted.image, options.storage)? as f64
                 / (capture.width * capture.height) as f64;
@@ -222,10 +226,11 @@ pub fn evaluate(
         height: capture.height,
         basis: options.fit.basis.short_name(),
         coefficients: options.fit.basis.len(),
-        objective: if options.fit.color_space == crate::maps::MapSpace::Srgb {
-            "linear".into()
-        } else {
-            options.fit.objective.name().into()
+        objective: match options.fit.objective {
+            fit::Objective::Auto if options.fit.color_space == crate::maps::MapSpace::Linear => {
+                format!("auto ({})", chosen.join(", "))
+            }
+            _ => chosen.join(", "),
         },
         color_space: options.fit.color_space.name().into(),
         storage: options.storage.name().into(),

@@ -17,7 +17,7 @@
 //!   at a time, accumulating `Σ_j q_j B(L_j) I_j` per pixel (memory: the maps), and one
 //!   k×k solve turns the sums into coefficients — the precomputed solver `(BᵀQB+λP)⁻¹BᵀQ`
 //!   applied in two factors.
-//! * [`Objective::Perceptual`] (default): `w_j = q_j · s(v)²` where `s` is the slope
+//! * [`Objective::Perceptual`]: `w_j = q_j · s(v)²` where `s` is the slope
 //!   of the sRGB curve at the sample's radiance `v`, so a linear-space residual counts
 //!   as much as the display-space error it causes. `v` is the observation first, then
 //!   the prediction (iteratively reweighted, [`FitOptions::reweights`] times), which keeps
@@ -26,6 +26,13 @@
 //!   rebinned into a strip-major spill file on disk (the seed's rebinning); each strip
 //!   of rows of all images is then read in one piece and solved pixel by pixel with
 //!   matrix products (`W · vec(B_j B_jᵀ)`) and a Cholesky factorisation per pixel.
+//!
+//! * [`Objective::Auto`] (default): one of the two, whichever has the smaller
+//!   leave-one-out error of the *displayed* (sRGB-encoded) values on the λ subsample.
+//!   On photographs the perceptual objective wins (dark pixels are noisy but never
+//!   exactly black); on renders with hard, exactly black shadows the huge weight it gives
+//!   those zeros can cost more than it gains, and the linear objective wins. Both
+//!   pass-1 states (the spill file and the shared sums) are kept until the choice.
 //!
 //! Maps stored display-referred ([`MapSpace::Srgb`]) fit sRGB-encoded values with
 //! plain (quadrature-weighted) least squares.
@@ -55,8 +62,12 @@ use std::time::Instant;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum Objective {
-    /// Squared residuals weighted by the squared slope of the sRGB curve (display-space error).
+    /// Whichever of the two below predicts left-out images better in display space,
+    /// judged per capture by leave-one-out on the λ subsample (the report names the
+    /// objective chosen).
     #[default]
+    Auto,
+    /// Squared residuals weighted by the squared slope of the sRGB curve (display-space error).
     Perceptual,
     /// Plain squared residuals in linear radiance.
     Linear,
@@ -65,6 +76,7 @@ pub enum Objective {
 impl Objective {
     pub fn name(self) -> &'static str {
         match self {
+            Objective::Auto => "auto",
             Objective::Perceptual => "perceptual",
             Objective::Linear => "linear",
         }
@@ -293,16 +305,21 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
     if pixels == 0 {
         return Err(Error::invalid("the capture's images are empty"));
     }
-    let per_pixel =
-        options.objective == Objective::Perceptual && options.color_space == MapSpace::Linear;
+    // Display-referred maps are fitted to display values, so only the plain objective applies.
+    let objective = match options.color_space {
+        MapSpace::Srgb => Objective::Linear,
+        MapSpace::Linear => options.objective,
+    };
     let sub_idx = subsample_indices(pixels, options.subsample);
     let mut sub = vec![0f32; sub_idx.len() * design.n * 3];
 
+    // The automatic objective keeps both kinds of pass-1 state until it has chosen.
     let mut accum = None;
     let mut spill = None;
-    if per_pixel {
+    if objective != Objective::Linear {
         spill = Some(spill::Spill::create(w, h, design.n, options.strip_bytes)?);
-    } else {
+    }
+    if objective != Objective::Perceptual {
         accum = Some(vec![0f32; pixels * design.k * 3]);
     }
 
@@ -334,25 +351,51 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
     }
     progress.end();
 
-    // λ: leave-one-out on the subsample, unless fixed.
-    let (lambda, lambda_scores) = match options.lambda {
-        Lambda::Fixed(l) if l >= 0.0 && l.is_finite() => (l, Vec::new()),
-        Lambda::Fixed(l) => {
-            return Err(Error::invalid(format!(
-                "λ must be a non-negative number, got {l}"
-            )))
-        }
-        Lambda::Auto => {
-            let scores = loo_scores(&design, &sub, sub_idx.len(), per_pixel);
-            let best = scores
-                .iter()
-                .filter(|s| s.1.is_finite())
-                .min_by(|a, b| a.1.total_cmp(&b.1))
-                .map(|s| s.0)
-                .unwrap_or(1e-3);
-            (best, scores)
-        }
+    // λ (and the automatic objective): leave-one-out on the subsample.
+    let candidates: &[Objective] = match objective {
+        Objective::Auto => &[Objective::Perceptual, Objective::Linear],
+        Objective::Perceptual => &[Objective::Perceptual],
+        Objective::Linear => &[Objective::Linear],
     };
+    let mut choice: Option<Choice> = None;
+    for &candidate in candidates {
+        let perceptual = candidate == Objective::Perceptual;
+        let scored = match options.lambda {
+            Lambda::Fixed(l) if l >= 0.0 && l.is_finite() => {
+                if candidates.len() == 1 {
+                    Choice::fixed(candidate, l)
+                } else {
+                    Choice::score(
+                        candidate,
+                        &loo_scores(&design, &sub, sub_idx.len(), perceptual, &[l]),
+                    )
+                }
+            }
+            Lambda::Fixed(l) => {
+                return Err(Error::invalid(format!(
+                    "λ must be a non-negative number, got {l}"
+                )))
+            }
+            Lambda::Auto => Choice::score(
+                candidate,
+                &loo_scores(&design, &sub, sub_idx.len(), perceptual, &LAMBDA_LADDER),
+            ),
+        };
+        if !matches!(&choice, Some(c) if c.display <= scored.display) {
+            choice = Some(scored);
+        }
+    }
+    let Choice {
+        objective,
+        lambda,
+        scores: lambda_scores,
+        ..
+    } = choice.expect("at least one candidate objective");
+    if objective == Objective::Perceptual {
+        accum = None;
+    } else {
+        spill = None;
+    }
 
     let mut maps = CoefficientMaps::zeros(w, h, design.k);
     if let Some(acc) = accum.take() {
@@ -377,11 +420,6 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
         capture.projection.clone(),
     );
     meta.camera = capture.camera.clone();
-    let objective = if options.color_space == MapSpace::Srgb {
-        Objective::Linear
-    } else {
-        options.objective
-    };
     meta.fit = Some(FitInfo {
         objective: objective.name().into(),
         regularizer: options.regularizer.name().into(),
@@ -674,13 +712,65 @@ fn solve_regularized(design: &Design, m: &mut [f64], rhs: &mut [f64], lambda: f6
     rhs.iter_mut().for_each(|v| *v = 0.0);
 }
 
-/// Leave-one-out weighted error for each λ of [`LAMBDA_LADDER`], on the subsample.
-fn loo_scores(design: &Design, sub: &[f32], count: usize, perceptual: bool) -> Vec<(f64, f64)> {
+/// The objective and λ a fit settles on, with the leave-one-out scores behind them.
+struct Choice {
+    objective: Objective,
+    lambda: f64,
+    /// `(λ, weighted leave-one-out MSE)` for each λ tried.
+    scores: Vec<(f64, f64)>,
+    /// Leave-one-out MSE of the display (sRGB) values at the chosen λ.
+    display: f64,
+}
+
+impl Choice {
+    fn fixed(objective: Objective, lambda: f64) -> Choice {
+        Choice {
+            objective,
+            lambda,
+            scores: Vec::new(),
+            display: 0.0,
+        }
+    }
+
+    /// The λ of smallest weighted error (the fit's own objective) among `scores`.
+    fn score(objective: Objective, scores: &[LooScore]) -> Choice {
+        let best = scores
+            .iter()
+            .filter(|s| s.weighted.is_finite())
+            .min_by(|a, b| a.weighted.total_cmp(&b.weighted));
+        Choice {
+            objective,
+            lambda: best.map_or(1e-3, |s| s.lambda),
+            scores: scores.iter().map(|s| (s.lambda, s.weighted)).collect(),
+            display: best.map_or(f64::INFINITY, |s| s.display),
+        }
+    }
+}
+
+/// Leave-one-out errors of one λ on the subsample.
+#[derive(Clone, Copy, Debug)]
+struct LooScore {
+    lambda: f64,
+    /// Mean squared residual under the fit's own weights.
+    weighted: f64,
+    /// Mean squared difference of the sRGB-encoded prediction and observation
+    /// (quadrature-weighted): what a person sees, comparable across objectives.
+    display: f64,
+}
+
+/// Exact leave-one-out errors for each λ of `ladder`, on the subsample.
+fn loo_scores(
+    design: &Design,
+    sub: &[f32],
+    count: usize,
+    perceptual: bool,
+    ladder: &[f64],
+) -> Vec<LooScore> {
     let (k, n) = (design.k, design.n);
-    let totals: Vec<(f64, f64)> = (0..count * 3)
+    let totals: Vec<[f64; 4]> = (0..count * 3)
         .into_par_iter()
         .fold(
-            || vec![(0.0f64, 0.0f64); LAMBDA_LADDER.len()],
+            || vec![[0.0f64; 4]; ladder.len()],
             |mut acc, item| {
                 let (s, c) = (item / 3, item % 3);
                 let obs: Vec<f64> = (0..n).map(|j| sub[(s * n + j) * 3 + c] as f64).collect();
@@ -714,11 +804,12 @@ fn loo_scores(design: &Design, sub: &[f32], count: usize, perceptual: bool) -> V
                     }
                 }
                 let mut z = vec![0.0; k];
-                for (li, &lambda) in LAMBDA_LADDER.iter().enumerate() {
+                for (li, &lambda) in ladder.iter().enumerate() {
                     let mut m = m0.clone();
                     design.regularize(&mut m, lambda, total);
                     if !linalg::cholesky(&mut m, k) {
-                        acc[li].0 += f64::INFINITY;
+                        acc[li][0] += f64::INFINITY;
+                        acc[li][2] += f64::INFINITY;
                         continue;
                     }
                     let mut coef = b0.clone();
@@ -730,27 +821,35 @@ fn loo_scores(design: &Design, sub: &[f32], count: usize, perceptual: bool) -> V
                         let leverage = w[j] * z.iter().map(|v| v * v).sum::<f64>();
                         let pred: f64 = row.iter().zip(&coef).map(|(a, b)| a * b).sum();
                         let e = (obs[j] - pred) / (1.0 - leverage).max(1e-6);
-                        acc[li].0 += w[j] * e * e;
-                        acc[li].1 += w[j];
+                        let shown = srgb_extended(obs[j]) - srgb_extended(obs[j] - e);
+                        acc[li][0] += w[j] * e * e;
+                        acc[li][1] += w[j];
+                        acc[li][2] += design.q[j] * shown * shown;
+                        acc[li][3] += design.q[j];
                     }
                 }
                 acc
             },
         )
         .reduce(
-            || vec![(0.0, 0.0); LAMBDA_LADDER.len()],
+            || vec![[0.0; 4]; ladder.len()],
             |mut a, b| {
                 a.iter_mut().zip(b).for_each(|(x, y)| {
-                    x.0 += y.0;
-                    x.1 += y.1;
+                    for (xi, yi) in x.iter_mut().zip(y) {
+                        *xi += yi;
+                    }
                 });
                 a
             },
         );
-    LAMBDA_LADDER
+    ladder
         .iter()
         .zip(totals)
-        .map(|(&l, (err, wsum))| (l, err / wsum.max(1e-30)))
+        .map(|(&lambda, [err, wsum, shown, qsum])| LooScore {
+            lambda,
+            weighted: err / wsum.max(1e-30),
+            display: shown / qsum.max(1e-30),
+        })
         .collect()
 }
 

@@ -210,3 +210,67 @@ fn below_the_horizon_stays_bounded() {
     }
     assert!(worst < 3.0, "below-horizon magnitude {worst}");
 }
+
+#[test]
+fn the_automatic_objective_is_the_better_of_the_two_and_fits_exactly_as_it() {
+    let plane = crate::synth::BumpyPlane {
+        width: 24,
+        height: 18,
+    };
+    let capture = plane.capture(&hemisphere_fibonacci(50));
+    let with = |objective| {
+        fit(
+            &capture,
+            &FitOptions {
+                basis: BasisSpec::Sh { bands: 3 },
+                objective,
+                ..Default::default()
+            },
+            &Silent,
+        )
+        .unwrap()
+    };
+    let auto = with(Objective::Auto);
+    assert_ne!(auto.report.objective, Objective::Auto);
+    let chosen = with(auto.report.objective);
+    // Same objective, same λ, same maps: the pass-1 state kept for the other objective
+    // changes nothing.
+    assert_eq!(auto.report.lambda, chosen.report.lambda);
+    assert_eq!(auto.image.maps, chosen.image.maps);
+    assert_eq!(
+        auto.report.spill_bytes > 0,
+        auto.report.objective == Objective::Perceptual
+    );
+
+    // The choice is the one of smaller leave-one-out display error.
+    let options = FitOptions {
+        basis: BasisSpec::Sh { bands: 3 },
+        ..Default::default()
+    };
+    let design = Design::new(&capture, &options).unwrap();
+    let sub_idx = subsample_indices(capture.width * capture.height, options.subsample);
+    let mut sub = vec![0f32; sub_idx.len() * design.n * 3];
+    for j in 0..design.n {
+        let img = capture.load(j).unwrap();
+        for (s, &p) in sub_idx.iter().enumerate() {
+            let o = (s * design.n + j) * 3;
+            sub[o..o + 3].copy_from_slice(&img.data[3 * p..3 * p + 3]);
+        }
+    }
+    let best = |perceptual| {
+        loo_scores(&design, &sub, sub_idx.len(), perceptual, &LAMBDA_LADDER)
+            .iter()
+            .filter(|s| s.weighted.is_finite())
+            .min_by(|a, b| a.weighted.total_cmp(&b.weighted))
+            .unwrap()
+            .display
+    };
+    let (perceptual, linear) = (best(true), best(false));
+    assert!(perceptual.is_finite() && linear.is_finite() && perceptual != linear);
+    let expected = if perceptual < linear {
+        Objective::Perceptual
+    } else {
+        Objective::Linear
+    };
+    assert_eq!(auto.report.objective, expected);
+}

@@ -1,0 +1,521 @@
+//! Fidelity of every light type against ray-traced truth: capture a scene, fit it,
+//! then for each light of a rig render the truth with the studio and the relit image
+//! with the engine, and compare (`relit eval --scene`).
+//!
+//! Two things are measured apart, because they are properties of image-based
+//! relighting rather than errors of the fit:
+//!
+//! * **The occlusion limitation** (seed 004 §VI). A pixel's captured function knows
+//!   light *directions*, not distances: its shadow under a light at position `S` is the
+//!   shadow the capture recorded toward `(S − P)`'s direction at infinity. Where
+//!   something blocks that ray *beyond* `S`, the relit pixel stays dark though the light
+//!   reaches it. [`Renderer::visibility_mismatch`] finds those pixels by tracing both
+//!   the segment to the light and the ray past it; the PSNR is reported inside and
+//!   outside them.
+//! * **Environment lights against brute force.** Besides the truth, an environment light
+//!   is compared with `Σ_j w_j I_j`, the captured images weighted by the environment's
+//!   radiance around each captured direction
+//!   ([`EnvironmentLight::weights_for_directions`]), for each SH window.
+
+use crate::emitter::Emitter;
+use crate::plan::LightPlan;
+use crate::render::{RenderOptions, Renderer};
+use crate::scene::Scene;
+use crate::{capture, invalid, Result};
+use relit::camera::{Camera, CameraSpec};
+use relit::engine::{RelightOptions, Relighter};
+use relit::envmap::{EnvironmentLight, Window};
+use relit::fit::{self, FitOptions, FitReport};
+use relit::image::ImageRgb;
+use relit::light::{
+    AreaLight, AreaShape, EnvironmentMapLight, Light, LightRig, PointLight, ProjectorLight,
+    SpotLight,
+};
+use relit::progress::Progress;
+use relit::sphere::Vec3;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// What to capture and how to fit it.
+#[derive(Clone, Debug)]
+pub struct SceneEvalOptions {
+    /// The captured lights.
+    pub plan: LightPlan,
+    pub fit: FitOptions,
+    pub render: RenderOptions,
+    /// Compare environment lights with brute-force integration over the captured
+    /// images, for each of these windows.
+    pub windows: Vec<Window>,
+    /// Samples per pixel of an environment light's ground truth (its noise falls as
+    /// `1/√N`; the cost is N shadow rays per pixel).
+    pub environment_samples: usize,
+}
+
+impl Default for SceneEvalOptions {
+    fn default() -> Self {
+        SceneEvalOptions {
+            plan: LightPlan::parse("fibonacci:300").expect("a valid plan"),
+            fit: FitOptions::default(),
+            render: RenderOptions::default(),
+            windows: vec![
+                Window::None,
+                Window::Hann,
+                Window::Lanczos,
+                Window::Laplacian { lambda: None },
+            ],
+            environment_samples: crate::emitter::DEFAULT_ENVIRONMENT_SAMPLES,
+        }
+    }
+}
+
+/// PSNR of one comparison, over the pixels with geometry.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct Psnr {
+    /// Linear radiance, peak 1.
+    pub psnr_linear: f64,
+    /// 8-bit sRGB values.
+    pub psnr_srgb8: f64,
+}
+
+/// The occlusion limitation under one light.
+#[derive(Clone, Debug, Serialize)]
+pub struct Occlusion {
+    /// Fraction of the pixels with geometry where some of the light's samples reach the
+    /// surface although the ray in their direction is blocked beyond the light.
+    pub affected_fraction: f64,
+    /// PSNR inside those pixels (absent when there are none).
+    pub affected: Option<Psnr>,
+    /// PSNR over the other pixels.
+    pub clear: Option<Psnr>,
+}
+
+/// One light of the rig.
+#[derive(Clone, Debug, Serialize)]
+pub struct LightResult {
+    #[serde(rename = "type")]
+    pub kind: String,
+    pub light: Light,
+    pub psnr_linear: f64,
+    pub psnr_srgb8: f64,
+    /// Mean linear radiance of the truth over pixels with geometry (how bright the test is).
+    pub truth_mean: f64,
+    pub relight_seconds: f64,
+    pub truth_seconds: f64,
+    /// Lights with a position only.
+    pub occlusion: Option<Occlusion>,
+}
+
+/// An environment light against brute-force integration over the captured images.
+#[derive(Clone, Debug, Serialize)]
+pub struct EnvironmentCheck {
+    /// Index of the light in the rig.
+    pub light: usize,
+    pub window: Window,
+    /// The SH relighting against the truth.
+    pub relit: Psnr,
+    /// `Σ_j w_j I_j` against the truth.
+    pub brute_force: Psnr,
+    /// The SH relighting against `Σ_j w_j I_j`.
+    pub relit_vs_brute_force: Psnr,
+    /// `relit.psnr_linear − brute_force.psnr_linear`: ≥ −0.5 dB passes.
+    pub gain_linear_db: f64,
+    pub relight_seconds: f64,
+}
+
+/// Everything [`evaluate`] measured.
+#[derive(Clone, Debug, Serialize)]
+pub struct SceneEvalReport {
+    pub scene: String,
+    pub width: usize,
+    pub height: usize,
+    pub projection: String,
+    pub plan: String,
+    pub images: usize,
+    pub coefficients: usize,
+    pub capture_seconds: f64,
+    pub capture_rays_per_second: f64,
+    pub fit: FitReport,
+    pub lights: Vec<LightResult>,
+    pub environment: Vec<EnvironmentCheck>,
+}
+
+/// Receives, for each light of the rig, its index, the light, the truth and the relit image.
+pub type ImageSink<'a> = dyn FnMut(usize, &Light, &ImageRgb, &ImageRgb) -> Result<()> + 'a;
+
+/// Capture `scene` through `camera`, fit it, and compare relit and ray-traced images
+/// under each light of `rig` (files it names resolve against `base`). `sink`, if given,
+/// sees every pair of images.
+pub fn evaluate(
+    scene: &Scene,
+    camera: &Camera,
+    rig: &LightRig,
+    base: &Path,
+    options: &SceneEvalOptions,
+    progress: &dyn Progress,
+    mut sink: Option<&mut ImageSink>,
+) -> Result<SceneEvalReport> {
+    rig.validate()?;
+    if rig.lights.is_empty() {
+        return Err(invalid("the rig has no lights to evaluate"));
+    }
+    let directions = options.plan.directions();
+    let captured =
+        capture::capture_in_memory(scene, camera, &directions, &options.render, progress)?;
+    let mut capture = captured.capture;
+    capture.camera = Some(CameraSpec::from(camera));
+    let fitted = fit::fit(&capture, &options.fit, progress)?;
+    let relighter = Relighter::new(&fitted.image)?;
+    let truth = Renderer::new(scene, camera, &options.render, progress)?;
+    let mask = truth.mask().to_vec();
+    let relight_options = RelightOptions {
+        resource_dir: base.to_path_buf(),
+        ..RelightOptions::default()
+    };
+
+    let mut lights = Vec::with_capacity(rig.lights.len());
+    let mut environment = Vec::new();
+    progress.begin("lights", rig.lights.len() as u64);
+    for (index, light) in rig.lights.iter().enumerate() {
+        let emitter = Emitter::from_light_sampled(light, base, options.environment_samples)?;
+        let t = Instant::now();
+        let reference = truth.render(std::slice::from_ref(&emitter)).image;
+        let truth_seconds = t.elapsed().as_secs_f64();
+        let single = LightRig::new(vec![light.clone()]);
+        let t = Instant::now();
+        let relit = relighter.relight(&single, &relight_options)?;
+        let relight_seconds = t.elapsed().as_secs_f64();
+        let all = compare_in(&relit, &reference, &mask);
+        if let Some(sink) = sink.as_mut() {
+            sink(index, light, &reference, &relit)?;
+        }
+        let occlusion = (!light.is_uniform()).then(|| {
+            let wrong = truth.visibility_mismatch(&emitter);
+            let affected: Vec<f32> = wrong
+                .iter()
+                .zip(&mask)
+                .map(|(&w, &m)| if w > 0.0 && m > 0.5 { 1.0 } else { 0.0 })
+                .collect();
+            let clear: Vec<f32> = affected
+                .iter()
+                .zip(&mask)
+                .map(|(&a, &m)| if a == 0.0 && m > 0.5 { 1.0 } else { 0.0 })
+                .collect();
+            let inside = mask.iter().filter(|&&m| m > 0.5).count().max(1);
+            let count = affected.iter().filter(|&&a| a > 0.5).count();
+            Occlusion {
+                affected_fraction: count as f64 / inside as f64,
+                affected: (count > 0).then(|| compare_in(&relit, &reference, &affected)),
+                clear: (count < inside).then(|| compare_in(&relit, &reference, &clear)),
+            }
+        });
+        if let Light::Environment(env) = light {
+            environment.extend(environment_checks(
+                index,
+                env,
+                base,
+                &capture,
+                &relighter,
+                &relight_options,
+                &reference,
+                &mask,
+                &options.windows,
+            )?);
+        }
+        lights.push(LightResult {
+            kind: light.kind().into(),
+            light: light.clone(),
+            psnr_linear: all.psnr_linear,
+            psnr_srgb8: all.psnr_srgb8,
+            truth_mean: mean_in(&reference, &mask),
+            relight_seconds,
+            truth_seconds,
+            occlusion,
+        });
+        progress.advance(1);
+    }
+    progress.end();
+    Ok(SceneEvalReport {
+        scene: scene.name.clone(),
+        width: camera.width(),
+        height: camera.height(),
+        projection: camera.projection().name().into(),
+        plan: options.plan.describe(),
+        images: directions.len(),
+        coefficients: fitted.report.coefficients,
+        capture_seconds: captured.stats.total_seconds,
+        capture_rays_per_second: captured.stats.rays_per_second,
+        fit: fitted.report,
+        lights,
+        environment,
+    })
+}
+
+#[allow(clippy::too_many_arguments)]
+fn environment_checks(
+    index: usize,
+    light: &EnvironmentMapLight,
+    base: &Path,
+    capture: &relit::capture::Capture,
+    relighter: &Relighter,
+    relight_options: &RelightOptions,
+    reference: &ImageRgb,
+    mask: &[f32],
+    windows: &[Window],
+) -> Result<Vec<EnvironmentCheck>> {
+    let env = EnvironmentLight::load(&base.join(&light.map))?.with_rotation(light.rotation()?)?;
+    let weights = env.weights_for_directions(&capture.directions())?;
+    let rgb = Light::Environment(light.clone()).rgb();
+    let (w, h) = (capture.width, capture.height);
+    let mut brute = ImageRgb::new(w, h);
+    for (j, wj) in weights.iter().enumerate() {
+        if wj.iter().all(|&v| v == 0.0) {
+            continue;
+        }
+        let image = capture.load(j)?;
+        for (dst, src) in brute
+            .data
+            .chunks_exact_mut(3)
+            .zip(image.data.chunks_exact(3))
+        {
+            for c in 0..3 {
+                dst[c] += (wj[c] * rgb[c]) as f32 * src[c];
+            }
+        }
+    }
+    let brute_force = compare_in(&brute, reference, mask);
+    windows
+        .iter()
+        .map(|&window| {
+            let mut windowed = light.clone();
+            windowed.window = window;
+            let t = Instant::now();
+            let relit = relighter.relight(
+                &LightRig::new(vec![Light::Environment(windowed)]),
+                relight_options,
+            )?;
+            let relight_seconds = t.elapsed().as_secs_f64();
+            let against_truth = compare_in(&relit, reference, mask);
+            Ok(EnvironmentCheck {
+                light: index,
+                window,
+                relit: against_truth,
+                brute_force,
+                relit_vs_brute_force: compare_in(&relit, &brute, mask),
+                gain_linear_db: against_truth.psnr_linear - brute_force.psnr_linear,
+                relight_seconds,
+            })
+        })
+        .collect()
+}
+
+/// PSNR (linear, peak 1; and 8-bit sRGB) of `test` against `reference` over the pixels
+/// where `mask > 0.5`.
+pub fn compare_in(test: &ImageRgb, reference: &ImageRgb, mask: &[f32]) -> Psnr {
+    let (mut sq, mut sq8, mut n) = (0.0f64, 0.0f64, 0usize);
+    for ((t, r), &m) in test
+        .data
+        .chunks_exact(3)
+        .zip(reference.data.chunks_exact(3))
+        .zip(mask)
+    {
+        if m <= 0.5 {
+            continue;
+        }
+        for c in 0..3 {
+            let tv = if t[c].is_finite() { t[c] } else { 0.0 };
+            sq += (tv as f64 - r[c] as f64).powi(2);
+            let d8 = relit::color::linear_to_srgb8(tv) as f64
+                - relit::color::linear_to_srgb8(r[c]) as f64;
+            sq8 += d8 * d8;
+            n += 3;
+        }
+    }
+    let n = n.max(1) as f64;
+    Psnr {
+        psnr_linear: fit::psnr(sq / n, 1.0),
+        psnr_srgb8: fit::psnr(sq8 / n, 255.0),
+    }
+}
+
+fn mean_in(image: &ImageRgb, mask: &[f32]) -> f64 {
+    let (mut sum, mut n) = (0.0f64, 0usize);
+    for (px, &m) in image.data.chunks_exact(3).zip(mask) {
+        if m > 0.5 {
+            sum += px.iter().map(|&v| v as f64).sum::<f64>() / 3.0;
+            n += 1;
+        }
+    }
+    sum / n.max(1) as f64
+}
+
+/// One light of each type the engine has, placed for `camera`'s view of a scene whose
+/// surfaces lie at the distances `depth` (so it suits any scene's scale): a directional
+/// light, a point light, a spotlight and a slide projector aimed at what the camera looks
+/// at, a rectangular area light above the eye, and an environment (a procedural sky
+/// with a sun). The slide and sky are written into `dir`, which the rig's files are
+/// relative to.
+pub fn default_rig(camera: &Camera, depth: &[f32], dir: &Path) -> Result<LightRig> {
+    let mut hits: Vec<f32> = depth.iter().copied().filter(|&d| d > 0.0).collect();
+    if hits.is_empty() {
+        return Err(invalid(
+            "the camera sees no geometry to place the default lights around",
+        ));
+    }
+    hits.sort_by(f32::total_cmp);
+    let scale = 0.35 * hits[hits.len() / 2] as f64;
+    let pose = camera.pose();
+    let (right, up, back) = (pose.right, pose.up, pose.back);
+    let eye = pose.eye;
+    let (w, h) = (camera.width(), camera.height());
+    // What the camera looks at: the surface through the image centre, and one lower.
+    let seen = |fx: f64, fy: f64| -> Vec3 {
+        let (i, j) = (
+            ((fx * w as f64) as usize).min(w - 1),
+            ((fy * h as f64) as usize).min(h - 1),
+        );
+        let d = depth[j * w + i];
+        if d > 0.0 {
+            camera.position(i, j, d as f64)
+        } else {
+            eye - back * (2.0 * scale)
+        }
+    };
+    let centre = seen(0.5, 0.5);
+    let low = seen(0.5, 0.75);
+    let irradiance_one_at = |d: f64| d * d; // inverse-square intensity for irradiance 1 at d
+
+    let point_at = eye + right * (0.5 * scale) - up * (0.3 * scale) - back * (0.8 * scale);
+    let spot_at = eye + up * (0.4 * scale) - right * (0.3 * scale);
+    let projector_at = eye - right * (0.2 * scale) + up * (0.15 * scale);
+    let area_centre = eye + up * (0.6 * scale) - back * (0.3 * scale);
+    let half = 0.25 * scale;
+    let median = hits[hits.len() / 2] as f64;
+
+    std::fs::create_dir_all(dir).map_err(|e| crate::io_error(dir, "create", e))?;
+    let slide = "slide.png";
+    relit::image::save(&dir.join(slide), &test_slide(256, 192), 0.0)?;
+    let sky = "sky.exr";
+    relit::image::save(&dir.join(sky), &procedural_sky(256, 128), 0.0)?;
+
+    let lights = vec![
+        Light::directional([0.35, 0.8, 0.45], [1.0, 0.95, 0.85]),
+        Light::Point(PointLight {
+            position: point_at,
+            color: [1.0, 0.85, 0.6],
+            intensity: irradiance_one_at(scale),
+            attenuation: Default::default(),
+        }),
+        Light::Spot(SpotLight {
+            position: spot_at,
+            direction: low - spot_at,
+            cone_deg: 30.0,
+            softness_deg: 6.0,
+            color: [0.7, 0.85, 1.0],
+            intensity: irradiance_one_at((low - spot_at).length()),
+            attenuation: Default::default(),
+        }),
+        Light::Projector(ProjectorLight {
+            position: projector_at,
+            direction: centre - projector_at,
+            up,
+            fov_deg: 40.0,
+            slide: slide.into(),
+            color: [1.0; 3],
+            intensity: irradiance_one_at((centre - projector_at).length()),
+            attenuation: Default::default(),
+        }),
+        Light::Area(AreaLight {
+            shape: AreaShape::Rect {
+                center: area_centre,
+                u: right * half,
+                v: back * half,
+            },
+            color: [1.0, 0.95, 0.9],
+            // Radiance whose irradiance straight below, as far as the camera's median
+            // surface, is about 1 (E ≈ L·A/d² for a small emitter).
+            intensity: median * median / (4.0 * half * half),
+            two_sided: false,
+            samples: 32,
+        }),
+        Light::Environment(EnvironmentMapLight {
+            map: sky.into(),
+            yaw_deg: 0.0,
+            pitch_deg: 0.0,
+            roll_deg: 0.0,
+            window: Window::None,
+            color: [1.0; 3],
+            intensity: 1.0,
+        }),
+    ];
+    let rig = LightRig::new(lights);
+    rig.validate()?;
+    Ok(rig)
+}
+
+/// A colourful slide with edges of every orientation: quadrants of colour, a grid and a
+/// diagonal band (linear RGB).
+pub fn test_slide(width: usize, height: usize) -> ImageRgb {
+    let mut image = ImageRgb::new(width, height);
+    for y in 0..height {
+        for x in 0..width {
+            let (u, v) = (x as f64 / width as f64, y as f64 / height as f64);
+            let mut rgb = match (u < 0.5, v < 0.5) {
+                (true, true) => [1.0, 0.25, 0.2],
+                (false, true) => [0.25, 1.0, 0.3],
+                (true, false) => [0.2, 0.35, 1.0],
+                (false, false) => [1.0, 0.9, 0.3],
+            };
+            if (x / 32 + y / 32) % 2 == 0 {
+                rgb = rgb.map(|c| c * 0.35);
+            }
+            if ((u - v) * 8.0).abs() < 0.5 {
+                rgb = [1.0; 3];
+            }
+            let o = 3 * (y * width + x);
+            image.data[o..o + 3].copy_from_slice(&rgb.map(|c| c as f32));
+        }
+    }
+    image
+}
+
+/// A sky for the default environment light: a blue gradient brighter toward the
+/// horizon, a dim ground, and a sun 35° high (linear RGB lat-long). Irradiance on
+/// an open upward surface is about 1.5, half of it from the sun.
+pub fn procedural_sky(width: usize, height: usize) -> ImageRgb {
+    let sun = Vec3::new(0.5, 35f64.to_radians().sin(), -0.6)
+        .normalized()
+        .expect("a non-zero vector");
+    let sun_radius = 4f64.to_radians();
+    let sun_solid_angle = std::f64::consts::TAU * (1.0 - sun_radius.cos());
+    let sun_radiance = 0.8 / (sun.y * sun_solid_angle);
+    let mut image = ImageRgb::new(width, height);
+    for y in 0..height {
+        for x in 0..width {
+            let d = relit::envmap::latlong_direction(
+                (x as f64 + 0.5) / width as f64,
+                (y as f64 + 0.5) / height as f64,
+            );
+            let mut rgb = if d.y >= 0.0 {
+                let t = 1.0 - d.y;
+                [0.12 + 0.1 * t, 0.16 + 0.08 * t, 0.26 + 0.02 * t]
+            } else {
+                [0.05, 0.045, 0.04]
+            };
+            if d.dot(sun) >= sun_radius.cos() {
+                rgb = [sun_radiance, sun_radiance * 0.93, sun_radiance * 0.8];
+            }
+            let o = 3 * (y * width + x);
+            image.data[o..o + 3].copy_from_slice(&rgb.map(|c| c as f32));
+        }
+    }
+    image
+}
+
+/// The folder for the default rig's files: a fresh temporary directory.
+pub fn scratch_dir() -> Result<(tempfile::TempDir, PathBuf)> {
+    let dir = tempfile::tempdir()
+        .map_err(|e| crate::io_error(Path::new("."), "create a temporary folder in", e))?;
+    let path = dir.path().to_path_buf();
+    Ok((dir, path))
+}
