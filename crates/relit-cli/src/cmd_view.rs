@@ -64,3 +64,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     server.wait();
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::Args;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Cli {
+        #[command(flatten)]
+        args: Args,
+    }
+
+    #[test]
+    fn listens_on_loopback_unless_told_otherwise() {
+        let cli = Cli::try_parse_from(["view", "scene.exr"]).unwrap();
+        assert_eq!(cli.args.host, "127.0.0.1");
+        assert_eq!(cli.args.port, 0);
+        let cli = Cli::try_parse_from(["view", "scene.exr", "--host", "0.0.0.0", "--port", "8080"])
+            .unwrap();
+        assert_eq!((cli.args.host.as_str(), cli.args.port), ("0.0.0.0", 8080));
+    }
+}

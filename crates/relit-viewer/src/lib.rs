@@ -19,7 +19,7 @@ pub mod server;
 
 pub use bundle::{info_json, BundleOptions, PlaneStorage, WebBundle};
 pub use export::export_web;
-pub use server::{serve, RunningServer};
+pub use server::{serve, serve_with, RunningServer, ServerOptions};
 
 use relit::{Error, ErrorKind};
 use std::path::Path;

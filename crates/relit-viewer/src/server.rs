@@ -5,6 +5,14 @@
 //! read from the file system, so no URL can reach outside what is served; paths with
 //! `..` or `.` segments, backslashes, NUL or bad percent-escapes are refused with 400
 //! before any lookup, unknown paths get 404, other methods 405.
+//!
+//! Every connection runs on its own thread, so a slow or idle client never holds up
+//! another. What one client can take is bounded: the request head must arrive whole
+//! within [`ServerOptions::head_timeout`] (however slowly its bytes trickle in) and be
+//! at most [`MAX_HEAD`] bytes (431 past that, read no further); the response is written
+//! in chunks that must each be taken within [`ServerOptions::write_timeout`]; at most
+//! [`ServerOptions::max_connections`] are served at once (503 beyond). One request per
+//! connection (`Connection: close`).
 
 use crate::assets;
 use crate::bundle::WebBundle;
@@ -14,17 +22,42 @@ use std::net::{SocketAddr, TcpListener, TcpStream, ToSocketAddrs};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Arc;
 use std::thread::JoinHandle;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
-/// Connections served at once; more are answered 503 at once.
+/// Connections served at once by default; more are answered 503 at once.
 pub const MAX_CONNECTIONS: usize = 64;
-/// The largest request head accepted.
-const MAX_HEAD: usize = 16 * 1024;
+/// The largest request head accepted (request line and headers).
+pub const MAX_HEAD: usize = 16 * 1024;
+/// Bytes of a response written per step of the write deadline.
+const WRITE_CHUNK: usize = 64 * 1024;
+
+/// Limits of a server (the defaults are what `relit view` uses).
+#[derive(Clone, Copy, Debug)]
+pub struct ServerOptions {
+    /// Connections served at once; more are answered 503.
+    pub max_connections: usize,
+    /// Time from accepting a connection to the end of its request head; an idle or
+    /// trickling client is dropped after it (408 if it sent anything).
+    pub head_timeout: Duration,
+    /// Time the client may take to accept each 64 KiB of the response.
+    pub write_timeout: Duration,
+}
+
+impl Default for ServerOptions {
+    fn default() -> Self {
+        ServerOptions {
+            max_connections: MAX_CONNECTIONS,
+            head_timeout: Duration::from_secs(10),
+            write_timeout: Duration::from_secs(30),
+        }
+    }
+}
 
 /// A server running on its own threads.
 pub struct RunningServer {
     addr: SocketAddr,
     stop: Arc<AtomicBool>,
+    active: Arc<AtomicUsize>,
     thread: Option<JoinHandle<()>>,
 }
 
@@ -37,6 +70,11 @@ impl RunningServer {
     /// The viewer's URL.
     pub fn url(&self) -> String {
         format!("http://{}/", self.addr)
+    }
+
+    /// Connections being served now (each on its own thread).
+    pub fn active_connections(&self) -> usize {
+        self.active.load(Ordering::SeqCst)
     }
 
     /// Block until the server stops (it never does unless [`Self::stop`] is called
@@ -70,8 +108,19 @@ impl Drop for RunningServer {
     }
 }
 
-/// Serve the viewer and `bundle` on `host:port` (port 0: an ephemeral port).
+/// Serve the viewer and `bundle` on `host:port` (port 0: an ephemeral port) with the
+/// default [`ServerOptions`].
 pub fn serve(bundle: WebBundle, host: &str, port: u16) -> Result<RunningServer> {
+    serve_with(bundle, host, port, ServerOptions::default())
+}
+
+/// Serve the viewer and `bundle` on `host:port` with `options`.
+pub fn serve_with(
+    bundle: WebBundle,
+    host: &str,
+    port: u16,
+    options: ServerOptions,
+) -> Result<RunningServer> {
     let addrs: Vec<SocketAddr> = (host, port)
         .to_socket_addrs()
         .map_err(|e| invalid(format!("cannot resolve host `{host}`: {e}")))?
@@ -84,39 +133,70 @@ pub fn serve(bundle: WebBundle, host: &str, port: u16) -> Result<RunningServer> 
     let stop = Arc::new(AtomicBool::new(false));
     let bundle = Arc::new(bundle);
     let active = Arc::new(AtomicUsize::new(0));
-    let stop2 = stop.clone();
+    let (stop2, active2) = (stop.clone(), active.clone());
     let thread = std::thread::Builder::new()
         .name("relit-view-accept".into())
-        .spawn(move || {
-            for stream in listener.incoming() {
-                if stop2.load(Ordering::SeqCst) {
-                    break;
-                }
-                let Ok(mut stream) = stream else { continue };
-                if active.fetch_add(1, Ordering::SeqCst) >= MAX_CONNECTIONS {
-                    active.fetch_sub(1, Ordering::SeqCst);
-                    let _ = write_response(&mut stream, 503, "text/plain", b"busy\n", false);
-                    continue;
-                }
-                let bundle = bundle.clone();
-                let active = active.clone();
-                let spawned = std::thread::Builder::new()
-                    .name("relit-view-conn".into())
-                    .spawn(move || {
-                        handle(stream, &bundle);
-                        active.fetch_sub(1, Ordering::SeqCst);
-                    });
-                if spawned.is_err() {
-                    // The closure (and its counter decrement) was dropped unrun.
-                }
-            }
-        })
+        .spawn(move || accept_loop(listener, bundle, stop2, active2, options))
         .map_err(|e| invalid(format!("cannot start the server thread: {e}")))?;
     Ok(RunningServer {
         addr,
         stop,
+        active,
         thread: Some(thread),
     })
+}
+
+fn accept_loop(
+    listener: TcpListener,
+    bundle: Arc<WebBundle>,
+    stop: Arc<AtomicBool>,
+    active: Arc<AtomicUsize>,
+    options: ServerOptions,
+) {
+    for stream in listener.incoming() {
+        if stop.load(Ordering::SeqCst) {
+            break;
+        }
+        let mut stream = match stream {
+            Ok(s) => s,
+            Err(_) => {
+                // Out of descriptors or a connection reset before accept: do not spin.
+                std::thread::sleep(Duration::from_millis(20));
+                continue;
+            }
+        };
+        if active.fetch_add(1, Ordering::SeqCst) >= options.max_connections {
+            active.fetch_sub(1, Ordering::SeqCst);
+            // Tiny and written to a fresh socket's buffer; the short timeout is a guard
+            // for the accept loop.
+            let quick = ServerOptions {
+                write_timeout: Duration::from_secs(1),
+                ..options
+            };
+            let _ = write_response(&mut stream, 503, "text/plain", b"busy\n", false, &quick);
+            continue;
+        }
+        let bundle = bundle.clone();
+        let counter = Arc::new(ConnectionGuard(active.clone()));
+        let spawned = std::thread::Builder::new()
+            .name("relit-view-conn".into())
+            .spawn(move || {
+                let _guard = counter;
+                handle(stream, &bundle, &options);
+            });
+        // When the thread cannot start, the closure is dropped unrun and its guard
+        // gives the connection's slot back.
+        drop(spawned);
+    }
+}
+
+/// Gives a connection slot back when dropped (also when a handler panics).
+struct ConnectionGuard(Arc<AtomicUsize>);
+
+impl Drop for ConnectionGuard {
+    fn drop(&mut self) {
+        self.0.fetch_sub(1, Ordering::SeqCst);
+    }
 }
 
 /// A response: status, MIME type, body.
@@ -194,42 +274,112 @@ pub fn clean_path(target: &str) -> std::result::Result<String, u16> {
     Ok(path)
 }
 
-fn handle(mut stream: TcpStream, bundle: &WebBundle) {
-    let _ = stream.set_read_timeout(Some(Duration::from_secs(15)));
-    let _ = stream.set_write_timeout(Some(Duration::from_secs(60)));
-    let _ = stream.set_nodelay(true);
+/// What reading a request head gave.
+enum Head {
+    Complete(Vec<u8>),
+    /// Longer than [`MAX_HEAD`].
+    TooLarge,
+    /// The head did not arrive within the deadline (`true`: some of it did).
+    TimedOut(bool),
+    /// The client closed the connection or it failed.
+    Closed,
+}
+
+/// Read up to the blank line that ends a request head, never more than
+/// [`MAX_HEAD`] + one read, within `timeout` in all.
+fn read_head(stream: &mut TcpStream, timeout: Duration) -> Head {
+    let deadline = Instant::now() + timeout;
     let mut head = Vec::with_capacity(1024);
     let mut buf = [0u8; 2048];
     loop {
-        if head.windows(4).any(|w| w == b"\r\n\r\n") {
-            break;
+        let left = deadline.saturating_duration_since(Instant::now());
+        if left.is_zero() {
+            return Head::TimedOut(!head.is_empty());
+        }
+        let _ = stream.set_read_timeout(Some(left));
+        let n = match stream.read(&mut buf) {
+            Ok(0) => return Head::Closed,
+            Ok(n) => n,
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                ) =>
+            {
+                return Head::TimedOut(!head.is_empty())
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(_) => return Head::Closed,
+        };
+        // Only the new bytes (and the three before them) can complete the terminator.
+        let from = head.len().saturating_sub(3);
+        head.extend_from_slice(&buf[..n]);
+        if let Some(end) = head[from..].windows(4).position(|w| w == b"\r\n\r\n") {
+            let end = from + end + 4;
+            if end > MAX_HEAD {
+                return Head::TooLarge;
+            }
+            head.truncate(end);
+            return Head::Complete(head);
         }
         if head.len() > MAX_HEAD {
+            return Head::TooLarge;
+        }
+    }
+}
+
+fn handle(mut stream: TcpStream, bundle: &WebBundle, options: &ServerOptions) {
+    let _ = stream.set_nodelay(true);
+    let head = match read_head(&mut stream, options.head_timeout) {
+        Head::Complete(h) => h,
+        Head::TooLarge => {
             let _ = write_response(
                 &mut stream,
                 431,
                 "text/plain",
-                b"request too large\n",
+                b"request head too large\n",
                 false,
+                options,
             );
             return;
         }
-        match stream.read(&mut buf) {
-            Ok(0) => return,
-            Ok(n) => head.extend_from_slice(&buf[..n]),
-            Err(_) => return,
+        Head::TimedOut(true) => {
+            let _ = write_response(
+                &mut stream,
+                408,
+                "text/plain",
+                b"request timeout\n",
+                false,
+                options,
+            );
+            return;
         }
-    }
+        Head::TimedOut(false) | Head::Closed => return,
+    };
     let line = head.split(|&b| b == b'\n').next().unwrap_or(b"");
     let line = String::from_utf8_lossy(line);
     let mut parts = line.trim_end().split(' ');
     let (Some(method), Some(target), Some(version)) = (parts.next(), parts.next(), parts.next())
     else {
-        let _ = write_response(&mut stream, 400, "text/plain", b"bad request\n", false);
+        let _ = write_response(
+            &mut stream,
+            400,
+            "text/plain",
+            b"bad request\n",
+            false,
+            options,
+        );
         return;
     };
     if !version.starts_with("HTTP/1.") || parts.next().is_some() {
-        let _ = write_response(&mut stream, 400, "text/plain", b"bad request\n", false);
+        let _ = write_response(
+            &mut stream,
+            400,
+            "text/plain",
+            b"bad request\n",
+            false,
+            options,
+        );
         return;
     }
     let response = respond(bundle, method, target);
@@ -239,6 +389,7 @@ fn handle(mut stream: TcpStream, bundle: &WebBundle) {
         response.mime,
         response.body,
         method == "HEAD",
+        options,
     );
 }
 
@@ -248,10 +399,33 @@ fn reason(status: u16) -> &'static str {
         400 => "Bad Request",
         404 => "Not Found",
         405 => "Method Not Allowed",
+        408 => "Request Timeout",
         431 => "Request Header Fields Too Large",
         503 => "Service Unavailable",
         _ => "Error",
     }
+}
+
+/// Write all of `bytes`, each [`WRITE_CHUNK`] within `timeout`.
+fn write_chunked(stream: &mut TcpStream, bytes: &[u8], timeout: Duration) -> std::io::Result<()> {
+    for chunk in bytes.chunks(WRITE_CHUNK) {
+        let deadline = Instant::now() + timeout;
+        let mut rest = chunk;
+        while !rest.is_empty() {
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                return Err(std::io::ErrorKind::TimedOut.into());
+            }
+            stream.set_write_timeout(Some(left))?;
+            match stream.write(rest) {
+                Ok(0) => return Err(std::io::ErrorKind::WriteZero.into()),
+                Ok(n) => rest = &rest[n..],
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(e) => return Err(e),
+            }
+        }
+    }
+    Ok(())
 }
 
 fn write_response(
@@ -260,17 +434,40 @@ fn write_response(
     mime: &str,
     body: &[u8],
     head_only: bool,
+    options: &ServerOptions,
 ) -> std::io::Result<()> {
     let head = format!(
         "HTTP/1.1 {status} {}\r\nContent-Type: {mime}\r\nContent-Length: {}\r\nCache-Control: no-store\r\nX-Content-Type-Options: nosniff\r\nConnection: close\r\n\r\n",
         reason(status),
         body.len()
     );
-    stream.write_all(head.as_bytes())?;
+    write_chunked(stream, head.as_bytes(), options.write_timeout)?;
     if !head_only {
-        stream.write_all(body)?;
+        write_chunked(stream, body, options.write_timeout)?;
     }
     stream.flush()?;
     let _ = stream.shutdown(std::net::Shutdown::Write);
+    if status >= 400 {
+        drain(stream);
+    }
     Ok(())
+}
+
+/// After an error answer, read (and drop) a little of what the client still sends, so
+/// that closing with unread input does not reset the connection before the client has
+/// read the answer. Bounded in bytes and time.
+fn drain(stream: &mut TcpStream) {
+    let deadline = Instant::now() + Duration::from_millis(500);
+    let mut buf = [0u8; 4096];
+    let mut total = 0usize;
+    while total < 256 * 1024 {
+        let left = deadline.saturating_duration_since(Instant::now());
+        if left.is_zero() || stream.set_read_timeout(Some(left)).is_err() {
+            return;
+        }
+        match stream.read(&mut buf) {
+            Ok(0) | Err(_) => return,
+            Ok(n) => total += n,
+        }
+    }
 }
