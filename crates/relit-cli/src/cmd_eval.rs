@@ -245,18 +245,54 @@ fn run_scene(args: Args) -> anyhow::Result<()> {
         );
     }
     if !report.environment.is_empty() {
-        println!("environment vs brute force Σ w_j I_j over the captured images (linear dB against truth):");
+        println!("environment: SH relighting against brute force Σ_j w_j I_j over the captured images, linear dB against truth");
+        println!(
+            "  {:<6} {:<10} {:>7} {:>13} {:>7} {:>10} {:>11}",
+            "light", "window", "SH", "brute force", "gap", "raw map", "SH vs raw"
+        );
         for e in &report.environment {
             println!(
-                "  light {} window {:<10} SH {:>6.2}  brute force {:>6.2}  gain {:>+6.2} dB  (SH vs brute force {:.2} dB)",
+                "  {:<6} {:<10} {:>7.2} {:>13.2} {:>+7.2} {:>10.2} {:>+11.2}",
                 e.light,
-                format!("{:?}", e.window).to_lowercase().split(' ').next().unwrap_or(""),
+                window_name(&e.window),
                 e.relit.psnr_linear,
                 e.brute_force.psnr_linear,
                 e.gain_linear_db,
-                e.relit_vs_brute_force.psnr_linear
+                e.brute_force_raw.psnr_linear,
+                e.gain_vs_raw_linear_db,
             );
+        }
+        println!("  (brute force: the same band-limited, windowed environment as the SH relighting; raw map: the full map)");
+    }
+    if !report.area.is_empty() {
+        println!("area lights: emitter sampling error (linear dB against the same light relit with more samples) and against truth");
+        println!(
+            "  {:<6} {:>8} {:>14} {:>10} {:>11}",
+            "light", "samples", "vs converged", "vs truth", "relight ms"
+        );
+        for a in &report.area {
+            println!(
+                "  {:<6} {:>8} {:>14.2} {:>10.2} {:>11.1}",
+                a.light,
+                a.samples,
+                a.vs_converged.psnr_linear,
+                a.vs_truth.psnr_linear,
+                1e3 * a.relight_seconds
+            );
+        }
+        if let Some(a) = report.area.first() {
+            println!("  (converged: {} samples per pixel)", a.converged_samples);
         }
     }
     Ok(())
+}
+
+fn window_name(window: &relit::envmap::Window) -> &'static str {
+    use relit::envmap::Window;
+    match window {
+        Window::None => "none",
+        Window::Hann => "hann",
+        Window::Lanczos => "lanczos",
+        Window::Laplacian { .. } => "laplacian",
+    }
 }

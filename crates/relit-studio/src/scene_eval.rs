@@ -50,6 +50,14 @@ pub struct SceneEvalOptions {
     /// Samples per pixel of an environment light's ground truth (its noise falls as
     /// `1/√N`; the cost is N shadow rays per pixel).
     pub environment_samples: usize,
+    /// Emitter samples per pixel of an area light's ground truth, at least (the rig's
+    /// own count is the relit image's quality knob, measured against this).
+    pub truth_area_samples: usize,
+    /// Sample counts at which area lights are also relit, to measure the sampling error
+    /// against [`Self::converged_area_samples`] samples.
+    pub area_samples: Vec<usize>,
+    /// Samples of the converged relit image the sampling error is measured against.
+    pub converged_area_samples: usize,
 }
 
 impl Default for SceneEvalOptions {
@@ -65,6 +73,9 @@ impl Default for SceneEvalOptions {
                 Window::Laplacian { lambda: None },
             ],
             environment_samples: crate::emitter::DEFAULT_ENVIRONMENT_SAMPLES,
+            truth_area_samples: 256,
+            area_samples: vec![1, 4, 16, 64],
+            converged_area_samples: 1024,
         }
     }
 }
@@ -107,6 +118,15 @@ pub struct LightResult {
 }
 
 /// An environment light against brute-force integration over the captured images.
+///
+/// Two brute forces, both `Σ_j w_j I_j` over the raw captured images `I_j`:
+/// * `brute_force_raw`: `w_j` the radiance of the full-resolution map around each
+///   captured direction, the best any relighting of this capture can do;
+/// * `brute_force`: `w_j` from the *band-limited, windowed* environment that the SH
+///   relighting itself applies ([`EnvironmentLight::band_limited`]). The SH dot product
+///   and this sum light the scene identically, so any gap between them is the fit's
+///   (and a wrong projection, rotation, window or direction convention would show as
+///   a large one).
 #[derive(Clone, Debug, Serialize)]
 pub struct EnvironmentCheck {
     /// Index of the light in the rig.
@@ -114,14 +134,37 @@ pub struct EnvironmentCheck {
     pub window: Window,
     /// The SH relighting against the truth.
     pub relit: Psnr,
-    /// `Σ_j w_j I_j` against the truth.
+    /// The brute force under the same band-limited, windowed lighting, against the truth.
     pub brute_force: Psnr,
-    /// The SH relighting against `Σ_j w_j I_j`.
+    /// The brute force under the full map, against the truth.
+    pub brute_force_raw: Psnr,
+    /// The SH relighting against `brute_force`'s image.
     pub relit_vs_brute_force: Psnr,
-    /// `relit.psnr_linear − brute_force.psnr_linear`: ≥ −0.5 dB passes.
+    /// `relit.psnr_linear − brute_force.psnr_linear`; the check passes at ≥ −0.5 dB.
     pub gain_linear_db: f64,
+    /// `relit.psnr_linear − brute_force_raw.psnr_linear`: what band-limiting the
+    /// environment (and the window) costs against the raw captures.
+    pub gain_vs_raw_linear_db: f64,
     pub relight_seconds: f64,
 }
+
+/// An area light's sampling error: relit with `samples` emitter samples per pixel.
+#[derive(Clone, Debug, Serialize)]
+pub struct AreaCheck {
+    /// Index of the light in the rig.
+    pub light: usize,
+    pub samples: usize,
+    /// Against the same light relit with `converged_samples`: the sampling error alone.
+    pub vs_converged: Psnr,
+    pub converged_samples: usize,
+    /// Against the ray-traced truth (which has the fit's and the occlusion's errors too).
+    pub vs_truth: Psnr,
+    pub relight_seconds: f64,
+}
+
+/// Lat-long resolution of the band-limited environment the brute force integrates:
+/// far finer than 8 SH bands vary, and than any capture's cells.
+const BAND_LIMITED_MAP: (usize, usize) = (256, 128);
 
 /// Everything [`evaluate`] measured.
 #[derive(Clone, Debug, Serialize)]
@@ -138,6 +181,7 @@ pub struct SceneEvalReport {
     pub fit: FitReport,
     pub lights: Vec<LightResult>,
     pub environment: Vec<EnvironmentCheck>,
+    pub area: Vec<AreaCheck>,
 }
 
 /// Receives, for each light of the rig, its index, the light, the truth and the relit image.
@@ -166,6 +210,9 @@ pub fn evaluate(
     capture.camera = Some(CameraSpec::from(camera));
     let fitted = fit::fit(&capture, &options.fit, progress)?;
     let relighter = Relighter::new(&fitted.image)?;
+    let bands = match fitted.image.meta.basis {
+        relit::basis::BasisSpec::Sh { bands } => bands,
+    };
     let truth = Renderer::new(scene, camera, &options.render, progress)?;
     let mask = truth.mask().to_vec();
     let relight_options = RelightOptions {
@@ -175,9 +222,14 @@ pub fn evaluate(
 
     let mut lights = Vec::with_capacity(rig.lights.len());
     let mut environment = Vec::new();
+    let mut area = Vec::new();
     progress.begin("lights", rig.lights.len() as u64);
     for (index, light) in rig.lights.iter().enumerate() {
-        let emitter = Emitter::from_light_sampled(light, base, options.environment_samples)?;
+        let mut truth_light = light.clone();
+        if let Light::Area(a) = &mut truth_light {
+            a.samples = a.samples.max(options.truth_area_samples);
+        }
+        let emitter = Emitter::from_light_sampled(&truth_light, base, options.environment_samples)?;
         let t = Instant::now();
         let reference = truth.render(std::slice::from_ref(&emitter)).image;
         let truth_seconds = t.elapsed().as_secs_f64();
@@ -220,6 +272,18 @@ pub fn evaluate(
                 &reference,
                 &mask,
                 &options.windows,
+                bands,
+            )?);
+        }
+        if let Light::Area(a) = light {
+            area.extend(area_checks(
+                index,
+                a,
+                &relighter,
+                &relight_options,
+                &reference,
+                &mask,
+                options,
             )?);
         }
         lights.push(LightResult {
@@ -248,7 +312,44 @@ pub fn evaluate(
         fit: fitted.report,
         lights,
         environment,
+        area,
     })
+}
+
+fn area_checks(
+    index: usize,
+    light: &AreaLight,
+    relighter: &Relighter,
+    relight_options: &RelightOptions,
+    reference: &ImageRgb,
+    mask: &[f32],
+    options: &SceneEvalOptions,
+) -> Result<Vec<AreaCheck>> {
+    let relight = |samples: usize| -> Result<(ImageRgb, f64)> {
+        let mut sampled = light.clone();
+        sampled.samples = samples;
+        let t = Instant::now();
+        let image =
+            relighter.relight(&LightRig::new(vec![Light::Area(sampled)]), relight_options)?;
+        Ok((image, t.elapsed().as_secs_f64()))
+    };
+    let converged_samples = options.converged_area_samples;
+    let (converged, _) = relight(converged_samples)?;
+    options
+        .area_samples
+        .iter()
+        .map(|&samples| {
+            let (image, relight_seconds) = relight(samples)?;
+            Ok(AreaCheck {
+                light: index,
+                samples,
+                vs_converged: compare_in(&image, &converged, mask),
+                converged_samples,
+                vs_truth: compare_in(&image, reference, mask),
+                relight_seconds,
+            })
+        })
+        .collect()
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -262,28 +363,13 @@ fn environment_checks(
     reference: &ImageRgb,
     mask: &[f32],
     windows: &[Window],
+    bands: usize,
 ) -> Result<Vec<EnvironmentCheck>> {
     let env = EnvironmentLight::load(&base.join(&light.map))?.with_rotation(light.rotation()?)?;
-    let weights = env.weights_for_directions(&capture.directions())?;
+    let directions = capture.directions();
     let rgb = Light::Environment(light.clone()).rgb();
-    let (w, h) = (capture.width, capture.height);
-    let mut brute = ImageRgb::new(w, h);
-    for (j, wj) in weights.iter().enumerate() {
-        if wj.iter().all(|&v| v == 0.0) {
-            continue;
-        }
-        let image = capture.load(j)?;
-        for (dst, src) in brute
-            .data
-            .chunks_exact_mut(3)
-            .zip(image.data.chunks_exact(3))
-        {
-            for c in 0..3 {
-                dst[c] += (wj[c] * rgb[c]) as f32 * src[c];
-            }
-        }
-    }
-    let brute_force = compare_in(&brute, reference, mask);
+    let raw = brute_force(capture, &env.weights_for_directions(&directions)?, rgb)?;
+    let brute_force_raw = compare_in(&raw, reference, mask);
     windows
         .iter()
         .map(|&window| {
@@ -295,18 +381,46 @@ fn environment_checks(
                 relight_options,
             )?;
             let relight_seconds = t.elapsed().as_secs_f64();
+            let (w, h) = BAND_LIMITED_MAP;
+            let limited = env.clone().with_window(window)?.band_limited(bands, w, h)?;
+            let brute = brute_force(capture, &limited.weights_for_directions(&directions)?, rgb)?;
             let against_truth = compare_in(&relit, reference, mask);
+            let brute_against_truth = compare_in(&brute, reference, mask);
             Ok(EnvironmentCheck {
                 light: index,
                 window,
                 relit: against_truth,
-                brute_force,
+                brute_force: brute_against_truth,
+                brute_force_raw,
                 relit_vs_brute_force: compare_in(&relit, &brute, mask),
-                gain_linear_db: against_truth.psnr_linear - brute_force.psnr_linear,
+                gain_linear_db: against_truth.psnr_linear - brute_against_truth.psnr_linear,
+                gain_vs_raw_linear_db: against_truth.psnr_linear - brute_force_raw.psnr_linear,
                 relight_seconds,
             })
         })
         .collect()
+}
+
+/// `Σ_j (w_j · rgb) I_j` over the captured images (those of zero weight are not read).
+fn brute_force(
+    capture: &relit::capture::Capture,
+    weights: &[[f64; 3]],
+    rgb: [f64; 3],
+) -> Result<ImageRgb> {
+    let mut sum = ImageRgb::new(capture.width, capture.height);
+    for (j, wj) in weights.iter().enumerate() {
+        if wj.iter().all(|&v| v == 0.0) {
+            continue;
+        }
+        let image = capture.load(j)?;
+        let scale: [f32; 3] = std::array::from_fn(|c| (wj[c] * rgb[c]) as f32);
+        for (dst, src) in sum.data.chunks_exact_mut(3).zip(image.data.chunks_exact(3)) {
+            for c in 0..3 {
+                dst[c] += scale[c] * src[c];
+            }
+        }
+    }
+    Ok(sum)
 }
 
 /// PSNR (linear, peak 1; and 8-bit sRGB) of `test` against `reference` over the pixels

@@ -407,6 +407,46 @@ impl EnvironmentLight {
         }
         Ok(weights)
     }
+
+    /// The environment as SH relighting with `bands` bands sees it: a `width × height`
+    /// lat-long map (light frame, no further rotation) of `Σ_i e_i Y_i(ω)` with the
+    /// rotated, windowed [`Self::light_weights`]. Its brute-force weights
+    /// ([`Self::weights_for_directions`]) relight the raw captures under exactly the
+    /// band-limited lighting the coefficient maps are relit with, so comparing the two
+    /// isolates the fit from the truncation of the environment. Ringing shows as
+    /// negative radiance, which is kept.
+    pub fn band_limited(&self, bands: usize, width: usize, height: usize) -> Result<Self> {
+        if width == 0 || height == 0 || width.saturating_mul(height) > 1 << 24 {
+            return Err(Error::invalid(format!(
+                "a band-limited environment map needs 1 to 2^24 texels, not {width}×{height}"
+            )));
+        }
+        let weights = self.light_weights(bands)?;
+        let sh = SphericalHarmonics::new(bands)?;
+        let k = bands * bands;
+        let mut map = ImageRgb::new(width, height);
+        map.data
+            .par_chunks_mut(3 * width)
+            .enumerate()
+            .for_each(|(y, row)| {
+                let mut values = vec![0.0; k];
+                for (x, px) in row.chunks_exact_mut(3).enumerate() {
+                    let dir = latlong_direction(
+                        (x as f64 + 0.5) / width as f64,
+                        (y as f64 + 0.5) / height as f64,
+                    );
+                    sh.eval(dir, &mut values);
+                    for (c, out) in px.iter_mut().enumerate() {
+                        *out = values
+                            .iter()
+                            .zip(&weights[c])
+                            .map(|(v, w)| v * w)
+                            .sum::<f64>() as f32;
+                    }
+                }
+            });
+        Self::from_image(map)
+    }
 }
 
 /// Rows of the map one parallel task handles; fixed so that sums are reproducible.
@@ -914,6 +954,39 @@ mod tests {
         assert!(env
             .weights_for_directions(&[Vec3::new(0.0, 0.0, 0.0)])
             .is_err());
+    }
+
+    #[test]
+    fn the_band_limited_map_reprojects_onto_the_windowed_weights() {
+        // A rotated, windowed sun-and-sky map turned into its 5-band, windowed SH
+        // reconstruction: projecting that map again gives the windowed weights (its
+        // content is band-limited, so the exact texel projection recovers it up to the
+        // texel discretisation), and it carries the same total light.
+        let sun = Vec3::new(0.3, 0.8, -0.5).normalized().unwrap();
+        let map = sampled_map(128, 64, |d| {
+            let s = if d.dot(sun) > 0.99 { 40.0 } else { 0.0 };
+            [0.2 + s, 0.25 + s, 0.3 + 0.9 * s]
+        });
+        let env = EnvironmentLight::from_image(map)
+            .unwrap()
+            .with_rotation(rotation_from_yaw_pitch_roll(30.0, -20.0, 10.0).unwrap())
+            .unwrap()
+            .with_window(Window::Hann)
+            .unwrap();
+        let expected = env.light_weights(5).unwrap();
+        let limited = env.band_limited(5, 256, 128).unwrap();
+        assert_eq!(limited.rotation(), MAT3_IDENTITY);
+        let again = limited.project(5).unwrap();
+        for c in 0..3 {
+            let scale = expected[c][0].abs();
+            for (i, (a, b)) in again[c].iter().zip(&expected[c]).enumerate() {
+                assert!(
+                    (a - b).abs() < 2e-3 * scale,
+                    "channel {c} coefficient {i}: {a} vs {b}"
+                );
+            }
+        }
+        assert!(env.band_limited(5, 0, 10).is_err());
     }
 
     #[test]

@@ -29,10 +29,16 @@
 //!
 //! * [`Objective::Auto`] (default): one of the two, whichever has the smaller
 //!   leave-one-out error of the *displayed* (sRGB-encoded) values on the λ subsample.
-//!   On photographs the perceptual objective wins (dark pixels are noisy but never
-//!   exactly black); on renders with hard, exactly black shadows the huge weight it gives
-//!   those zeros can cost more than it gains, and the linear objective wins. Both
-//!   pass-1 states (the spill file and the shared sums) are kept until the choice.
+//!   Each captured light counts in that error in proportion to how much it lights the
+//!   scene (the mean radiance of its image on the subsample): the error that matters
+//!   is the one seen where light falls. Without that, a full-sphere capture of a
+//!   scene on a floor, half of whose images are black, is judged by how black the
+//!   prediction stays below the floor, where the sRGB curve is steepest. On
+//!   photographs the perceptual objective wins (dark pixels are noisy but never
+//!   exactly black); on renders with hard, exactly black shadows the huge weight it
+//!   gives those zeros costs more than it gains (it biases the lit side), and the
+//!   linear objective wins. Both pass-1 states (the spill file and the shared sums) are
+//!   kept until the choice.
 //!
 //! Maps stored display-referred ([`MapSpace::Srgb`]) fit sRGB-encoded values with
 //! plain (quadrature-weighted) least squares.
@@ -357,6 +363,7 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
         Objective::Perceptual => &[Objective::Perceptual],
         Objective::Linear => &[Objective::Linear],
     };
+    let relevance = light_relevance(&sub, sub_idx.len(), design.n);
     let mut choice: Option<Choice> = None;
     for &candidate in candidates {
         let perceptual = candidate == Objective::Perceptual;
@@ -367,7 +374,7 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
                 } else {
                     Choice::score(
                         candidate,
-                        &loo_scores(&design, &sub, sub_idx.len(), perceptual, &[l]),
+                        &loo_scores(&design, &sub, sub_idx.len(), perceptual, &[l], &relevance),
                     )
                 }
             }
@@ -378,7 +385,14 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
             }
             Lambda::Auto => Choice::score(
                 candidate,
-                &loo_scores(&design, &sub, sub_idx.len(), perceptual, &LAMBDA_LADDER),
+                &loo_scores(
+                    &design,
+                    &sub,
+                    sub_idx.len(),
+                    perceptual,
+                    &LAMBDA_LADDER,
+                    &relevance,
+                ),
             ),
         };
         if !matches!(&choice, Some(c) if c.display <= scored.display) {
@@ -758,13 +772,37 @@ struct LooScore {
     display: f64,
 }
 
-/// Exact leave-one-out errors for each λ of `ladder`, on the subsample.
+/// How much each captured light lights the scene, for weighing display errors: the
+/// mean radiance of its image over the subsample `sub` (`count` pixels × `n` images ×
+/// RGB), relative to the brightest image. All ones when every image is black.
+fn light_relevance(sub: &[f32], count: usize, n: usize) -> Vec<f64> {
+    let mut mean = vec![0.0f64; n];
+    for s in 0..count {
+        for (j, m) in mean.iter_mut().enumerate() {
+            let o = (s * n + j) * 3;
+            *m += sub[o..o + 3]
+                .iter()
+                .map(|&v| v.max(0.0) as f64)
+                .sum::<f64>();
+        }
+    }
+    let peak = mean.iter().cloned().fold(0.0, f64::max);
+    if peak > 0.0 && peak.is_finite() {
+        mean.iter().map(|m| m / peak).collect()
+    } else {
+        vec![1.0; n]
+    }
+}
+
+/// Exact leave-one-out errors for each λ of `ladder`, on the subsample. The display
+/// error weighs captured light `j` by `q_j · relevance[j]`.
 fn loo_scores(
     design: &Design,
     sub: &[f32],
     count: usize,
     perceptual: bool,
     ladder: &[f64],
+    relevance: &[f64],
 ) -> Vec<LooScore> {
     let (k, n) = (design.k, design.n);
     let totals: Vec<[f64; 4]> = (0..count * 3)
@@ -824,8 +862,9 @@ fn loo_scores(
                         let shown = srgb_extended(obs[j]) - srgb_extended(obs[j] - e);
                         acc[li][0] += w[j] * e * e;
                         acc[li][1] += w[j];
-                        acc[li][2] += design.q[j] * shown * shown;
-                        acc[li][3] += design.q[j];
+                        let seen = design.q[j] * relevance[j];
+                        acc[li][2] += seen * shown * shown;
+                        acc[li][3] += seen;
                     }
                 }
                 acc

@@ -258,12 +258,19 @@ fn the_automatic_objective_is_the_better_of_the_two_and_fits_exactly_as_it() {
         }
     }
     let best = |perceptual| {
-        loo_scores(&design, &sub, sub_idx.len(), perceptual, &LAMBDA_LADDER)
-            .iter()
-            .filter(|s| s.weighted.is_finite())
-            .min_by(|a, b| a.weighted.total_cmp(&b.weighted))
-            .unwrap()
-            .display
+        loo_scores(
+            &design,
+            &sub,
+            sub_idx.len(),
+            perceptual,
+            &LAMBDA_LADDER,
+            &light_relevance(&sub, sub_idx.len(), design.n),
+        )
+        .iter()
+        .filter(|s| s.weighted.is_finite())
+        .min_by(|a, b| a.weighted.total_cmp(&b.weighted))
+        .unwrap()
+        .display
     };
     let (perceptual, linear) = (best(true), best(false));
     assert!(perceptual.is_finite() && linear.is_finite() && perceptual != linear);
