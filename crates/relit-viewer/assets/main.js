@@ -84,14 +84,22 @@ function canvasPos(e) {
 function applyTool(pos) {
   const light = app.rig.lights[app.selected];
   if (!light) return;
-  const hit = renderer.pick(app.view, pos[0], pos[1]);
-  if (!hit || !(hit.depth > 0)) { $('warnings').textContent = 'nothing was hit there (no depth)'; return; }
-  if (app.tool === 'place' && light.position) {
-    const lift = Math.min(0.95, Math.max(0, parseFloat($('lift').value) || 0));
-    light.position = hit.origin.map((o, k) => Math.round((o + (1 - lift) * hit.depth * hit.dir[k]) * 1e4) / 1e4);
-  } else if (app.tool === 'aim' && light.direction && light.position) {
-    const d = normalize(sub(hit.point, light.position));
-    if (d) light.direction = d.map(v => Math.round(v * 1e4) / 1e4);
+  const say = (text) => { $('warnings').textContent = text; };
+  if (app.tool === 'aim' && light.type === 'directional') {
+    // The light comes from where the cursor points (no depth needed).
+    const d = renderer.directionAt(app.view, pos[0], pos[1]);
+    if (!d) { say('outside the image'); return; }
+    light.direction = d.map(v => Math.round(v * 1e4) / 1e4);
+  } else {
+    const hit = renderer.pick(app.view, pos[0], pos[1]);
+    if (!hit || !(hit.depth > 0)) { say('nothing was hit there (no depth)'); return; }
+    if (app.tool === 'place' && light.position) {
+      const lift = Math.min(0.95, Math.max(0, parseFloat($('lift').value) || 0));
+      light.position = hit.origin.map((o, k) => Math.round((o + (1 - lift) * hit.depth * hit.dir[k]) * 1e4) / 1e4);
+    } else if (app.tool === 'aim' && light.direction && light.position) {
+      const d = normalize(sub(hit.point, light.position));
+      if (d) light.direction = d.map(v => Math.round(v * 1e4) / 1e4);
+    } else return;
   }
   panel.refresh();
   app.changed(false);
@@ -132,7 +140,7 @@ canvasEl.addEventListener('pointerdown', (e) => {
   if (pointers.size === 1) {
     drag = { last: pos, tool: app.tool !== 'view' && e.button === 0 };
     if (drag.tool) applyTool(pos);
-  } else drag = null;
+  } else drag = null; // two fingers: pinch (see pointermove)
 });
 canvasEl.addEventListener('pointermove', (e) => {
   const pos = canvasPos(e);
@@ -143,25 +151,34 @@ canvasEl.addEventListener('pointermove', (e) => {
   }
   const prev = pointers.get(e.pointerId);
   if (pointers.size === 2) {
+    // Pinch: what was under the fingers' midpoint follows it (pan), then zoom by the
+    // change of their distance about the new midpoint.
     const other = [...pointers.entries()].find(([id]) => id !== e.pointerId)[1];
     const d0 = Math.hypot(prev[0] - other[0], prev[1] - other[1]), d1 = Math.hypot(pos[0] - other[0], pos[1] - other[1]);
-    if (d0 > 0) zoomBy(d1 / d0, [(pos[0] + other[0]) / 2, (pos[1] + other[1]) / 2]);
-  } else if (drag) {
+    const m0 = [(prev[0] + other[0]) / 2, (prev[1] + other[1]) / 2], m1 = [(pos[0] + other[0]) / 2, (pos[1] + other[1]) / 2];
+    panBy(m1[0] - m0[0], m1[1] - m0[1]);
+    if (d0 > 0 && d1 > 0) zoomBy(d1 / d0, m1);
+  } else if (drag && pointers.size === 1) {
     if (drag.tool) applyTool(pos);
     else panBy(pos[0] - drag.last[0], pos[1] - drag.last[1]);
     drag.last = pos;
   }
   pointers.set(e.pointerId, pos);
 });
-const up = (e) => { pointers.delete(e.pointerId); if (!pointers.size) drag = null; };
+const up = (e) => {
+  pointers.delete(e.pointerId);
+  // After a pinch the finger still down pans on (never applies a tool).
+  drag = pointers.size === 1 ? { last: [...pointers.values()][0], tool: false } : null;
+};
 canvasEl.addEventListener('pointerup', up);
 canvasEl.addEventListener('pointercancel', up);
 canvasEl.addEventListener('wheel', (e) => { e.preventDefault(); zoomBy(Math.exp(-e.deltaY * 0.0015), canvasPos(e)); }, { passive: false });
 window.addEventListener('keydown', (e) => {
-  if (e.target instanceof HTMLInputElement || e.target instanceof HTMLSelectElement) return;
+  if (e.target instanceof HTMLInputElement || e.target instanceof HTMLSelectElement || e.target instanceof HTMLTextAreaElement) return;
+  if (e.ctrlKey || e.metaKey || e.altKey) return; // leave the browser's own shortcuts (Ctrl +/-/0) alone
   const step = e.shiftKey ? 80 : 20;
   const keys = { ArrowLeft: () => panBy(step, 0), ArrowRight: () => panBy(-step, 0), ArrowUp: () => panBy(0, step), ArrowDown: () => panBy(0, -step),
-    '+': () => zoomBy(1.25), '=': () => zoomBy(1.25), '-': () => zoomBy(0.8), '0': () => { app.view = defaultView(renderer); request(); },
+    '+': () => zoomBy(1.25), '=': () => zoomBy(1.25), '-': () => zoomBy(0.8), '0': resetView,
     Escape: () => { app.setTool('view'); panel.build(); } };
   if (keys[e.key]) { keys[e.key](); e.preventDefault(); }
 });
@@ -171,7 +188,9 @@ window.addEventListener('resize', resize);
 $('view-mode').addEventListener('change', () => { app.view.mode = $('view-mode').value; request(); });
 $('fov').addEventListener('input', () => { app.view.fov = Number($('fov').value); request(); });
 $('exposure').addEventListener('input', () => { app.exposure = Number($('exposure').value); $('exposure-out').value = app.exposure; request(); });
-$('reset-view').addEventListener('click', () => { app.view = defaultView(renderer); syncViewControls(); request(); });
+function resetView() { app.view = defaultView(renderer); syncViewControls(); request(); }
+$('reset-view').addEventListener('click', resetView);
+$('smooth').addEventListener('change', () => { renderer.smooth = $('smooth').checked; request(); });
 $('add-light').addEventListener('click', () => {
   app.rig.lights.push(newLight($('new-type').value, renderer.info));
   app.selected = app.rig.lights.length - 1;
@@ -244,6 +263,8 @@ window.relit = {
   setView: (v) => { Object.assign(app.view, v); syncViewControls(); request(); },
   getView: () => ({ ...app.view }),
   setExposure: (s) => { app.exposure = s; request(); },
+  /** Bilinear (true) or nearest-texel (false) sampling of the coefficients. */
+  setSmooth: (on) => { renderer.smooth = !!on; $('smooth').checked = !!on; request(); },
   /** Fix the canvas to w×h device pixels (null: follow the layout). */
   setCanvasSize: (w, h) => { app.fixedSize = w ? [w, h] : null; resize(); },
   renderSync: () => { renderNow(); return app.frameMs; },

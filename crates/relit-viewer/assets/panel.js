@@ -61,7 +61,7 @@ export class Panel {
       card.append(vec);
       const sphere = this.sphere(light, vec);
       const row = h('div', { class: 'row' }, sphere);
-      if (light.type !== 'directional') row.append(this.toolButton('aim', index, 'aim on image'));
+      row.append(this.toolButton('aim', index, 'aim on image'));
       card.append(row);
     }
     if (light.type === 'spot') {

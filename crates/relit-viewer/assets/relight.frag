@@ -28,12 +28,13 @@ uniform bool uHasUniform;
 uniform bool uDisplay;          // display-referred (sRGB) maps
 uniform bool uHasDepth;
 uniform vec2 uImage;            // width, height in pixels
+uniform bool uSmooth;           // bilinear coefficients (and depth where it is continuous)
 
 uniform int uViewMode;          // 0 flat pan/zoom, 1 perspective view of a panorama
 uniform vec2 uCanvas;
 uniform vec2 uCenter;           // flat: image position at the canvas centre
 uniform float uZoom;            // flat: screen pixels per image pixel
-uniform bool uWrapX;            // flat: repeat panoramas horizontally
+uniform bool uWrapX;            // panoramas: columns wrap around
 uniform mat3 uView;             // perspective: view ray (x, y, 1) -> panorama camera frame
 uniform float uTanHalfFov;
 
@@ -68,19 +69,25 @@ float linearToSrgb(float v) {
   return v <= 0.0031308 ? v * 12.92 : 1.055 * pow(v, 1.0 / 2.4) - 0.055;
 }
 
+// x wrapped into [0, width) (mod alone can round up to width itself).
+float wrapColumn(float x) {
+  x -= uImage.x * floor(x / uImage.x);
+  return x >= uImage.x ? 0.0 : x;
+}
+
 // The source position (continuous pixel coordinates) shown at this fragment; false
 // when the fragment shows nothing.
 bool sourcePosition(out vec2 pos) {
   vec2 frag = vec2(gl_FragCoord.x, uCanvas.y - gl_FragCoord.y);
   if (uViewMode == 0) {
     pos = uCenter + (frag - 0.5 * uCanvas) / uZoom;
-    if (uWrapX) pos.x = mod(pos.x, uImage.x);
+    if (uWrapX) pos.x = wrapColumn(pos.x);
   } else {
     vec2 ndc = (2.0 * frag - uCanvas) / uCanvas.y;
     vec3 d = uView * vec3(ndc.x * uTanHalfFov, -ndc.y * uTanHalfFov, 1.0);
     float r = length(d.xz);
     float az = atan(d.x, -d.z);
-    pos.x = mod((az / (2.0 * PI) + 0.5) * uImage.x, uImage.x);
+    pos.x = wrapColumn((az / (2.0 * PI) + 0.5) * uImage.x);
     if (uProj == 3) {
       pos.y = (0.5 - atan(d.y, r) / PI) * uImage.y;
     } else {
@@ -91,9 +98,10 @@ bool sourcePosition(out vec2 pos) {
   return pos.x >= 0.0 && pos.y >= 0.0 && pos.x < uImage.x && pos.y < uImage.y;
 }
 
-// The surface point of pixel t at depth d (crates/relit/src/camera/*.rs).
-vec3 surfacePoint(ivec2 t, float d) {
-  float x = float(t.x) + 0.5, y = float(t.y) + 0.5;
+// The surface point at continuous image position (x, y) at depth d: P = O + d·V with
+// the ray of crates/relit/src/camera/*.rs (pixel centres at +0.5).
+vec3 surfacePoint(vec2 at, float d) {
+  float x = at.x, y = at.y;
   vec3 o = vec3(0.0), v;
   if (uProj == 0) {
     float u = (2.0 * x / uImage.x - 1.0) * uHalf.x, w = (1.0 - 2.0 * y / uImage.y) * uHalf.y;
@@ -155,12 +163,47 @@ vec3 slide(int s, vec2 uv) {
   return texture(uSlide3, uv).rgb;
 }
 
+// The depth of texel t; columns wrap on panoramas, other edges clamp.
+float depthTexel(ivec2 t) {
+  ivec2 size = ivec2(uImage);
+  t.x = uWrapX ? (t.x % size.x + size.x) % size.x : clamp(t.x, 0, size.x - 1);
+  t.y = clamp(t.y, 0, size.y - 1);
+  return texelFetch(uDepth, t, 0).r;
+}
+
+// Depth at pos and the image position its surface point is taken at: bilinear between
+// the four nearest texel centres where they agree within 15 % (one continuous surface),
+// otherwise the nearest texel's depth at its centre, so that no point floats between a
+// foreground edge and the background. At texel centres both are that texel exactly.
+float surfaceDepth(vec2 pos, ivec2 t, out vec2 at) {
+  if (uSmooth) {
+    vec2 q = pos - 0.5, f = q - floor(q);
+    ivec2 i = ivec2(floor(q));
+    float d00 = depthTexel(i), d10 = depthTexel(i + ivec2(1, 0));
+    float d01 = depthTexel(i + ivec2(0, 1)), d11 = depthTexel(i + ivec2(1, 1));
+    float lo = min(min(d00, d10), min(d01, d11)), hi = max(max(d00, d10), max(d01, d11));
+    if (lo > 0.0 && hi <= 1.15 * lo) {
+      at = pos;
+      return mix(mix(d00, d10, f.x), mix(d01, d11, f.x), f.y);
+    }
+  }
+  at = vec2(t) + 0.5;
+  return texelFetch(uDepth, t, 0).r;
+}
+
 void main() {
   vec2 pos;
   if (!sourcePosition(pos)) { outColor = vec4(uBackground, 1.0); return; }
-  ivec2 t = ivec2(floor(pos));
+  ivec2 t = min(ivec2(floor(pos)), ivec2(uImage) - 1);
   vec4 C[3 * N_LAYERS];
-  for (int l = 0; l < 3 * N_LAYERS; l++) C[l] = uBias[l] + uScale[l] * texelFetch(uPlanes, ivec3(t, l), 0);
+  if (uSmooth) {
+    // Hardware bilinear filtering of the coefficients (relighting is linear in them);
+    // the planes texture repeats horizontally on panoramas and clamps otherwise.
+    vec2 uv = pos / uImage;
+    for (int l = 0; l < 3 * N_LAYERS; l++) C[l] = uBias[l] + uScale[l] * texture(uPlanes, vec3(uv, float(l)));
+  } else {
+    for (int l = 0; l < 3 * N_LAYERS; l++) C[l] = uBias[l] + uScale[l] * texelFetch(uPlanes, ivec3(t, l), 0);
+  }
 
   vec3 col = vec3(0.0);
   if (uHasUniform) {
@@ -174,9 +217,10 @@ void main() {
     col += u;
   }
   if (uNumLights > 0) {
-    float depth = uHasDepth ? texelFetch(uDepth, t, 0).r : 0.0;
+    vec2 at;
+    float depth = uHasDepth ? surfaceDepth(pos, t, at) : 0.0;
     bool hasPoint = depth > 0.0;
-    vec3 P = hasPoint ? surfacePoint(t, depth) : vec3(0.0);
+    vec3 P = hasPoint ? surfacePoint(at, depth) : vec3(0.0);
     vec4 Y[N_LAYERS];
     for (int i = 0; i < uNumLights; i++) {
       int type = uLType[i];

@@ -21,6 +21,8 @@ export class Renderer {
     this.slides = new Map(); // name -> { tex, aspect }
     this.envCache = new Map();
     this.warnings = [];
+    /** Bilinear interpolation of the coefficients (false: nearest texel). */
+    this.smooth = true;
   }
 
   /** Load the shaders and the data folder (`base` ends with a slash). */
@@ -51,7 +53,12 @@ export class Renderer {
     gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.planes);
     const u8 = info.storage === 'u8';
     gl.texStorage3D(gl.TEXTURE_2D_ARRAY, 1, u8 ? gl.RGBA8 : gl.RGBA16F, W, H, layers);
-    this.setNearest(gl.TEXTURE_2D_ARRAY);
+    // Bilinear filtering (RGBA8 and RGBA16F are filterable in WebGL2; the shader uses
+    // texelFetch instead when smoothing is off). Panorama columns wrap around.
+    gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MIN_FILTER, gl.LINEAR);
+    gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MAG_FILTER, gl.LINEAR);
+    gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_WRAP_S, this.wrapsColumns(info) ? gl.REPEAT : gl.CLAMP_TO_EDGE);
+    gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
     await Promise.all(info.layers.map(async (layer, l) => {
       if (u8) {
         const blob = await fetchOk(base + layer.file, 'blob');
@@ -87,6 +94,11 @@ export class Renderer {
     this.norm = shNorm(info.bands);
     this.vao = gl.createVertexArray();
     return info;
+  }
+
+  wrapsColumns(info) {
+    const t = info.camera.projection.type;
+    return t === 'cylindrical' || t === 'equirectangular';
   }
 
   setNearest(target) {
@@ -141,8 +153,13 @@ export class Renderer {
 
   /** World surface point of pixel (i, j) at depth d, and the ray origin. */
   surfacePoint(i, j, d) {
+    return this.rayAt(i + 0.5, j + 0.5, d);
+  }
+
+  /** The world ray (origin, unit dir) through continuous image position (x, y) of the
+   *  file's camera (crates/relit/src/camera/*.rs), and its point at depth d. */
+  rayAt(x, y, d = 0) {
     const { proj, half, span, pose } = this.cam, W = this.info.width, H = this.info.height;
-    const x = i + 0.5, y = j + 0.5;
     let o = [0, 0, 0], v;
     if (proj === 0) v = normalize([(2 * x / W - 1) * half[0], (1 - 2 * y / H) * half[1], -1]);
     else if (proj === 1) { o = [(2 * x / W - 1) * half[0], (1 - 2 * y / H) * half[1], 0]; v = [0, 0, -1]; }
@@ -159,24 +176,58 @@ export class Renderer {
     return { origin, dir, point: origin.map((val, k) => val + d * dir[k]) };
   }
 
-  /** The source pixel shown at canvas position (css pixels -> canvas pixels), or null. */
-  sourcePixel(view, cx, cy) {
+  /** The view ray at canvas position (cx, cy) (canvas pixels from the top left) of the
+   *  perspective view, in the panorama's camera frame (not unit length). */
+  viewRay(view, cx, cy) {
+    const cw = this.canvas.width, ch = this.canvas.height;
+    const m = this.viewMatrix(view), t = Math.tan((view.fov * Math.PI) / 360);
+    const nx = ((2 * cx - cw) / ch) * t, ny = -((2 * cy - ch) / ch) * t;
+    return [0, 1, 2].map(k => m[0][k] * nx + m[1][k] * ny + m[2][k]);
+  }
+
+  /** The continuous source position shown at canvas position (cx, cy), or null: the
+   *  same mapping as relight.frag's sourcePosition. */
+  sourcePosition(view, cx, cy) {
     const W = this.info.width, H = this.info.height, cw = this.canvas.width, ch = this.canvas.height;
+    const wrap = (x) => { x -= W * Math.floor(x / W); return x >= W ? 0 : x; };
     let px, py;
     if (view.mode === 'flat' || !this.isPanorama) {
       px = view.center[0] + (cx - 0.5 * cw) / view.zoom;
       py = view.center[1] + (cy - 0.5 * ch) / view.zoom;
-      if (this.isPanorama) px = ((px % W) + W) % W;
+      if (this.isPanorama) px = wrap(px);
     } else {
-      const m = this.viewMatrix(view), t = Math.tan((view.fov * Math.PI) / 360);
-      const nx = ((2 * cx - cw) / ch) * t, ny = -((2 * cy - ch) / ch) * t;
-      const d = [0, 1, 2].map(k => m[0][k] * nx + m[1][k] * ny + m[2][k]);
+      const d = this.viewRay(view, cx, cy);
       const r = Math.hypot(d[0], d[2]);
-      px = ((Math.atan2(d[0], -d[2]) / (2 * Math.PI) + 0.5) * W) % W;
+      px = wrap((Math.atan2(d[0], -d[2]) / (2 * Math.PI) + 0.5) * W);
       py = this.cam.proj === 3 ? (0.5 - Math.atan2(d[1], r) / Math.PI) * H : (0.5 - d[1] / r / this.cam.span) * H;
     }
     if (!(px >= 0 && py >= 0 && px < W && py < H)) return null;
-    return [Math.floor(px), Math.floor(py)];
+    return [px, py];
+  }
+
+  /** The source pixel shown at canvas position (canvas pixels), or null. */
+  sourcePixel(view, cx, cy) {
+    const p = this.sourcePosition(view, cx, cy);
+    return p && [Math.floor(p[0]), Math.floor(p[1])];
+  }
+
+  /** The direction (world, unit, toward the light) a directional light aimed at canvas
+   *  position (cx, cy) gets: on a panorama the camera ray seen there (the light comes
+   *  from where you point, depth or not); on a planar image the light-sphere mapping
+   *  of the canvas (centre: toward the camera, the shorter side's edge: grazing). */
+  directionAt(view, cx, cy) {
+    const pose = this.cam.pose;
+    const toWorld = (p) => [0, 1, 2].map(k => pose.right[k] * p[0] + pose.up[k] * p[1] + pose.back[k] * p[2]);
+    if (this.isPanorama) {
+      if (view.mode !== 'flat') return normalize(toWorld(this.viewRay(view, cx, cy)));
+      const p = this.sourcePosition(view, cx, cy);
+      return p ? this.rayAt(p[0], p[1]).dir : null;
+    }
+    const cw = this.canvas.width, ch = this.canvas.height, s = Math.min(cw, ch) / 2;
+    let x = (cx - cw / 2) / s, y = -(cy - ch / 2) / s;
+    const r = Math.hypot(x, y);
+    if (r > 1) { x /= r; y /= r; }
+    return normalize(toWorld([x, y, Math.sqrt(Math.max(0, 1 - x * x - y * y))]));
   }
 
   /** Columns right, up, forward of the view camera in the panorama's camera frame. */
@@ -316,6 +367,7 @@ export class Renderer {
     set('uDisplay', 'uniform1i', p.display ? 1 : 0);
     set('uHasDepth', 'uniform1i', this.depth ? 1 : 0);
     set('uImage', 'uniform2f', info.width, info.height);
+    set('uSmooth', 'uniform1i', this.smooth ? 1 : 0);
     const flat = view.mode === 'flat' || !this.isPanorama;
     set('uViewMode', 'uniform1i', flat ? 0 : 1);
     set('uCanvas', 'uniform2f', this.canvas.width, this.canvas.height);
