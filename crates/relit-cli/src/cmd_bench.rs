@@ -18,17 +18,32 @@
 //! reason when no adapter exists) for each GPU storage type. GPU frames are timed
 //! without readback.
 //!
-//! Before the cases it measures the machine's f32 multiply-add rate on registers
-//! (`relit::engine::fma_throughput`, all threads); every CPU uniform case reports
-//! `fma_fraction`, the share of that rate its `3·k·pixels` multiply-adds per frame reach.
+//! Timing: a warm-up frame, then five batches filling `--seconds` together; `fps` is the
+//! fastest batch, `fps_median` the median one. Other processes on the machine slow some
+//! batches (on this project's shared 2-core machine by up to 2×); the fastest batch is
+//! the one least disturbed, and it is compared with bounds taken the same way.
 //!
-//! In the same run it measures the memory read bandwidth over the maps' own bytes (a
-//! multithreaded sum of the f32 buffer, best of three) and reports, for every case, the
-//! fraction of the bandwidth bound achieved: `fps × bytes of the maps in that storage ÷
-//! bandwidth`. A streaming case at 1.0 reads the maps as fast as the machine can read
-//! anything. On a software adapter (lavapipe) GPU memory is host memory, so the same
-//! bound applies; for a discrete GPU the host's bandwidth says nothing and the fraction
-//! is left out (`null`).
+//! Bounds, measured in the same run (`relit::engine`'s `bounds` module says how and why
+//! they bound):
+//!
+//! * **read bandwidth** — for each size, k and storage, the best plain read of the
+//!   planes' own bytes (`Relighter::plane_read_rate`: AVX2 loads, one OR per 32 bytes,
+//!   the engine's tile pattern and a contiguous one, every thread), measured three
+//!   times before the storage's cases and once before every batch of a uniform case,
+//!   so that probe and frames see the same load; the bound is the best of all of
+//!   them. `bandwidth_fraction = fps × map_bytes ÷ bound`: a streaming case at 1.0
+//!   reads the planes as fast as the machine reads anything. It also has to write the
+//!   frame (12 bytes a pixel), which the bound leaves out, so u8 and f16 planes, with
+//!   few bytes read per byte written, cannot quite reach 1.0. On a software adapter
+//!   (lavapipe) GPU memory is host memory, so the rate of planes of the same type and
+//!   size applies; for a discrete GPU the host's bandwidth says nothing and the
+//!   fraction is left out (`null`).
+//! * **multiply-add peak** — `relit::engine::fma_peak` at the start and at the end of
+//!   the run (best of both): register-only FMA chains on every thread, 16-lane
+//!   (AVX-512F) where the CPU has it, which is then the machine's peak (`fma_peak_gs`);
+//!   the engine's 8-lane kernels can reach half of it at most. Every CPU uniform case
+//!   reports `fma_fraction`, the share of that peak its `3·k·pixels` multiply-adds per
+//!   frame reach.
 //!
 //! Memory and time: 8192×2048 maps are 3.2 GB (k = 16) and 5.0 GB (k = 25) in f32, which
 //! the CPU engine reads as they are. A software adapter holds its copy in RAM too and
@@ -101,26 +116,54 @@ struct Row {
     storage: &'static str,
     /// `cpu` or `gpu`.
     device: &'static str,
-    /// CPU threads, or the GPU adapter.
+    /// CPU threads and kernels, or the GPU adapter.
     engine: String,
+    /// Frames per second of the fastest batch (see the module docs).
     fps: f64,
-    /// Pixels relit (or, for `sh_eval`, basis evaluations) per second.
+    /// Frames per second of the median batch.
+    fps_median: f64,
+    /// Pixels relit (or, for `sh_eval`, basis evaluations) per second, at `fps`.
     pixels_per_s: f64,
     ms_per_frame: f64,
+    /// Frames timed, over all batches.
     frames: usize,
+    batches: usize,
     /// Bytes of the maps in this storage: what one streaming frame must read.
     map_bytes: u64,
-    /// Memory read bandwidth measured over the f32 maps, GB/s.
+    /// The read bandwidth bound, GB/s: the best plain read of these bytes measured in
+    /// this run (`Relighter::plane_read_rate`).
     read_bandwidth_gbs: f64,
     /// `fps × map_bytes ÷ bandwidth`; null where host bandwidth does not bound the device.
     bandwidth_fraction: Option<f64>,
+    /// Peak multiply-add rate of this machine measured in this run, G/s.
+    fma_peak_gs: f64,
     /// `fps × 3·k·pixels ÷ peak multiply-add rate` (CPU uniform cases).
     fma_fraction: Option<f64>,
+    /// Whether host memory bounds the device (the CPU, a software adapter).
+    #[serde(skip)]
+    host_bound: bool,
 }
 
 const CASES: [&str; 3] = ["directional", "environment", "point"];
 
+/// Timed batches per case; the read probe runs once before each batch of a uniform case.
+const BATCHES: usize = 5;
+
 pub fn run(args: Args) -> anyhow::Result<()> {
+    let json = args.json;
+    let Some(rows) = measure(args)? else {
+        return Ok(());
+    };
+    if json {
+        println!("{}", serde_json::to_string_pretty(&rows)?);
+    } else {
+        print_summary(&rows);
+    }
+    Ok(())
+}
+
+/// Run the benchmark (or, with `--write-maps`, write the maps and return `None`).
+fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
     if !(args.seconds.is_finite() && args.seconds > 0.0) {
         bail!("--seconds must be a positive number");
     }
@@ -166,17 +209,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 .collect::<anyhow::Result<_>>()?,
         )
     };
-    let adapter = if args.no_gpu {
-        Err("--no-gpu".to_string())
-    } else {
-        relit_gpu::probe().map_err(|e| e.to_string())
-    };
-    let gpu_skip = adapter.as_ref().err().cloned();
-    let software = adapter.as_ref().is_ok_and(|a| a.device_type == "Cpu");
-    if let Some(why) = &gpu_skip {
-        eprintln!("relit bench: GPU skipped: {why}");
-    }
-
     let cpu_storage: Vec<PlaneStorage> = if args.cpu_storage.is_empty() {
         PlaneStorage::ALL.to_vec()
     } else {
@@ -199,37 +231,49 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ks[0],
             relit::memory::mib(image.maps.bytes() as u64)
         );
-        return Ok(());
+        return Ok(None);
     }
 
     let known = ["directional", "environment", "point", "sh_eval"];
     if let Some(bad) = args.cases.iter().find(|c| !known.contains(&c.as_str())) {
         bail!("--case `{bad}`: expected one of {}", known.join(", "));
     }
+    let adapter = if args.no_gpu {
+        Err("--no-gpu".to_string())
+    } else {
+        relit_gpu::probe().map_err(|e| e.to_string())
+    };
+    let gpu_skip = adapter.as_ref().err().cloned();
+    let software = adapter.as_ref().is_ok_and(|a| a.device_type == "Cpu");
+    if let Some(why) = &gpu_skip {
+        eprintln!("relit bench: GPU skipped: {why}");
+    }
     let wanted = |case: &str| args.cases.is_empty() || args.cases.iter().any(|c| c == case);
     let threads = rayon::current_num_threads();
-    let fma_peak = if args.no_cpu {
-        f64::NAN
-    } else {
-        let peak = relit::engine::fma_throughput(if args.quick { 0.05 } else { 0.3 });
-        eprintln!(
-            "relit bench: peak f32 multiply-add rate {:.1} G/s ({threads} threads)",
-            peak / 1e9
-        );
+    let fma_seconds = if args.quick { 0.05 } else { 0.3 };
+    let mut fma = (!args.no_cpu).then(|| {
+        let peak = relit::engine::fma_peak(fma_seconds);
+        report_fma(&peak, threads);
         peak
-    };
+    });
     let mut rows = Vec::new();
+    // The read bound of each size, k and storage: the best probe so far.
+    let mut bounds: Vec<((usize, usize, usize, &'static str), f64)> = Vec::new();
+    fn raise(
+        bounds: &mut Vec<((usize, usize, usize, &'static str), f64)>,
+        key: (usize, usize, usize, &'static str),
+        rate: f64,
+    ) {
+        match bounds.iter_mut().find(|(k, _)| *k == key) {
+            Some((_, r)) => *r = r.max(rate),
+            None => bounds.push((key, rate)),
+        }
+    }
     for &(width, height) in &sizes {
         for &k in &ks {
             let bands = bands_of(k).expect("checked");
             eprintln!("relit bench: {width}×{height}, k = {k}: building synthetic maps…");
             let image = synthetic_image(width, height, bands)?;
-            let bandwidth = read_bandwidth(&image.maps.data);
-            eprintln!(
-                "relit bench: memory read bandwidth over the {} of maps: {:.1} GB/s ({threads} threads)",
-                relit::memory::mib(image.maps.bytes() as u64),
-                bandwidth / 1e9
-            );
             let env = Environment::new(bands)?;
             let n = (width * height) as u64;
             let row = |case,
@@ -237,10 +281,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                        bytes_per_value: usize,
                        device,
                        engine: String,
-                       secs: f64,
-                       frames| {
-                let fps = 1.0 / secs;
-                let map_bytes = 3 * k as u64 * n * bytes_per_value as u64;
+                       t: &Timing| {
+                let fps = 1.0 / t.best;
                 Row {
                     case,
                     width,
@@ -250,58 +292,57 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     device,
                     engine,
                     fps,
+                    fps_median: 1.0 / t.median,
                     pixels_per_s: fps * n as f64,
-                    ms_per_frame: secs * 1e3,
-                    frames,
-                    map_bytes,
-                    read_bandwidth_gbs: bandwidth / 1e9,
-                    bandwidth_fraction: Some(fps * map_bytes as f64 / bandwidth),
+                    ms_per_frame: t.best * 1e3,
+                    frames: t.frames,
+                    batches: t.batches,
+                    map_bytes: 3 * k as u64 * n * bytes_per_value as u64,
+                    read_bandwidth_gbs: f64::NAN,
+                    bandwidth_fraction: None,
+                    fma_peak_gs: f64::NAN,
                     fma_fraction: None,
+                    host_bound: true,
                 }
             };
 
             if !args.no_cpu {
                 for &storage in &cpu_storage {
                     let relighter = Relighter::with_storage(&image, storage)?;
+                    let key = (width, height, k, storage.name());
+                    raise(&mut bounds, key, relighter.plane_read_rate(3));
                     let engine = format!("{threads} threads, {}", relighter.kernels());
                     let mut frame = ImageRgb::new(0, 0);
                     let full = relit::engine::Roi::full(width, height);
                     for case in CASES.into_iter().filter(|c| wanted(c)) {
                         let lights = cpu_lights(case, &env)?;
-                        let (secs, frames) = time_cpu(seconds, || {
+                        // Uniform cases are bandwidth-bound: probe between their batches.
+                        let mut probe = || {
+                            if case != "point" {
+                                raise(&mut bounds, key, relighter.plane_read_rate(1));
+                            }
+                        };
+                        let t = time_batches(seconds, &mut probe, || {
                             relighter.relight_prepared_into(&lights, 0.0, full, &mut frame)?;
                             black_box(&frame);
                             Ok(())
                         })?;
-                        let mut r = row(
+                        let r = row(
                             case,
                             storage.name(),
                             storage.bytes_per_value(),
                             "cpu",
                             engine.clone(),
-                            secs,
-                            frames,
+                            &t,
                         );
-                        if case != "point" {
-                            r.fma_fraction = Some(r.fps * (3 * k) as f64 * n as f64 / fma_peak);
-                        }
                         report(&r, args.json);
                         rows.push(r);
                     }
                 }
             }
             if !args.no_cpu && wanted("sh_eval") {
-                let (secs, frames) = time_sh_eval(&image, bands, seconds)?;
-                let mut r = row(
-                    "sh_eval",
-                    "-",
-                    0,
-                    "cpu",
-                    format!("{threads} threads"),
-                    secs,
-                    frames,
-                );
-                r.bandwidth_fraction = None;
+                let t = time_sh_eval(&image, bands, seconds)?;
+                let r = row("sh_eval", "-", 0, "cpu", format!("{threads} threads"), &t);
                 report(&r, args.json);
                 rows.push(r);
             }
@@ -327,22 +368,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                         }
                         Err(e) => return Err(e.into()),
                     };
+                    // A software adapter reads host memory: bound it by the host's read
+                    // rate of planes of the same type and size.
                     let host_bound = gpu.adapter().device_type == "Cpu";
+                    let key = (width, height, k, storage.name());
+                    if host_bound && !bounds.iter().any(|(k, _)| *k == key) {
+                        let cpu = PlaneStorage::parse(storage.name()).context("storage name")?;
+                        let rate = Relighter::with_storage(&image, cpu)?.plane_read_rate(3);
+                        raise(&mut bounds, key, rate);
+                    }
                     for case in CASES.into_iter().filter(|c| wanted(c)) {
                         let lighting = gpu_lighting(&gpu, case, &env)?;
-                        let (secs, frames) = time_gpu(&gpu, &lighting, seconds)?;
+                        let t = time_gpu(&gpu, &lighting, seconds)?;
                         let mut r = row(
                             case,
                             storage.name(),
                             storage.bytes_per_value(),
                             "gpu",
                             gpu.adapter().to_string(),
-                            secs,
-                            frames,
+                            &t,
                         );
-                        if !host_bound {
-                            r.bandwidth_fraction = None;
-                        }
+                        r.host_bound = host_bound;
                         report(&r, args.json);
                         rows.push(r);
                     }
@@ -350,12 +396,50 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             }
         }
     }
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&rows)?);
-    } else {
-        print_summary(&rows);
+    // The peak again at the end, so that a quiet moment at either end sets it.
+    if let Some(first) = fma {
+        let again = relit::engine::fma_peak(fma_seconds);
+        let best = |a: f64, b: f64| a.max(b);
+        let peak = relit::engine::FmaPeak {
+            lanes8: best(first.lanes8, again.lanes8),
+            lanes16: first.lanes16.zip(again.lanes16).map(|(a, b)| a.max(b)),
+        };
+        report_fma(&peak, threads);
+        fma = Some(peak);
     }
-    Ok(())
+    for r in &mut rows {
+        let bound = bounds
+            .iter()
+            .find(|(key, _)| *key == (r.width, r.height, r.k, r.storage))
+            .map(|(_, b)| *b);
+        if let (Some(b), true, false) = (bound, r.host_bound, r.case == "sh_eval") {
+            r.read_bandwidth_gbs = b / 1e9;
+            r.bandwidth_fraction = Some(r.fps * r.map_bytes as f64 / b);
+        }
+        if let Some(peak) = &fma {
+            r.fma_peak_gs = peak.best() / 1e9;
+            if r.device == "cpu" && r.case != "point" && r.case != "sh_eval" {
+                let madds = (3 * r.k * r.width * r.height) as f64;
+                r.fma_fraction = Some(r.fps * madds / peak.best());
+            }
+        }
+    }
+    for ((w, h, k, storage), b) in &bounds {
+        eprintln!(
+            "relit bench: read bound {w}×{h} k = {k} {storage}: {:.1} GB/s (best plain read of the planes' bytes, {threads} threads)",
+            b / 1e9
+        );
+    }
+    Ok(Some(rows))
+}
+
+fn report_fma(peak: &relit::engine::FmaPeak, threads: usize) {
+    eprintln!(
+        "relit bench: peak f32 multiply-add rate {:.1} G/s ({}, {threads} threads; 8-lane code {:.1} G/s)",
+        peak.best() / 1e9,
+        peak.isa(),
+        peak.lanes8 / 1e9
+    );
 }
 
 fn parse_size(s: &str) -> anyhow::Result<(usize, usize)> {
@@ -496,44 +580,63 @@ fn gpu_lighting(gpu: &GpuRelighter, case: &str, env: &Environment) -> anyhow::Re
     })
 }
 
-/// Seconds per frame and frames timed: one warm-up frame, then enough frames to fill
-/// `seconds` (at least one).
-fn time_cpu(
+/// Seconds per frame of the fastest and the median of [`BATCHES`] batches.
+struct Timing {
+    best: f64,
+    median: f64,
+    frames: usize,
+    batches: usize,
+}
+
+impl Timing {
+    fn of(mut per_frame: Vec<f64>, frames: usize) -> Self {
+        per_frame.sort_by(f64::total_cmp);
+        Self {
+            best: per_frame[0],
+            median: per_frame[per_frame.len() / 2],
+            frames,
+            batches: per_frame.len(),
+        }
+    }
+}
+
+/// One warm-up frame, then [`BATCHES`] batches of frames filling `seconds` together
+/// (at least one frame each), `between` run before each batch (not timed).
+fn time_batches(
     seconds: f64,
+    between: &mut dyn FnMut(),
     mut frame: impl FnMut() -> relit::Result<()>,
-) -> anyhow::Result<(f64, usize)> {
+) -> anyhow::Result<Timing> {
     let t = Instant::now();
     frame()?;
     let warm = t.elapsed().as_secs_f64();
-    let frames = ((seconds / warm.max(1e-6)) as usize).clamp(1, 100_000);
-    let t = Instant::now();
-    for _ in 0..frames {
-        frame()?;
+    let frames = ((seconds / BATCHES as f64 / warm.max(1e-6)) as usize).clamp(1, 100_000);
+    let mut per_frame = Vec::with_capacity(BATCHES);
+    for _ in 0..BATCHES {
+        between();
+        let t = Instant::now();
+        for _ in 0..frames {
+            frame()?;
+        }
+        per_frame.push(t.elapsed().as_secs_f64() / frames as f64);
     }
-    Ok((t.elapsed().as_secs_f64() / frames as f64, frames))
+    Ok(Timing::of(per_frame, frames * BATCHES))
 }
 
-fn time_gpu(gpu: &GpuRelighter, lighting: &Lighting, seconds: f64) -> anyhow::Result<(f64, usize)> {
+fn time_gpu(gpu: &GpuRelighter, lighting: &Lighting, seconds: f64) -> anyhow::Result<Timing> {
     let first = gpu.time_frames(lighting, None, 1)?.as_secs_f64();
-    let frames = ((seconds / first.max(1e-6)) as usize).min(100_000);
-    if frames <= 1 {
-        return Ok((first, 1));
-    }
-    Ok((
-        gpu.time_frames(lighting, None, frames)?.as_secs_f64(),
-        frames,
-    ))
+    let frames = ((seconds / BATCHES as f64 / first.max(1e-6)) as usize).clamp(1, 100_000);
+    let per_frame = (0..BATCHES)
+        .map(|_| Ok(gpu.time_frames(lighting, None, frames)?.as_secs_f64()))
+        .collect::<anyhow::Result<Vec<f64>>>()?;
+    Ok(Timing::of(per_frame, frames * BATCHES))
 }
 
 /// Seconds per evaluation of the SH basis at every pixel's light vector (toward the
 /// `point` case's light), and the number of timed passes: rayon over chunks of 4096
 /// pixels, each evaluated into a per-thread buffer (no coefficient read, nothing
 /// written to memory beyond L2).
-fn time_sh_eval(
-    image: &RelightableImage,
-    bands: usize,
-    seconds: f64,
-) -> anyhow::Result<(f64, usize)> {
+fn time_sh_eval(image: &RelightableImage, bands: usize, seconds: f64) -> anyhow::Result<Timing> {
     const CHUNK: usize = 4096;
     let eval = ShEvaluator::new(bands)?;
     let camera = Relighter::new(image)?.camera()?;
@@ -559,7 +662,7 @@ fn time_sh_eval(
             });
     }
     let k = eval.len();
-    time_cpu(seconds, || {
+    time_batches(seconds, &mut || {}, || {
         dirs[0]
             .par_chunks(CHUNK)
             .zip(dirs[1].par_chunks(CHUNK))
@@ -575,72 +678,58 @@ fn time_sh_eval(
     })
 }
 
-/// Bytes per second of a multithreaded read of `data` (best of three): the bound for
-/// any pass that streams these bytes once.
-fn read_bandwidth(data: &[f32]) -> f64 {
-    let bytes = std::mem::size_of_val(data) as f64;
-    (0..3)
-        .map(|_| {
-            let t = Instant::now();
-            let s: f32 = data.par_chunks(1 << 16).map(sum).sum();
-            black_box(s);
-            bytes / t.elapsed().as_secs_f64()
-        })
-        .fold(0.0, f64::max)
-}
-
-/// A sum with 16 independent accumulators, which the compiler vectorises.
-fn sum(chunk: &[f32]) -> f32 {
-    let mut acc = [0f32; 16];
-    let mut it = chunk.chunks_exact(16);
-    for c in &mut it {
-        for (a, v) in acc.iter_mut().zip(c) {
-            *a += v;
-        }
-    }
-    acc.iter().sum::<f32>() + it.remainder().iter().sum::<f32>()
-}
-
 fn report(row: &Row, json: bool) {
     if !json {
         eprintln!(
-            "  {:<11} {:>4}  {:<3} {:>9.1} fps  {:>8.1} Mpx/s  {}{}",
+            "  {:<11} {:>4}  {:<3} {:>9.1} fps (median {:.1})  {:>8.1} Mpx/s",
             row.case,
             row.device,
             row.storage,
             row.fps,
+            row.fps_median,
             row.pixels_per_s / 1e6,
-            row.bandwidth_fraction
-                .map(|f| format!("{:.0} % of bandwidth", f * 100.0))
-                .unwrap_or_default(),
-            row.fma_fraction
-                .map(|f| format!(", {:.0} % of FMA peak", f * 100.0))
-                .unwrap_or_default()
         );
     }
 }
 
 fn print_summary(rows: &[Row]) {
     println!(
-        "{:<11} {:>10} {:>3} {:<4} {:<4} {:>10} {:>10} {:>10} {:>8} {:>9} {:>8}  engine",
-        "case", "size", "k", "stor", "dev", "fps", "Mpx/s", "ms/frame", "GB/s", "of bw", "of FMA"
+        "{:<11} {:>10} {:>3} {:<4} {:<4} {:>9} {:>9} {:>9} {:>9} {:>7} {:>8} {:>7}  engine",
+        "case",
+        "size",
+        "k",
+        "stor",
+        "dev",
+        "fps",
+        "median",
+        "Mpx/s",
+        "ms/frame",
+        "GB/s",
+        "of bw",
+        "of FMA"
     );
     let pct = |f: Option<f64>| {
         f.map(|f| format!("{:.1} %", f * 100.0))
             .unwrap_or_else(|| "-".into())
     };
     for r in rows {
+        let gbs = if r.read_bandwidth_gbs.is_finite() {
+            format!("{:.1}", r.read_bandwidth_gbs)
+        } else {
+            "-".into()
+        };
         println!(
-            "{:<11} {:>10} {:>3} {:<4} {:<4} {:>10.1} {:>10.1} {:>10.3} {:>8.1} {:>9} {:>8}  {}",
+            "{:<11} {:>10} {:>3} {:<4} {:<4} {:>9.1} {:>9.1} {:>9.1} {:>9.3} {:>7} {:>8} {:>7}  {}",
             r.case,
             format!("{}×{}", r.width, r.height),
             r.k,
             r.storage,
             r.device,
             r.fps,
+            r.fps_median,
             r.pixels_per_s / 1e6,
             r.ms_per_frame,
-            r.read_bandwidth_gbs,
+            gbs,
             pct(r.bandwidth_fraction),
             pct(r.fma_fraction),
             r.engine
@@ -658,12 +747,6 @@ mod tests {
         assert_eq!(parse_size("8192×2048").unwrap(), (8192, 2048));
         assert!(parse_size("1024").is_err());
         assert!(parse_size("0x5").is_err());
-    }
-
-    #[test]
-    fn the_sum_reads_every_value() {
-        let v: Vec<f32> = (0..1000).map(|i| i as f32).collect();
-        assert_eq!(sum(&v), 499_500.0);
     }
 
     #[test]

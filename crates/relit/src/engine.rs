@@ -28,10 +28,12 @@ use std::collections::HashMap;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex, OnceLock};
 
+mod bounds;
 mod kernels;
 mod planes;
 mod tiles;
 
+pub use bounds::{fma_peak, fma_throughput, FmaPeak};
 pub use planes::PlaneStorage;
 
 use kernels::{ShNorms, Simd};
@@ -625,31 +627,6 @@ impl ShEvaluator {
             }
         }
     }
-}
-
-/// The machine's f32 multiply-add rate (per second, all rayon threads at once) on
-/// register-only chains of 8-wide FMAs (AVX2 where the CPU has it), run for about
-/// `seconds`: the compute bound of the engine's kernels.
-pub fn fma_throughput(seconds: f64) -> f64 {
-    let simd = Simd::detect();
-    // Calibrate on one thread.
-    let mut iters = 1 << 16;
-    loop {
-        let t = std::time::Instant::now();
-        std::hint::black_box(simd.fma_chains(iters, 1.0));
-        let dt = t.elapsed().as_secs_f64();
-        if dt > 0.02 || iters > 1 << 30 {
-            iters = ((iters as f64) * seconds.max(0.01) / dt.max(1e-9)) as usize;
-            break;
-        }
-        iters *= 4;
-    }
-    let iters = iters.max(1);
-    let start = std::time::Instant::now();
-    let threads: Vec<f32> = rayon::broadcast(|ctx| simd.fma_chains(iters, ctx.index() as f32));
-    let elapsed = start.elapsed().as_secs_f64();
-    std::hint::black_box(threads.iter().sum::<f32>());
-    (threads.len() * iters * kernels::FMA_PER_ITER) as f64 / elapsed
 }
 
 #[cfg(test)]

@@ -626,13 +626,14 @@ unsafe fn interleave_avx2(dst: &mut [f32], rows: [&[f32]; 3]) {
     interleave_body(dst, rows)
 }
 
-/// Independent FMA chains of [`Simd::fma_chains`]: enough 8-lane registers to cover the
-/// FMA latency on two pipes (10 × 8 lanes).
-const CHAINS: usize = 10;
+/// Independent FMA chains of [`Simd::fma_chains`]: more 8-lane registers than the FMA
+/// latency (4 cycles) times the FMA pipes (2) needs, so the pipes never wait.
+const CHAINS: usize = 12;
 
 impl Simd {
-    /// Run `iters × 80` multiply-adds on registers (no memory traffic) and return a sum
-    /// that depends on all of them: the compute-bound rate the engine's loops can reach.
+    /// Run `iters × 96` multiply-adds on registers (no memory traffic) and return a sum
+    /// that depends on all of them: the compute-bound rate of 8-lane code (AVX2, what
+    /// the engine's kernels use).
     pub(crate) fn fma_chains(self, iters: usize, seed: f32) -> f32 {
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
@@ -640,6 +641,30 @@ impl Simd {
             return unsafe { fma_chains_avx2(iters, seed) };
         }
         fma_chains_body::<false>(iters, seed)
+    }
+
+    /// Whether the CPU has 16-lane FMAs (AVX-512F), the machine's widest.
+    pub(crate) fn has_avx512(self) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        {
+            is_x86_feature_detected!("avx512f")
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            false
+        }
+    }
+
+    /// [`Simd::fma_chains`] on 16-lane registers (`iters × 192` multiply-adds); `None`
+    /// without AVX-512F.
+    pub(crate) fn fma_chains_wide(self, iters: usize, seed: f32) -> Option<f32> {
+        #[cfg(target_arch = "x86_64")]
+        if self.has_avx512() {
+            // SAFETY: `has_avx512` found avx512f on this CPU.
+            return Some(unsafe { fma_chains_avx512(iters, seed) });
+        }
+        let _ = (iters, seed);
+        None
     }
 }
 
@@ -656,7 +681,7 @@ fn fma_chains_body<const FMA: bool>(iters: usize, seed: f32) -> f32 {
     acc.iter().flatten().sum()
 }
 
-/// Written with intrinsics: LLVM keeps plain arrays of 80 values on the stack.
+/// Written with intrinsics: LLVM keeps plain arrays of 96 values on the stack.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma,f16c")]
 unsafe fn fma_chains_avx2(iters: usize, seed: f32) -> f32 {
@@ -673,8 +698,75 @@ unsafe fn fma_chains_avx2(iters: usize, seed: f32) -> f32 {
         .sum()
 }
 
-/// Multiply-adds per iteration of [`Simd::fma_chains`].
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn fma_chains_avx512(iters: usize, seed: f32) -> f32 {
+    use std::arch::x86_64::*;
+    let mut acc = [_mm512_set1_ps(seed); CHAINS];
+    let (a, b) = (_mm512_set1_ps(0.999_999_9), _mm512_set1_ps(1e-7));
+    for _ in 0..iters {
+        for r in acc.iter_mut() {
+            *r = _mm512_fmadd_ps(*r, a, b);
+        }
+    }
+    acc.iter().map(|r| _mm512_reduce_add_ps(*r)).sum()
+}
+
+/// Multiply-adds per iteration of [`Simd::fma_chains`] (twice that for the wide one).
 pub(crate) const FMA_PER_ITER: usize = CHAINS * 8;
+
+impl Simd {
+    /// Read `N` byte streams of equal length together, 64 bytes of each per step, and
+    /// return the OR of all their 64-bit words: a read with the least work per byte
+    /// (one OR per 32 bytes), for the read-bandwidth probe.
+    pub(crate) fn or_streams<const N: usize>(self, streams: [&[u8]; N]) -> u64 {
+        let n = streams.first().map_or(0, |s| s.len());
+        let streams = streams.map(|s| &s[..n]);
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: as in `axpy`.
+            return unsafe { or_streams_avx2(streams) };
+        }
+        or_streams_body(streams, 0)
+    }
+}
+
+/// The OR of the 64-bit words of the streams from byte `from` on (a tail shorter than
+/// a word is read byte by byte).
+#[inline(always)]
+fn or_streams_body<const N: usize>(streams: [&[u8]; N], from: usize) -> u64 {
+    let mut acc = 0u64;
+    for s in streams {
+        let mut words = s[from..].chunks_exact(8);
+        for w in &mut words {
+            acc |= u64::from_ne_bytes(w.try_into().expect("8 bytes"));
+        }
+        acc |= words.remainder().iter().fold(0, |a, &b| a | b as u64);
+    }
+    acc
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,f16c")]
+unsafe fn or_streams_avx2<const N: usize>(streams: [&[u8]; N]) -> u64 {
+    use std::arch::x86_64::*;
+    let n = streams.first().map_or(0, |s| s.len());
+    let mut acc = [_mm256_setzero_si256(); N];
+    let mut i = 0;
+    while i + 64 <= n {
+        for (a, s) in acc.iter_mut().zip(&streams) {
+            let lines: [u8; 64] = s[i..i + 64].try_into().expect("64 bytes");
+            let [lo, hi] = bytemuck::cast::<[u8; 64], [__m256i; 2]>(lines);
+            *a = _mm256_or_si256(*a, _mm256_or_si256(lo, hi));
+        }
+        i += 64;
+    }
+    let words = acc
+        .iter()
+        .flat_map(|a| bytemuck::cast::<__m256i, [u64; 4]>(*a))
+        .fold(0, |x, w| x | w);
+    words | or_streams_body(streams, i)
+}
 
 #[cfg(test)]
 mod tests {
