@@ -260,3 +260,64 @@ fn bad_input_is_a_clear_error_and_leaves_no_partial_file() {
         Some(2)
     );
 }
+
+#[test]
+fn eval_scene_prints_every_light_type_as_json() {
+    let out = ok(&[
+        "eval",
+        "--scene",
+        "box",
+        "--size",
+        "80x60",
+        "--lights",
+        "fibonacci:80",
+        "--bands",
+        "3",
+        "--env-samples",
+        "32",
+        "--json",
+        "-q",
+    ]);
+    let r: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let lights = r["lights"].as_array().unwrap();
+    let kinds: Vec<&str> = lights.iter().map(|l| l["type"].as_str().unwrap()).collect();
+    assert_eq!(
+        kinds,
+        [
+            "directional",
+            "point",
+            "spot",
+            "projector",
+            "area",
+            "environment"
+        ]
+    );
+    for l in lights {
+        assert!(l["psnr_linear"].as_f64().unwrap() > 15.0, "{l}");
+        assert!(l["psnr_srgb8"].as_f64().unwrap() > 10.0, "{l}");
+    }
+    assert_eq!(r["environment"].as_array().unwrap().len(), 4);
+    // A rig naming a missing map is an error naming it, not a panic.
+    let dir = tempfile::tempdir().unwrap();
+    let rig = dir.path().join("rig.json");
+    std::fs::write(
+        &rig,
+        r#"{"lights":[{"type":"environment","map":"missing.hdr"}]}"#,
+    )
+    .unwrap();
+    fails(
+        &[
+            "eval",
+            "--scene",
+            "box",
+            "--size",
+            "40x30",
+            "--lights",
+            "fibonacci:20",
+            "--rig",
+            rig.to_str().unwrap(),
+            "-q",
+        ],
+        "missing.hdr",
+    );
+}

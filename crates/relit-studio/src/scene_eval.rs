@@ -203,6 +203,19 @@ pub fn evaluate(
     if rig.lights.is_empty() {
         return Err(invalid("the rig has no lights to evaluate"));
     }
+    // Every light's emitter first, so that a rig naming a missing or bad file fails
+    // before the capture and fit, not after.
+    let emitters = rig
+        .lights
+        .iter()
+        .map(|light| {
+            let mut truth_light = light.clone();
+            if let Light::Area(a) = &mut truth_light {
+                a.samples = a.samples.max(options.truth_area_samples);
+            }
+            Emitter::from_light_sampled(&truth_light, base, options.environment_samples)
+        })
+        .collect::<Result<Vec<_>>>()?;
     let directions = options.plan.directions();
     let captured =
         capture::capture_in_memory(scene, camera, &directions, &options.render, progress)?;
@@ -224,14 +237,9 @@ pub fn evaluate(
     let mut environment = Vec::new();
     let mut area = Vec::new();
     progress.begin("lights", rig.lights.len() as u64);
-    for (index, light) in rig.lights.iter().enumerate() {
-        let mut truth_light = light.clone();
-        if let Light::Area(a) = &mut truth_light {
-            a.samples = a.samples.max(options.truth_area_samples);
-        }
-        let emitter = Emitter::from_light_sampled(&truth_light, base, options.environment_samples)?;
+    for (index, (light, emitter)) in rig.lights.iter().zip(&emitters).enumerate() {
         let t = Instant::now();
-        let reference = truth.render(std::slice::from_ref(&emitter)).image;
+        let reference = truth.render(std::slice::from_ref(emitter)).image;
         let truth_seconds = t.elapsed().as_secs_f64();
         let single = LightRig::new(vec![light.clone()]);
         let t = Instant::now();
@@ -242,7 +250,7 @@ pub fn evaluate(
             sink(index, light, &reference, &relit)?;
         }
         let occlusion = (!light.is_uniform()).then(|| {
-            let wrong = truth.visibility_mismatch(&emitter);
+            let wrong = truth.visibility_mismatch(emitter);
             let affected: Vec<f32> = wrong
                 .iter()
                 .zip(&mask)
