@@ -29,7 +29,7 @@ function defaultView(r) {
 }
 
 const canvasEl = $('view');
-let renderer, panel, pending = false;
+let renderer, panel, pending = 0; // pending: the requested animation frame
 
 function resize() {
   if (app.fixedSize) {
@@ -47,11 +47,11 @@ function resize() {
 
 function request() {
   if (pending || !renderer) return;
-  pending = true;
-  requestAnimationFrame(() => { pending = false; renderNow(); });
+  pending = requestAnimationFrame(() => { pending = 0; renderNow(); });
 }
 
 function renderNow() {
+  if (pending) { cancelAnimationFrame(pending); pending = 0; }
   const t0 = performance.now();
   renderer.draw(app.view, app.exposure);
   renderer.finish();
@@ -268,7 +268,10 @@ window.relit = {
   /** Fix the canvas to w×h device pixels (null: follow the layout). */
   setCanvasSize: (w, h) => { app.fixedSize = w ? [w, h] : null; resize(); },
   renderSync: () => { renderNow(); return app.frameMs; },
-  readPixels: () => { renderNow(); return Array.from(renderer.readPixels()); },
+  /** The canvas as RGBA bytes, top row first (drawn first if a redraw is pending). */
+  readPixels: () => { if (pending || !app.frames) renderNow(); return Array.from(renderer.readPixels()); },
+  /** Frames drawn so far. */
+  get frames() { return app.frames; },
   /** Median milliseconds of `n` synchronised frames. */
   benchmark: (n = 20) => {
     const t = [];

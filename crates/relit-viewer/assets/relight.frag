@@ -29,6 +29,7 @@ uniform bool uDisplay;          // display-referred (sRGB) maps
 uniform bool uHasDepth;
 uniform vec2 uImage;            // width, height in pixels
 uniform bool uSmooth;           // bilinear coefficients (and depth where it is continuous)
+uniform float uMaxLod;          // mip levels of the planes − 1 (0: level 0 only)
 
 uniform int uViewMode;          // 0 flat pan/zoom, 1 perspective view of a panorama
 uniform vec2 uCanvas;
@@ -78,6 +79,7 @@ float wrapColumn(float x) {
 // The source position (continuous pixel coordinates) shown at this fragment; false
 // when the fragment shows nothing.
 bool sourcePosition(out vec2 pos) {
+  pos = vec2(0.0);
   vec2 frag = vec2(gl_FragCoord.x, uCanvas.y - gl_FragCoord.y);
   if (uViewMode == 0) {
     pos = uCenter + (frag - 0.5 * uCanvas) / uZoom;
@@ -193,14 +195,29 @@ float surfaceDepth(vec2 pos, ivec2 t, out vec2 at) {
 
 void main() {
   vec2 pos;
-  if (!sourcePosition(pos)) { outColor = vec4(uBackground, 1.0); return; }
+  bool inside = sourcePosition(pos);
+  // Texels per screen pixel, for the mip level (derivatives before any branch that is
+  // not uniform). Panorama columns wrap: of x and x shifted by half the width, take
+  // the one whose derivative does not cross the seam here.
+  vec2 dx = dFdx(pos), dy = dFdy(pos);
+  if (uWrapX) {
+    float x2 = pos.x + (pos.x < 0.5 * uImage.x ? 0.5 : -0.5) * uImage.x;
+    float dx2 = dFdx(x2), dy2 = dFdy(x2);
+    if (abs(dx2) < abs(dx.x)) dx.x = dx2;
+    if (abs(dy2) < abs(dy.x)) dy.x = dy2;
+  }
+  if (!inside) { outColor = vec4(uBackground, 1.0); return; }
   ivec2 t = min(ivec2(floor(pos)), ivec2(uImage) - 1);
   vec4 C[3 * N_LAYERS];
   if (uSmooth) {
-    // Hardware bilinear filtering of the coefficients (relighting is linear in them);
-    // the planes texture repeats horizontally on panoramas and clamps otherwise.
+    // Filtered coefficients (relighting is linear in them, so this filters the relit
+    // image): bilinear within a level, trilinear between the mip levels of the
+    // footprint when the view shrinks the image; level 0 exactly wherever a texel
+    // covers a screen pixel or more. The planes texture repeats horizontally on
+    // panoramas and clamps otherwise.
+    float lod = clamp(log2(max(length(dx), length(dy))), 0.0, uMaxLod);
     vec2 uv = pos / uImage;
-    for (int l = 0; l < 3 * N_LAYERS; l++) C[l] = uBias[l] + uScale[l] * texture(uPlanes, vec3(uv, float(l)));
+    for (int l = 0; l < 3 * N_LAYERS; l++) C[l] = uBias[l] + uScale[l] * textureLod(uPlanes, vec3(uv, float(l)), lod);
   } else {
     for (int l = 0; l < 3 * N_LAYERS; l++) C[l] = uBias[l] + uScale[l] * texelFetch(uPlanes, ivec3(t, l), 0);
   }

@@ -52,10 +52,14 @@ export class Renderer {
     gl.activeTexture(gl.TEXTURE0);
     gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.planes);
     const u8 = info.storage === 'u8';
-    gl.texStorage3D(gl.TEXTURE_2D_ARRAY, 1, u8 ? gl.RGBA8 : gl.RGBA16F, W, H, layers);
-    // Bilinear filtering (RGBA8 and RGBA16F are filterable in WebGL2; the shader uses
-    // texelFetch instead when smoothing is off). Panorama columns wrap around.
-    gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MIN_FILTER, gl.LINEAR);
+    // Mipmaps for views that shrink the image (generateMipmap needs a renderable
+    // format: RGBA8 always, RGBA16F with EXT_color_buffer_float; without it, level 0).
+    const mips = u8 || !!gl.getExtension('EXT_color_buffer_float');
+    this.mipLevels = mips ? Math.floor(Math.log2(Math.max(W, H))) + 1 : 1;
+    gl.texStorage3D(gl.TEXTURE_2D_ARRAY, this.mipLevels, u8 ? gl.RGBA8 : gl.RGBA16F, W, H, layers);
+    // Filtering (RGBA8 and RGBA16F are filterable in WebGL2; the shader picks the level
+    // and uses texelFetch instead when smoothing is off). Panorama columns wrap around.
+    gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MIN_FILTER, mips ? gl.LINEAR_MIPMAP_LINEAR : gl.LINEAR);
     gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MAG_FILTER, gl.LINEAR);
     gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_WRAP_S, this.wrapsColumns(info) ? gl.REPEAT : gl.CLAMP_TO_EDGE);
     gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
@@ -73,6 +77,10 @@ export class Renderer {
         gl.texSubImage3D(gl.TEXTURE_2D_ARRAY, 0, 0, 0, l, W, H, 1, gl.RGBA, gl.HALF_FLOAT, new Uint16Array(buf));
       }
     }));
+    if (this.mipLevels > 1) {
+      gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.planes);
+      gl.generateMipmap(gl.TEXTURE_2D_ARRAY);
+    }
     this.depthTex = gl.createTexture();
     gl.activeTexture(gl.TEXTURE1);
     gl.bindTexture(gl.TEXTURE_2D, this.depthTex);
@@ -368,6 +376,7 @@ export class Renderer {
     set('uHasDepth', 'uniform1i', this.depth ? 1 : 0);
     set('uImage', 'uniform2f', info.width, info.height);
     set('uSmooth', 'uniform1i', this.smooth ? 1 : 0);
+    set('uMaxLod', 'uniform1f', this.mipLevels - 1);
     const flat = view.mode === 'flat' || !this.isPanorama;
     set('uViewMode', 'uniform1i', flat ? 0 : 1);
     set('uCanvas', 'uniform2f', this.canvas.width, this.canvas.height);

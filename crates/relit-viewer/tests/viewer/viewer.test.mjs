@@ -181,6 +181,18 @@ function magnify(img, center, zoom, cw, ch, smooth) {
   return outPx;
 }
 
+/** The CPU image shrunk by `f` (a power of two): f×f box averages in linear light, what
+ *  the mip level log2(f) of the coefficients relights to. */
+function shrink(img, f) {
+  const w = img.w / f, h = img.h / f, outPx = new Uint8Array(w * h * 3);
+  for (let j = 0; j < h; j++) for (let i = 0; i < w; i++) for (let k = 0; k < 3; k++) {
+    let sum = 0;
+    for (let y = 0; y < f; y++) for (let x = 0; x < f; x++) sum += srgbToLinear(img.rgb[3 * ((j * f + y) * img.w + i * f + x) + k] / 255);
+    outPx[3 * (j * w + i) + k] = linearToSrgb8(sum / (f * f));
+  }
+  return outPx;
+}
+
 // ---- the scenes -------------------------------------------------------------------------
 const work = path.join(out, 'work');
 fs.mkdirSync(work);
@@ -461,26 +473,29 @@ try {
 
   await section('navigation', async () => {
     if (!current) await open(path.join(work, 'pano.exr'), ENVS);
+    // Only the view state is checked here, so a small canvas keeps SwiftShader quick.
+    const cw = 320, ch = 80;
+    await page.evaluate(([w, h]) => window.relit.setCanvasSize(w, h), [cw, ch]);
     await setRig({ lights: [{ type: 'directional', direction: [-0.4, 0.6, 0.7] }] });
     const b = await box();
     const at = (p) => [b.x + p[0], b.y + p[1]];
     // Mouse, flat view: drag pans by the drag / zoom; the wheel zooms about the cursor.
     await setView({ mode: 'flat', center: [W / 2, H / 2], zoom: 2 });
     let v0 = await view();
-    await page.mouse.move(...at([600, 100]));
+    await page.mouse.move(...at([200, 30]));
     await page.mouse.down();
-    await page.mouse.move(...at([540, 140]), { steps: 5 });
+    await page.mouse.move(...at([140, 70]), { steps: 4 });
     await page.mouse.up();
     let v = await view();
     expect('mouse drag pans the flat view', close(v.center, [v0.center[0] + 30, v0.center[1] - 20], 1e-6), v.center);
     v0 = v;
-    const cur = [300, 80];
+    const cur = [90, 25];
+    const under = (vv, p) => [vv.center[0] + (p[0] - cw / 2) / vv.zoom, vv.center[1] + (p[1] - ch / 2) / vv.zoom];
     await page.mouse.move(...at(cur));
     await page.mouse.wheel(0, -200);
     await page.waitForFunction((z) => window.relit.getView().zoom > z, v0.zoom);
     v = await view();
-    const under = (vv) => [vv.center[0] + (cur[0] - W / 2) / vv.zoom, vv.center[1] + (cur[1] - H / 2) / vv.zoom];
-    expect('wheel zooms in about the cursor', v.zoom > v0.zoom && close(under(v), under(v0), 1e-6), { zoom: [v0.zoom, v.zoom], under: [under(v0), under(v)] });
+    expect('wheel zooms in about the cursor', v.zoom > v0.zoom && close(under(v, cur), under(v0, cur), 1e-6), { zoom: [v0.zoom, v.zoom], under: [under(v0, cur), under(v, cur)] });
     // Keyboard, flat view: arrows pan 20 px (shift 80), +/- zoom by 1.25, 0 resets.
     await page.locator('#view').focus();
     v0 = await view();
@@ -500,38 +515,50 @@ try {
     await page.keyboard.press('ArrowLeft');
     await page.keyboard.press('ArrowUp');
     v0 = v; v = await view();
-    const deg = 75 / H;
+    const deg = 75 / ch; // degrees per canvas pixel at fov 75
     expect('arrow keys turn the perspective view', Math.abs(v.yaw - (v0.yaw - 20 * deg)) < 1e-9 && Math.abs(v.pitch - 20 * deg) < 1e-9, { yaw: v.yaw, pitch: v.pitch });
     await page.keyboard.press('=');
     expect('+ narrows the field of view', Math.abs((await view()).fov - 75 / 1.25) < 1e-9);
     await page.keyboard.press('0');
     // Touch: one finger pans (look around), two fingers pinch-zoom.
-    const touch = (type, pts) => cdp.send('Input.dispatchTouchEvent', { type, touchPoints: pts.map(([x, y], id) => ({ x: b.x + x, y: b.y + y, id })) });
+    // CDP touch events, fingers as [x, y, id]: touchStart/touchMove list the fingers
+    // down, touchEnd the fingers lifted (none listed: all).
+    const touch = (type, pts) => cdp.send('Input.dispatchTouchEvent', { type, touchPoints: pts.map(([x, y, id]) => ({ x: b.x + x, y: b.y + y, id })) });
     v0 = await view();
-    await touch('touchStart', [[500, 120]]);
-    for (let s = 1; s <= 5; s++) await touch('touchMove', [[500 - 16 * s, 120 + 6 * s]]);
+    await touch('touchStart', [[200, 30, 0]]);
+    for (let s = 1; s <= 4; s++) await touch('touchMove', [[200 - 5 * s, 30 + 2 * s, 0]]);
     await touch('touchEnd', []);
     v = await view();
-    expect('one-finger drag pans the perspective view', Math.abs(v.yaw - (v0.yaw + 80 * 75 / H)) < 1e-6 && Math.abs(v.pitch - (v0.pitch + 30 * 75 / H)) < 1e-6, { yaw: v.yaw, pitch: v.pitch });
+    expect('one-finger drag pans the perspective view', Math.abs(v.yaw - (v0.yaw + 20 * deg)) < 1e-6 && Math.abs(v.pitch - (v0.pitch + 8 * deg)) < 1e-6, { yaw: v.yaw, pitch: v.pitch });
     v0 = v;
-    await touch('touchStart', [[450, 128]]);
-    await touch('touchStart', [[450, 128], [550, 128]]);
-    for (let s = 1; s <= 5; s++) await touch('touchMove', [[450 - 10 * s, 128], [550 + 10 * s, 128]]);
-    await touch('touchEnd', [[550 + 50, 128]]);
+    await touch('touchStart', [[140, 40, 0]]);
+    await touch('touchStart', [[140, 40, 0], [180, 40, 1]]);
+    for (let s = 1; s <= 4; s++) await touch('touchMove', [[140 - 5 * s, 40, 0], [180 + 5 * s, 40, 1]]);
+    await touch('touchEnd', [[200, 40, 1]]);
     await touch('touchEnd', []);
     v = await view();
     expect('pinch (×2 apart) halves the field of view', Math.abs(v.fov - v0.fov / 2) < 1e-6 && Math.abs(v.yaw - v0.yaw) < 1.5, { fov: [v0.fov, v.fov], yaw: [v0.yaw, v.yaw] });
     // Pinch in the flat view: zoom ×2 about the fingers' midpoint, which stays put.
     await setView({ mode: 'flat', center: [W / 2, H / 2], zoom: 1 });
     v0 = await view();
-    await touch('touchStart', [[300, 100]]);
-    await touch('touchStart', [[300, 100], [400, 140]]);
-    for (let s = 1; s <= 4; s++) await touch('touchMove', [[300 - 12.5 * s, 100 - 5 * s], [400 + 12.5 * s, 140 + 5 * s]]);
-    await touch('touchEnd', [[450, 160]]);
+    await touch('touchStart', [[100, 30, 0]]);
+    await touch('touchStart', [[100, 30, 0], [140, 46, 1]]);
+    for (let s = 1; s <= 4; s++) await touch('touchMove', [[100 - 5 * s, 30 - 2 * s, 0], [140 + 5 * s, 46 + 2 * s, 1]]);
+    await touch('touchEnd', [[160, 54, 1]]);
     await touch('touchEnd', []);
     v = await view();
-    const mid = [350, 120], underMid = (vv) => [vv.center[0] + (mid[0] - W / 2) / vv.zoom, vv.center[1] + (mid[1] - H / 2) / vv.zoom];
-    expect('pinch zooms the flat view about the midpoint', Math.abs(v.zoom - 2) < 1e-6 && close(underMid(v), underMid(v0), 1e-6), { zoom: v.zoom, under: [underMid(v0), underMid(v)] });
+    const mid = [120, 38];
+    expect('pinch zooms the flat view about the midpoint', Math.abs(v.zoom - 2) < 1e-6 && close(under(v, mid), under(v0, mid), 1e-6), { zoom: v.zoom, under: [under(v0, mid), under(v, mid)] });
+    // After a pinch, the finger left down pans on.
+    v0 = await view();
+    await touch('touchStart', [[100, 30, 0]]);
+    await touch('touchStart', [[100, 30, 0], [140, 46, 1]]);
+    await touch('touchEnd', [[100, 30, 0]]);
+    for (let s = 1; s <= 3; s++) await touch('touchMove', [[140 + 4 * s, 46, 1]]);
+    await touch('touchEnd', []);
+    v = await view();
+    expect('the finger left after a pinch pans', close(v.center, [v0.center[0] - 12 / v0.zoom, v0.center[1]], 1e-6), { before: v0.center, after: v.center });
+    await page.evaluate(([w, h]) => window.relit.setCanvasSize(w, h), [W, H]);
     await setView({ mode: 'flat', center: [W / 2, H / 2], zoom: 1 });
   });
 
@@ -580,8 +607,21 @@ try {
       fs.writeFileSync(path.join(out, `zoom4-${smooth ? 'bilinear' : 'nearest'}.viewer.png`), encodePng(256, 128, g.rgb));
       expect(name, smooth ? r.psnr >= 35 : r.frac_over_2 <= 0.001, r);
     }
+    // (d) Shrunk flat view (¼): mipmapped, the CPU image's 4×4 box averages; the
+    //     nearest texel aliases (reported for contrast).
+    await page.evaluate(() => window.relit.setCanvasSize(256, 64));
+    const small = shrink(cpu, 4), shrunk = {};
+    for (const smooth of [false, true]) {
+      await page.evaluate((s) => window.relit.setSmooth(s), smooth);
+      await setView({ mode: 'flat', center: [512, 128], zoom: 0.25 });
+      g = await canvas();
+      fs.writeFileSync(path.join(out, `shrink4-${smooth ? 'mipmap' : 'nearest'}.viewer.png`), encodePng(256, 64, g.rgb));
+      shrunk[smooth] = compare(g.rgb, small);
+      results.comparisons[`flat ×¼ ${smooth ? 'mipmapped' : 'nearest'} vs CPU 4×4 box average`] = shrunk[smooth];
+    }
+    expect('flat ×¼ mipmapped vs CPU 4×4 box average (nearest for contrast)', shrunk[true].psnr >= 35 && shrunk[true].psnr > shrunk[false].psnr + 5, { mipmapped: shrunk[true], nearest: shrunk[false] });
     await page.evaluate(() => window.relit.setSmooth(true));
-    // (d) Equirectangular: tilted views (toward the pole, where it differs most).
+    // (e) Equirectangular: tilted views (toward the pole, where it differs most).
     await open(path.join(work, 'equirect.exr'), [], [256, 128]);
     const eqLights = [{ type: 'directional', direction: [-0.4, 0.6, 0.7] }];
     await setRig({ lights: eqLights });
@@ -590,6 +630,20 @@ try {
     await setRig({ lights: eqPoint });
     await check('equirect-point');
     await setRig({ lights: eqLights });
+    // Across the seam (column 0 = column W): a flat ½ view centred next to it must be
+    // the CPU image's 2×2 averages rolled by about half a turn, no line where the
+    // columns wrap (the seam falls inside a 2×2 fragment quad, between canvas columns
+    // 62 and 63, where the derivatives see it).
+    await page.evaluate(() => window.relit.setCanvasSize(128, 64));
+    await setView({ mode: 'flat', center: [2, 64], zoom: 0.5 });
+    g = await canvas();
+    const half = shrink(eqCpu, 2), rolled = new Uint8Array(half.length);
+    for (let j = 0; j < 64; j++) for (let i = 0; i < 128; i++) rolled.set(half.subarray(3 * (j * 128 + (i + 65) % 128), 3 * (j * 128 + (i + 65) % 128) + 3), 3 * (j * 128 + i));
+    const seam = compare(g.rgb, rolled), seamCols = [];
+    for (let j = 0; j < 64; j++) for (const i of [62, 63]) for (let k = 0; k < 3; k++) seamCols.push(Math.abs(g.rgb[3 * (j * 128 + i) + k] - rolled[3 * (j * 128 + i) + k]));
+    seam.seam_columns_max_abs = Math.max(...seamCols);
+    results.comparisons['flat ½ across the panorama seam vs CPU 2×2 average'] = seam;
+    expect('mipmapped view across the panorama seam', seam.psnr >= 35 && seam.seam_columns_max_abs <= 8, seam);
     await page.evaluate(() => window.relit.setSmooth(false));
     await page.evaluate(() => window.relit.setCanvasSize(384, 256));
     for (const v of [{ yaw: 20, pitch: -35, fov: 80 }, { yaw: 10, pitch: -65, fov: 100 }]) {
@@ -603,7 +657,7 @@ try {
       expect(name, r.frac_over_2 <= 0.01 && r.psnr >= 30, r);
     }
     await page.evaluate(() => window.relit.setSmooth(true));
-    // (e) A planar (pinhole) image: flat view only; point light placed by a click.
+    // (f) A planar (pinhole) image: flat view only; point light placed by a click.
     await open(path.join(work, 'planar.exr'), [], [192, 128]);
     expect('planar image: no perspective view to choose', await page.locator('#view-mode').isDisabled());
     await setRig({ lights: [{ type: 'point', position: [0, 1, 1], intensity: 2 }] });
@@ -645,9 +699,9 @@ try {
 
     // Screenshot of the whole page: perspective view, panel with three lights.
     await setRig({ lights: rigs['directional+point+environment'] });
+    const frames = await page.evaluate(() => window.relit.frames);
     await page.evaluate(() => { window.relit.setCanvasSize(null); window.relit.setView({ mode: 'pano', yaw: 20, pitch: -8, fov: 80 }); });
-    await page.waitForTimeout(300);
-    await page.evaluate(() => window.relit.renderSync());
+    await page.waitForFunction((n) => window.relit.frames > n, frames);
     await page.screenshot({ path: path.join(out, 'viewer-screenshot.png') });
     log(`screenshot: ${path.join(out, 'viewer-screenshot.png')}`);
   });
