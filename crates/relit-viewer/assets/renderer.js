@@ -347,6 +347,28 @@ export class Renderer {
     return warnings;
   }
 
+  /** Whether `view` shrinks the image enough to need mipmaps: flat views below 1:1;
+   *  perspective views where the largest footprint found on a grid of canvas points
+   *  (one-pixel differences, columns unwrapped) exceeds √2 texels, i.e. where a GL
+   *  nearest-mip filter would leave level 0 (the rectilinear view always stretches its
+   *  edges a little past 1:1). */
+  minifies(view) {
+    if (view.mode === 'flat' || !this.isPanorama) return view.zoom < 1;
+    const W = this.info.width, cw = this.canvas.width, ch = this.canvas.height;
+    const unwrap = (d) => (d > W / 2 ? d - W : d < -W / 2 ? d + W : d);
+    let most = 0;
+    for (let gy = 0; gy <= 6; gy++) for (let gx = 0; gx <= 8; gx++) {
+      const cx = 0.5 + (gx / 8) * (cw - 2), cy = 0.5 + (gy / 6) * (ch - 2);
+      const p = this.sourcePosition(view, cx, cy);
+      if (!p) continue;
+      for (const [ex, ey] of [[1, 0], [0, 1]]) {
+        const q = this.sourcePosition(view, cx + ex, cy + ey);
+        if (q) most = Math.max(most, Math.hypot(unwrap(q[0] - p[0]), q[1] - p[1]));
+      }
+    }
+    return most > Math.SQRT2;
+  }
+
   /** Draw one frame of `view` with the rig last prepared; `exposure` in stops. */
   draw(view, exposure = 0, background = [0.08, 0.08, 0.09]) {
     const gl = this.gl, U = this.uniforms, info = this.info, p = this.prepared;
@@ -356,6 +378,13 @@ export class Renderer {
     gl.bindVertexArray(this.vao);
     const set = (name, fn, ...args) => { if (U[name] != null) gl[fn](U[name], ...args); };
     gl.activeTexture(gl.TEXTURE0); gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.planes);
+    // Trilinear only where the view shrinks the image (it reads twice the texels);
+    // bilinear from level 0 otherwise, whatever level the shader asks for.
+    const minify = this.mipLevels > 1 && this.smooth && this.minifies(view);
+    if (minify !== this.minifying) {
+      gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MIN_FILTER, minify ? gl.LINEAR_MIPMAP_LINEAR : gl.LINEAR);
+      this.minifying = minify;
+    }
     gl.activeTexture(gl.TEXTURE1); gl.bindTexture(gl.TEXTURE_2D, this.depthTex);
     set('uPlanes', 'uniform1i', 0);
     set('uDepth', 'uniform1i', 1);

@@ -270,7 +270,8 @@ try {
   async function cpuRender(name, lights, rigFile) {
     if (!rigFile) { rigFile = path.join(work, `${name}.rig.json`); fs.writeFileSync(rigFile, JSON.stringify({ lights }, null, 2)); }
     const cpuFile = path.join(out, `${name}.cpu.png`);
-    run('relight', current.exr, '--rig', rigFile, '-o', cpuFile);
+    const exposure = await page.evaluate(() => Number(document.getElementById('exposure').value));
+    run('relight', current.exr, '--rig', rigFile, '--exposure', String(exposure), '-o', cpuFile);
     return decodePng(fs.readFileSync(cpuFile));
   }
   /** Compare the canvas (flat, 1:1) with `relit relight` of the viewer's rig. */
@@ -379,6 +380,9 @@ try {
     await page.keyboard.up('Shift');
     got = (await rig()).lights[1].direction;
     expect('shift on the sphere: far hemisphere', close(got, [0.6, 0, -0.8], 2e-3), got);
+    await page.touchscreen.tap(c[0], c[1] + 0.6 * r);
+    got = (await rig()).lights[1].direction;
+    expect('a tap on the sphere sets the direction', close(got, [0, -0.6, 0.8], 2e-3), got);
 
     // 5. Aim a directional light on the image: it comes from the camera ray seen there.
     await card(1).locator('button[data-tool="aim"]').click();
@@ -403,13 +407,19 @@ try {
     await page.keyboard.press('Escape');
     await check('spot');
 
-    // 7. A projector (slide loaded into the page) and a fill light.
-    await page.evaluate(async (b64) => {
-      const bytes = Uint8Array.from(atob(b64), (ch) => ch.charCodeAt(0));
-      await window.relit.loadSlide('slide.png', new Blob([bytes], { type: 'image/png' }));
-    }, fs.readFileSync(path.join(work, 'slide.png')).toString('base64'));
-    await setRig({ lights: [{ type: 'projector', position: pos, direction: [0.1, -0.2, -1], fov_deg: 50, slide: 'slide.png', intensity: 3 }, { type: 'directional', direction: [0, 1, 1], intensity: 0.3 }] });
+    // 7. A projector whose slide is opened in its card, and a fill light.
+    await setRig({ lights: [{ type: 'projector', position: pos, direction: [0.1, -0.2, -1], fov_deg: 50, slide: 'none.png', intensity: 3 }, { type: 'directional', direction: [0, 1, 1], intensity: 0.3 }] });
+    await card(0).locator('input[type="file"]').setInputFiles(path.join(work, 'slide.png'));
+    await page.waitForFunction(() => window.relit.getRig().lights[0].slide === 'slide.png' && window.relit.warnings.length === 0);
     await check('projector', 35);
+    // Remove the fill light with its ✕ button.
+    await card(1).locator('button.remove').click();
+    const left = (await rig()).lights;
+    expect('✕ removes a light', left.length === 1 && left[0].type === 'projector', left.map((l) => l.type));
+    // Exposure slider: the same as `relit relight --exposure`.
+    await page.locator('#exposure').fill('1.5');
+    await check('projector-exposure+1.5', 35);
+    await page.locator('#exposure').fill('0');
 
     // 8. Environment: map chosen in the panel, then turned by yaw/pitch/roll sliders.
     await setRig({ lights: [{ type: 'environment', map: 'sky.hdr', yaw_deg: 0, pitch_deg: 0, roll_deg: 0, window: { type: 'none' }, intensity: 0.5 }] });
@@ -592,6 +602,24 @@ try {
       fs.writeFileSync(path.join(out, `geometry-cyl-${v.yaw}.expected.png`), encodePng(512, 256, want));
       expect(name, r.frac_over_2 <= 0.01 && r.psnr >= 30, r);
     }
+    // Place a point light by clicking the perspective view: the pixel under the cursor
+    // through the pinhole and the camera model, × its depth × (1 − lift).
+    await page.evaluate(() => window.relit.setSmooth(true));
+    const pv = { yaw: -50, pitch: -10, fov: 60 };
+    await setView({ mode: 'pano', ...pv });
+    await setRig({ lights: [{ type: 'point', position: [0, 1, 0], intensity: 2 }] });
+    await card(0).locator('button[data-tool="place"]').click();
+    const gb = await box(), clickAt = [300.5, 180.5];
+    await page.mouse.click(gb.x + clickAt[0], gb.y + clickAt[1]);
+    await page.keyboard.press('Escape');
+    const src = panoramaPixel(current.info, pinholeRay(pv.yaw, pv.pitch, pv.fov, 512, 256, ...clickAt));
+    const [pi, pj] = [Math.floor(src[0]), Math.floor(src[1])];
+    const depthMap = new Float32Array(new Uint8Array(await fetchBytes(current.url + 'data/depth.f32')).buffer);
+    const pr = cameraRay(current.info, pi + 0.5, pj + 0.5), pd = depthMap[pj * W + pi];
+    const placed = pr.origin.map((o, k) => o + 0.85 * pd * pr.dir[k]);
+    const gotPos = (await rig()).lights[0].position;
+    expect('place on the perspective view: the pixel under the cursor', close(gotPos, placed, 2e-4), { pixel: [pi, pj], expected: placed, got: gotPos });
+    await setRig({ lights });
     // (c) Magnified flat view: bilinear equals bilinear interpolation of the relit image
     //     (in linear light); nearest equals the CPU pixels.
     await page.evaluate(() => window.relit.setCanvasSize(256, 128));
@@ -673,6 +701,16 @@ try {
     expect('planar: place on image uses the pinhole ray', close(got, want, 2e-4), { expected: want, got });
     await page.keyboard.press('Escape');
     await check('planar-point');
+    const z0 = (await view()).zoom;
+    await page.mouse.move(pb.x + 50, pb.y + 40);
+    await page.mouse.wheel(0, 300);
+    await page.waitForFunction((z) => window.relit.getView().zoom < z, z0);
+    await page.mouse.move(pb.x + 100, pb.y + 60);
+    await page.mouse.down();
+    await page.mouse.move(pb.x + 80, pb.y + 50, { steps: 2 });
+    await page.mouse.up();
+    const pvz = await view();
+    expect('planar image: wheel zooms, drag pans (flat)', pvz.mode === 'flat' && pvz.zoom < z0 && Math.abs(pvz.center[0] - (v.center[0] + (50 - 96) / z0 - (50 - 96) / pvz.zoom + 20 / pvz.zoom)) < 1e-6, pvz);
   });
 
   await section('frame-times', async () => {
