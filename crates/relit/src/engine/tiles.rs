@@ -1,5 +1,5 @@
 //! One tile of a frame: a run of `TILE` consecutive pixels, relit by uniform passes
-//! (one weight per plane, the planes streamed four at a time) and by point and spot
+//! (one weight per plane, the planes streamed eight at a time) and by point and spot
 //! lights (per block of [`BLOCK`] pixels: light vectors, falloff, then the f32 SH
 //! basis dotted with the block's coefficients). Lights of other types (projector,
 //! area) are added afterwards by the engine's per-pixel path.
@@ -9,9 +9,11 @@ use super::planes::Planes;
 use crate::color;
 use crate::light::{Attenuation, PreparedLight};
 
-/// Pixels per tile: each plane's segment (16 KiB in f32) is read in one sequential run,
-/// and the three channel accumulators (48 KiB) stay in L2.
-pub(crate) const TILE: usize = 4096;
+/// Pixels per tile: each plane's segment (64 KiB in f32, 16 KiB in u8) is read in one
+/// sequential run, and the three channel accumulators (192 KiB) stay in L2. A quarter
+/// of that (accumulators in L1) was 2–10 % slower for every storage at 8192×2048 and
+/// 1024×256 (more, shorter streams per plane).
+pub(crate) const TILE: usize = 16384;
 
 /// A uniform pass: weights per channel and coefficient on the stored values (plane
 /// scale folded in), a constant (plane bias folded in), and the RGB tint applied after
@@ -95,9 +97,23 @@ impl FastLight {
 
 /// Pixels whose coefficients the positional path decodes at once: each plane's run
 /// (4 KiB in f32) is read sequentially, and the `3k` runs (up to 768 KiB) stay in L2.
-/// Reading 64-pixel blocks straight from the `3k` planes was 2× slower (too many
-/// short streams for the prefetchers).
+/// Reading 64-pixel blocks straight from the `3k` planes (f32 planes used to be) was
+/// 2× slower at 8192×2048 and 1.2× faster at 1024×256, k = 16 (48 short streams for
+/// the prefetchers; software prefetches of the next run stalled on full fill buffers
+/// and cost 25 % at both sizes): decoding wins where it matters.
 const RUN: usize = 1024;
+
+/// The groups of coefficients a uniform pass reads together, `(first, count)`: eights,
+/// then a four, then ones (the kernels exist for these counts).
+fn plane_groups(k: usize) -> impl Iterator<Item = (usize, usize)> + Clone {
+    let eights = k / 8;
+    let four = (k % 8) / 4;
+    let ones = k % 4;
+    (0..eights)
+        .map(|g| (8 * g, 8))
+        .chain((0..four).map(move |_| (8 * eights, 4)))
+        .chain((0..ones).map(move |o| (8 * eights + 4 * four + o, 1)))
+}
 
 /// Per-worker buffers, reused across tiles.
 pub(crate) struct Scratch {
@@ -135,6 +151,9 @@ pub(crate) struct Frame<'a> {
     /// Surface points (x, y, z rows; NaN where nothing was hit), when `lights` is not empty.
     pub points: Option<&'a [Vec<f32>; 3]>,
     pub norms: &'a ShNorms,
+    /// Write the frame with non-temporal stores (one uniform pass, nothing added after
+    /// it, a frame larger than the caches).
+    pub stream: bool,
 }
 
 impl Frame<'_> {
@@ -151,39 +170,48 @@ impl Frame<'_> {
     fn tile_typed<T: Stored>(&self, data: &[T], p0: usize, dst: &mut [f32], scratch: &mut Scratch) {
         let len = dst.len() / 3;
         let n = self.n;
-        let plane = |j: usize| &data[j * n + p0..j * n + p0 + len];
         if self.passes.is_empty() {
             dst.fill(0.0);
         }
+        let k = self.k;
+        let plane = |j: usize| &data[j * n + p0..j * n + p0 + len];
+        // Groups of planes read together (channel, first coefficient, count): the first
+        // of a channel writes its accumulator (from the pass's constant), the others add
+        // to it; eight planes a group halve the accumulator's trips through L1.
+        let groups = (0..3).flat_map(|c| plane_groups(k).map(move |(i, m)| (c, i, m)));
         for (index, pass) in self.passes.iter().enumerate() {
-            for c in 0..3 {
+            for (c, i, m) in groups.clone() {
                 let acc = &mut scratch.acc[c][..len];
-                acc.fill(pass.offset[c]);
                 let w = &pass.weights[c];
-                let mut i = 0;
-                // Eight planes per pass halve the accumulator's trips through L1;
-                // 8-bit planes keep four (their conversions need the registers).
-                while T::EIGHT_PER_PASS && i + 8 <= self.k {
-                    let j = |d: usize| plane(3 * (i + d) + c);
-                    self.simd.axpy(
-                        acc,
-                        std::array::from_fn::<_, 8, _>(j),
-                        std::array::from_fn(|d| w[i + d]),
-                    );
-                    i += 8;
+                let seg = |d: usize| plane(3 * (i + d) + c);
+                let offset = pass.offset[c];
+                let first = i == 0;
+                match m {
+                    8 => {
+                        let planes = std::array::from_fn::<_, 8, _>(seg);
+                        let w = std::array::from_fn(|d| w[i + d]);
+                        if first {
+                            self.simd.axpy_init(acc, planes, w, offset);
+                        } else {
+                            self.simd.axpy(acc, planes, w);
+                        }
+                    }
+                    4 => {
+                        let planes = std::array::from_fn::<_, 4, _>(seg);
+                        let w = std::array::from_fn(|d| w[i + d]);
+                        if first {
+                            self.simd.axpy_init(acc, planes, w, offset);
+                        } else {
+                            self.simd.axpy(acc, planes, w);
+                        }
+                    }
+                    _ if first => self.simd.axpy_init(acc, [seg(0)], [w[i]], offset),
+                    _ => self.simd.axpy(acc, [seg(0)], [w[i]]),
                 }
-                while i + 4 <= self.k {
-                    let j = |d: usize| plane(3 * (i + d) + c);
-                    self.simd.axpy(
-                        acc,
-                        [j(0), j(1), j(2), j(3)],
-                        [w[i], w[i + 1], w[i + 2], w[i + 3]],
-                    );
-                    i += 4;
+                if i + m < k {
+                    continue;
                 }
-                for (i, &wi) in w.iter().enumerate().skip(i) {
-                    self.simd.axpy(acc, [plane(3 * i + c)], [wi]);
-                }
+                let acc = &mut scratch.acc[c][..len];
                 if self.display {
                     for v in acc.iter_mut() {
                         *v = pass.tint[c] * color::srgb_to_linear(v.clamp(0.0, 1.0));
@@ -193,7 +221,10 @@ impl Frame<'_> {
                 }
             }
             let [r, g, b] = &scratch.acc;
-            if index == 0 {
+            if index == 0 && self.stream {
+                self.simd
+                    .interleave_stream(dst, [&r[..len], &g[..len], &b[..len]]);
+            } else if index == 0 {
                 self.simd.interleave(dst, [&r[..len], &g[..len], &b[..len]]);
             } else {
                 for (p, px) in dst.chunks_exact_mut(3).enumerate() {
@@ -206,54 +237,24 @@ impl Frame<'_> {
         let Some(points) = self.points.filter(|_| !self.lights.is_empty()) else {
             return;
         };
-        // f32 planes are read in place; other types are decoded run by run.
-        let direct = T::as_f32(data);
+        // Every plane's run is decoded (f32: copied) into the scratch rows, one
+        // sequential read each, and the blocks read their values there, in L2.
         for r0 in (0..len).step_by(RUN) {
             let rl = RUN.min(len - r0);
-            let planes = 3 * self.k;
-            for (j, row) in scratch
-                .values
-                .chunks_exact_mut(RUN)
-                .enumerate()
-                .filter(|_| direct.is_none())
-            {
+            for (j, row) in scratch.values.chunks_exact_mut(RUN).enumerate() {
                 let (scale, bias) = self.planes.coding(j);
                 let at = j * n + p0 + r0;
                 self.simd
                     .decode(&mut row[..rl], &data[at..at + rl], scale, bias);
                 row[rl..].fill(0.0);
             }
-            // The next run (maybe the next tile's) streams in while this one is shaded.
-            let next = (p0 + r0 + RUN).min(n)..(p0 + r0 + 2 * RUN).min(n);
-            let blocks = rl.div_ceil(BLOCK);
-            for (index, b) in (0..rl).step_by(BLOCK).enumerate() {
-                for j in (index..planes).step_by(blocks) {
-                    self.simd
-                        .prefetch(&data[j * n + next.start..j * n + next.end]);
-                }
-                let bl = BLOCK.min(rl - b);
-                let values = match direct {
-                    // Whole blocks only: the last partial block of the image is decoded.
-                    Some(d) if p0 + r0 + b + BLOCK <= n => Rows {
-                        data: d,
-                        stride: n,
-                        offset: p0 + r0 + b,
-                    },
-                    _ => {
-                        if let Some(d) = direct {
-                            for (j, row) in scratch.values.chunks_exact_mut(RUN).enumerate() {
-                                let at = j * n + p0 + r0 + b;
-                                row[b..b + bl].copy_from_slice(&d[at..at + bl]);
-                                row[b + bl..b + BLOCK].fill(0.0);
-                            }
-                        }
-                        Rows {
-                            data: &scratch.values,
-                            stride: RUN,
-                            offset: b,
-                        }
-                    }
+            for b in (0..rl).step_by(BLOCK) {
+                let values = Rows {
+                    data: &scratch.values,
+                    stride: RUN,
+                    offset: b,
                 };
+                let bl = BLOCK.min(rl - b);
                 self.positional_block(p0 + r0 + b, r0 + b, bl, values, points, dst);
             }
         }
