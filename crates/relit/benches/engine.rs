@@ -1,11 +1,14 @@
-//! `cargo bench -p relit --bench engine`: the CPU engine's frame time at the seed size
-//! (1024×256, k = 16) for every plane storage, and per-pixel SH evaluation.
+//! `cargo bench -p relit --bench engine`: criterion benchmarks of the CPU engine at the
+//! seed size (1024×256, k = 16): directional, environment and point-light frames for
+//! every plane storage, and per-pixel SH evaluation.
 //!
-//! A plain timing harness (no criterion, so `cargo test` builds nothing extra): each
-//! case runs for about half a second after a warm-up frame and prints the median of
-//! five batches. `relit bench` is the full benchmark (sizes, k, GPU, bandwidth and FMA
-//! bounds); this one is for quick before/after comparisons of kernel changes.
+//! Criterion reports time per frame and pixels per second (throughput in elements =
+//! pixels), with its confidence intervals and the change from the last run, which makes
+//! it the tool for before/after comparisons of kernel changes. `relit bench` is the full
+//! benchmark (both sizes, k = 16 and 25, the GPU, and the bandwidth and FMA bounds
+//! measured in the same run). `cargo bench … -- --quick` for a short run.
 
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use relit::basis::BasisSpec;
 use relit::camera::{CameraSpec, Pose, Projection};
 use relit::engine::{PlaneStorage, Relighter, Roi, ShEvaluator};
@@ -13,7 +16,7 @@ use relit::image::ImageRgb;
 use relit::light::{Light, PreparedLight};
 use relit::maps::{CoefficientMaps, MapSpace, Metadata, RelightableImage};
 use std::hint::black_box;
-use std::time::Instant;
+use std::time::Duration;
 
 fn synthetic(width: usize, height: usize, bands: usize) -> RelightableImage {
     let k = bands * bands;
@@ -57,29 +60,13 @@ fn synthetic(width: usize, height: usize, bands: usize) -> RelightableImage {
     }
 }
 
-/// Median seconds per call over five batches of about 0.1 s.
-fn time(mut f: impl FnMut()) -> f64 {
-    f();
-    let t = Instant::now();
-    f();
-    let per_batch = ((0.1 / t.elapsed().as_secs_f64().max(1e-6)) as usize).max(1);
-    let mut batches: Vec<f64> = (0..5)
-        .map(|_| {
-            let t = Instant::now();
-            for _ in 0..per_batch {
-                f();
-            }
-            t.elapsed().as_secs_f64() / per_batch as f64
-        })
-        .collect();
-    batches.sort_by(f64::total_cmp);
-    batches[2]
-}
+const WIDTH: usize = 1024;
+const HEIGHT: usize = 256;
+const BANDS: usize = 4;
 
-fn main() {
-    let (width, height, bands) = (1024, 256, 4);
-    let image = synthetic(width, height, bands);
-    let k = bands * bands;
+fn frames(c: &mut Criterion) {
+    let image = synthetic(WIDTH, HEIGHT, BANDS);
+    let k = BANDS * BANDS;
     let here = std::path::Path::new("");
     let env = PreparedLight::Weights(std::array::from_fn(|c| {
         (0..k)
@@ -101,30 +88,29 @@ fn main() {
                 .unwrap()],
         ),
     ];
-    println!(
-        "{width}×{height}, k = {k}, {} threads",
-        rayon::current_num_threads()
-    );
-    let full = Roi::full(width, height);
-    for storage in PlaneStorage::ALL {
-        let r = Relighter::with_storage(&image, storage).unwrap();
-        let mut out = ImageRgb::new(0, 0);
-        for (name, lights) in &cases {
-            let s = time(|| {
-                r.relight_prepared_into(lights, 0.0, full, &mut out)
-                    .unwrap();
-                black_box(&out);
+    let full = Roi::full(WIDTH, HEIGHT);
+    for (name, lights) in &cases {
+        let mut group = c.benchmark_group(format!("{name} {WIDTH}x{HEIGHT} k{k}"));
+        group.throughput(Throughput::Elements((WIDTH * HEIGHT) as u64));
+        group.sample_size(30);
+        group.measurement_time(Duration::from_secs(2));
+        for storage in PlaneStorage::ALL {
+            let r = Relighter::with_storage(&image, storage).unwrap();
+            let mut out = ImageRgb::new(0, 0);
+            group.bench_function(BenchmarkId::from_parameter(storage.name()), |b| {
+                b.iter(|| {
+                    r.relight_prepared_into(lights, 0.0, full, &mut out)
+                        .unwrap();
+                    black_box(&out);
+                })
             });
-            println!(
-                "{name:<12} {:<4} {:>8.3} ms  {:>7.1} fps  ({})",
-                storage.name(),
-                s * 1e3,
-                1.0 / s,
-                r.kernels()
-            );
         }
+        group.finish();
     }
-    let eval = ShEvaluator::new(bands).unwrap();
+}
+
+/// The SH basis at 65536 directions (one thread, blocks of 4096 directions).
+fn sh_eval(c: &mut Criterion) {
     let n = 1 << 16;
     let dirs = relit::sphere::fibonacci(n);
     let coords: [Vec<f32>; 3] = [
@@ -132,20 +118,27 @@ fn main() {
         dirs.iter().map(|d| d.y as f32).collect(),
         dirs.iter().map(|d| d.z as f32).collect(),
     ];
-    let mut out = vec![0f32; k * 4096];
-    let s = time(|| {
-        for b in (0..n).step_by(4096) {
-            eval.eval(
-                &coords[0][b..b + 4096],
-                &coords[1][b..b + 4096],
-                &coords[2][b..b + 4096],
-                &mut out,
-            );
-        }
-        black_box(&out);
-    });
-    println!(
-        "sh_eval      one thread {:>8.1} Mpixel/s (k = {k})",
-        n as f64 / s / 1e6
-    );
+    let mut group = c.benchmark_group("sh_eval");
+    group.throughput(Throughput::Elements(n as u64));
+    for bands in [4, 5] {
+        let eval = ShEvaluator::new(bands).unwrap();
+        let mut out = vec![0f32; eval.len() * 4096];
+        group.bench_function(BenchmarkId::new("k", bands * bands), |b| {
+            b.iter(|| {
+                for at in (0..n).step_by(4096) {
+                    eval.eval(
+                        &coords[0][at..at + 4096],
+                        &coords[1][at..at + 4096],
+                        &coords[2][at..at + 4096],
+                        &mut out,
+                    );
+                }
+                black_box(&out);
+            })
+        });
+    }
+    group.finish();
 }
+
+criterion_group!(benches, frames, sh_eval);
+criterion_main!(benches);
