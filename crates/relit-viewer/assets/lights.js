@@ -76,6 +76,20 @@ export function checkRig(rig) {
   return rig;
 }
 
+/** What a rig file shows: the rig itself, or an animation's first keyframe (as
+ *  `relit relight --rig` renders without --frames). Returns { rig, note }. */
+export function rigOfFile(json) {
+  if (json && json.keyframes !== undefined) {
+    const keys = json.keyframes;
+    if (!Array.isArray(keys) || !keys.length) throw new Error('an animation needs at least one keyframe');
+    for (const key of Object.keys(json)) if (key !== 'keyframes') throw new Error(`unknown field “${key}” in the animation`);
+    const first = keys[0];
+    if (!first || typeof first.time !== 'number' || !isFinite(first.time)) throw new Error('keyframes[0]: time must be a finite number');
+    return { rig: checkRig({ lights: first.lights }), note: `animation of ${keys.length} keyframes: showing the first (t = ${first.time}); save rig writes a plain rig` };
+  }
+  return { rig: checkRig(json), note: '' };
+}
+
 /** The rig as the JSON text the CLI reads. */
 export function rigToJson(rig) {
   return JSON.stringify({ lights: rig.lights }, null, 2) + '\n';

@@ -3,7 +3,7 @@
 // on screen).
 import { Renderer } from './renderer.js';
 import { Panel } from './panel.js';
-import { newLight, checkRig, rigToJson } from './lights.js';
+import { newLight, checkRig, rigOfFile, rigToJson } from './lights.js';
 import { normalize, sub } from './sh.js';
 
 const $ = (id) => document.getElementById(id);
@@ -200,7 +200,11 @@ $('save-rig').addEventListener('click', () => download(new Blob([rigToJson(app.r
 $('load-rig').addEventListener('change', async () => {
   const f = $('load-rig').files[0];
   if (!f) return;
-  try { setRig(JSON.parse(await f.text())); } catch (err) { $('warnings').textContent = `could not load ${f.name}: ${err.message}`; }
+  try {
+    const { rig, note } = rigOfFile(JSON.parse(await f.text()));
+    setRig(rig);
+    if (note) $('warnings').textContent = [note, $('warnings').textContent].filter(Boolean).join('\n');
+  } catch (err) { $('warnings').textContent = `could not load ${f.name}: ${err.message}`; }
   $('load-rig').value = '';
 });
 $('screenshot').addEventListener('click', () => { renderNow(); canvasEl.toBlob(b => download(b, 'relit-screenshot.png'), 'image/png'); });

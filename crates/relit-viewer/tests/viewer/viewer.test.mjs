@@ -269,9 +269,14 @@ try {
   }
   async function cpuRender(name, lights, rigFile) {
     if (!rigFile) { rigFile = path.join(work, `${name}.rig.json`); fs.writeFileSync(rigFile, JSON.stringify({ lights }, null, 2)); }
-    const cpuFile = path.join(out, `${name}.cpu.png`);
+    let cpuFile = path.join(out, `${name}.cpu.png`);
     const exposure = await page.evaluate(() => Number(document.getElementById('exposure').value));
-    run('relight', current.exr, '--rig', rigFile, '--exposure', String(exposure), '-o', cpuFile);
+    if (JSON.parse(fs.readFileSync(rigFile, 'utf8')).keyframes) {
+      // An animation: its first frame (`--frames 1` renders the first keyframe's time).
+      const dir = path.join(out, `${name}.cpu`);
+      run('relight', current.exr, '--rig', rigFile, '--exposure', String(exposure), '--frames', '1', '--out', dir);
+      cpuFile = path.join(dir, 'frame_0000.png');
+    } else run('relight', current.exr, '--rig', rigFile, '--exposure', String(exposure), '-o', cpuFile);
     return decodePng(fs.readFileSync(cpuFile));
   }
   /** Compare the canvas (flat, 1:1) with `relit relight` of the viewer's rig. */
@@ -468,17 +473,27 @@ try {
     expect('load rig then save rig gives the identical file', fs.readFileSync(resaved, 'utf8') === text);
     const reloaded = await canvas();
     expect('loaded rig renders identical pixels', Buffer.compare(Buffer.from(reloaded.rgb), Buffer.from(shown.rgb)) === 0, `mean |diff| ${meanAbsDiff(reloaded.rgb, shown.rgb)}`);
-    // A broken rig file is refused with a message, and the rig stays as it was.
-    const bad = path.join(work, 'bad-rig.json');
-    fs.writeFileSync(bad, JSON.stringify({ lights: [{ type: 'point', positon: [0, 0, 0] }] }));
-    await page.locator('#load-rig').setInputFiles(bad);
-    await page.waitForFunction(() => document.getElementById('warnings').textContent.includes('could not load'));
-    expect('a bad rig file is refused', (await rig()).lights.length === 5, await page.locator('#warnings').textContent());
     // Screenshot button: a PNG of exactly the canvas.
     const shot = path.join(out, 'screenshot-button.png');
     await (await download('#screenshot')).saveAs(shot);
     const png = decodePng(fs.readFileSync(shot));
     expect('screenshot button saves the canvas', png.w === W && png.h === H && Buffer.compare(Buffer.from(png.rgb), Buffer.from(reloaded.rgb)) === 0, `${png.w}×${png.h}`);
+    // An animation file (`relit relight --rig … --frames N` takes them): its first keyframe.
+    const anim = path.join(work, 'anim-rig.json');
+    const firstKey = [{ type: 'point', position: [0.2, 0.5, 1.3], intensity: 2 }, { type: 'directional', direction: [0.5, 0.5, 0.7], intensity: 0.5 }];
+    fs.writeFileSync(anim, JSON.stringify({ keyframes: [{ time: 0, lights: firstKey }, { time: 1, lights: [{ ...firstKey[0], position: [-1, 0.5, 1] }, firstKey[1]] }] }));
+    await page.locator('#load-rig').setInputFiles(anim);
+    await page.waitForFunction(() => window.relit.getRig().lights.length === 2);
+    expect('an animation file loads its first keyframe', JSON.stringify((await rig()).lights) === JSON.stringify(firstKey));
+    const note = await page.locator('#warnings').textContent();
+    await check('animation-first-keyframe', MIN_PSNR, anim);
+    expect('the panel says it shows the first keyframe', note.includes('animation of 2 keyframes'), note);
+    // A broken rig file is refused with a message, and the rig stays as it was.
+    const bad = path.join(work, 'bad-rig.json');
+    fs.writeFileSync(bad, JSON.stringify({ lights: [{ type: 'point', positon: [0, 0, 0] }] }));
+    await page.locator('#load-rig').setInputFiles(bad);
+    await page.waitForFunction(() => document.getElementById('warnings').textContent.includes('could not load'));
+    expect('a bad rig file is refused', (await rig()).lights.length === 2, await page.locator('#warnings').textContent());
   });
 
   await section('navigation', async () => {
