@@ -743,11 +743,6 @@ try {
         results.frame_ms[`${mode} 1024x256, ${name}`] = await page.evaluate(() => { window.relit.renderSync(); return window.relit.benchmark(4); });
       }
     }
-    await page.evaluate(() => window.relit.setSmooth(false));
-    await setView({ mode: 'flat', center: [W / 2, H / 2], zoom: 1 });
-    await setRig({ lights: rigs.directional });
-    results.frame_ms['flat 1024x256, directional, nearest texel'] = await page.evaluate(() => { window.relit.renderSync(); return window.relit.benchmark(4); });
-    await page.evaluate(() => window.relit.setSmooth(true));
     for (const [k, v] of Object.entries(results.frame_ms)) log(`frame time ${k}: median ${v.median.toFixed(1)} ms (min ${v.min.toFixed(1)}, max ${v.max.toFixed(1)})`);
 
     // Screenshot of the whole page: perspective view, panel with three lights.
