@@ -29,7 +29,7 @@ uniform bool uDisplay;          // display-referred (sRGB) maps
 uniform bool uHasDepth;
 uniform vec2 uImage;            // width, height in pixels
 uniform bool uSmooth;           // bilinear coefficients (and depth where it is continuous)
-uniform float uMaxLod;          // mip levels of the planes − 1 (0: level 0 only)
+uniform float uMaxLod;          // mip levels − 1 when the view shrinks the image, else 0
 
 uniform int uViewMode;          // 0 flat pan/zoom, 1 perspective view of a panorama
 uniform vec2 uCanvas;
@@ -196,15 +196,20 @@ float surfaceDepth(vec2 pos, ivec2 t, out vec2 at) {
 void main() {
   vec2 pos;
   bool inside = sourcePosition(pos);
-  // Texels per screen pixel, for the mip level (derivatives before any branch that is
-  // not uniform). Panorama columns wrap: of x and x shifted by half the width, take
-  // the one whose derivative does not cross the seam here.
-  vec2 dx = dFdx(pos), dy = dFdy(pos);
-  if (uWrapX) {
-    float x2 = pos.x + (pos.x < 0.5 * uImage.x ? 0.5 : -0.5) * uImage.x;
-    float dx2 = dFdx(x2), dy2 = dFdy(x2);
-    if (abs(dx2) < abs(dx.x)) dx.x = dx2;
-    if (abs(dy2) < abs(dy.x)) dy.x = dy2;
+  // The mip level: log2 of the texels per screen pixel, from derivatives taken before
+  // any branch that is not uniform (uMaxLod is 0 unless the view shrinks the image).
+  // Panorama columns wrap: of x and x shifted by half the width, take the one whose
+  // derivative does not cross the seam here.
+  float lod = 0.0;
+  if (uSmooth && uMaxLod > 0.0) {
+    vec2 dx = dFdx(pos), dy = dFdy(pos);
+    if (uWrapX) {
+      float x2 = pos.x + (pos.x < 0.5 * uImage.x ? 0.5 : -0.5) * uImage.x;
+      float dx2 = dFdx(x2), dy2 = dFdy(x2);
+      if (abs(dx2) < abs(dx.x)) dx.x = dx2;
+      if (abs(dy2) < abs(dy.x)) dy.x = dy2;
+    }
+    lod = clamp(log2(max(length(dx), length(dy))), 0.0, uMaxLod);
   }
   if (!inside) { outColor = vec4(uBackground, 1.0); return; }
   ivec2 t = min(ivec2(floor(pos)), ivec2(uImage) - 1);
@@ -215,7 +220,6 @@ void main() {
     // footprint when the view shrinks the image; level 0 exactly wherever a texel
     // covers a screen pixel or more. The planes texture repeats horizontally on
     // panoramas and clamps otherwise.
-    float lod = clamp(log2(max(length(dx), length(dy))), 0.0, uMaxLod);
     vec2 uv = pos / uImage;
     for (int l = 0; l < 3 * N_LAYERS; l++) C[l] = uBias[l] + uScale[l] * textureLod(uPlanes, vec3(uv, float(l)), lod);
   } else {

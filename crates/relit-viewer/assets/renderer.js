@@ -405,7 +405,7 @@ export class Renderer {
     set('uHasDepth', 'uniform1i', this.depth ? 1 : 0);
     set('uImage', 'uniform2f', info.width, info.height);
     set('uSmooth', 'uniform1i', this.smooth ? 1 : 0);
-    set('uMaxLod', 'uniform1f', this.mipLevels - 1);
+    set('uMaxLod', 'uniform1f', this.minifying ? this.mipLevels - 1 : 0);
     const flat = view.mode === 'flat' || !this.isPanorama;
     set('uViewMode', 'uniform1i', flat ? 0 : 1);
     set('uCanvas', 'uniform2f', this.canvas.width, this.canvas.height);
