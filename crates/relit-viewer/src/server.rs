@@ -311,11 +311,10 @@ fn read_head(stream: &mut TcpStream, timeout: Duration) -> Head {
             Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
             Err(_) => return Head::Closed,
         };
-        // Only the new bytes (and the three before them) can complete the terminator.
-        let from = head.len().saturating_sub(3);
+        // Only the new bytes (and the two before them) can complete the blank line.
+        let from = head.len().saturating_sub(2);
         head.extend_from_slice(&buf[..n]);
-        if let Some(end) = head[from..].windows(4).position(|w| w == b"\r\n\r\n") {
-            let end = from + end + 4;
+        if let Some(end) = head_end(&head, from) {
             if end > MAX_HEAD {
                 return Head::TooLarge;
             }
@@ -326,6 +325,16 @@ fn read_head(stream: &mut TcpStream, timeout: Duration) -> Head {
             return Head::TooLarge;
         }
     }
+}
+
+/// The end of the blank line that closes a request head (`\r\n\r\n`, or bare `\n`
+/// line ends as RFC 9112 allows a server to accept), searching from `from`.
+fn head_end(head: &[u8], from: usize) -> Option<usize> {
+    (from..head.len()).find_map(|i| match head[i..] {
+        [b'\n', b'\n', ..] => Some(i + 2),
+        [b'\n', b'\r', b'\n', ..] => Some(i + 3),
+        _ => None,
+    })
 }
 
 fn handle(mut stream: TcpStream, bundle: &WebBundle, options: &ServerOptions) {

@@ -89,6 +89,9 @@ fn serves_assets_and_data() {
     assert_eq!(get(addr, "/data/depth.f32").1.len(), 48 * 12 * 4);
     let (status, body) = request(addr, "HEAD /data/info.json HTTP/1.1\r\n\r\n");
     assert_eq!((status, body.len()), (200, 0));
+    // Bare LF line ends are accepted too.
+    assert_eq!(request(addr, "GET /main.js HTTP/1.1\nHost: x\n\n").0, 200);
+    assert_eq!(request(addr, "GET /main.js HTTP/1.0\n\n").0, 200);
     server.stop();
 }
 
