@@ -518,23 +518,24 @@ impl<'a> Relighter<'a> {
         if roi.x == 0 && roi.width == width {
             // Whole rows: one run of consecutive pixels, cut into tiles.
             let start = roi.y * width;
-            out.data.par_chunks_mut(3 * TILE).enumerate().for_each_init(
-                || Scratch::new(k, positional),
-                |scratch, (t, dst)| run(start + t * TILE, dst, scratch),
-            );
+            out.data
+                .par_chunks_mut(3 * TILE)
+                .enumerate()
+                .for_each(|(t, dst)| {
+                    Scratch::with(k, positional, |scratch| run(start + t * TILE, dst, scratch))
+                });
         } else {
             out.data
                 .par_chunks_mut(3 * roi.width)
                 .enumerate()
-                .for_each_init(
-                    || Scratch::new(k, positional),
-                    |scratch, (r, row)| {
-                        let start = (roi.y + r) * width + roi.x;
+                .for_each(|(r, row)| {
+                    let start = (roi.y + r) * width + roi.x;
+                    Scratch::with(k, positional, |scratch| {
                         for (t, dst) in row.chunks_mut(3 * TILE).enumerate() {
                             run(start + t * TILE, dst, scratch);
                         }
-                    },
-                );
+                    })
+                });
         }
         Ok(())
     }

@@ -511,6 +511,16 @@ impl F8 {
 /// as they are made and never stored. The block-wide version before it kept `cos mφ`,
 /// `sin mφ`, the Legendre rows and the sums in 64-lane arrays in L1 and was bound by
 /// their stores: point-light frames (1024×256, k = 16) are 1.05–1.2× faster this way.
+/// `sum[c] += y · row(j + c)[q..q + 8]` for the three channels. A function, not a
+/// closure: closures do not inherit the caller's target features, and `mul_add`
+/// outside them is a call to the C library (10× slower, measured).
+#[inline(always)]
+fn add3<const FMA: bool>(sum: &mut [F8; 3], y: F8, values: &Rows, j: usize, q: usize) {
+    for (c, s) in sum.iter_mut().enumerate() {
+        *s = y.madd::<FMA>(F8::load(&values.row(j + c)[q..]), *s);
+    }
+}
+
 #[inline(always)]
 fn sh_dot_body<const FMA: bool>(
     bands: usize,
@@ -521,8 +531,10 @@ fn sh_dot_body<const FMA: bool>(
 ) {
     for q in (0..BLOCK).step_by(8) {
         let [x, y, z] = dir.each_ref().map(|d| F8::load(&d[q..]));
-        let v = |j: usize| F8::load(&values.row(j)[q..]);
+        // Two sums per channel, taking turns: half as long a chain of dependent
+        // multiply-adds (latency, not throughput, bounded a single sum).
         let mut sum = acc.each_ref().map(|a| F8::load(&a[q..]));
+        let mut other = [F8::splat(0.0); 3];
         let (mut cm, mut sm) = (F8::splat(1.0), F8::splat(0.0));
         let mut pmm = 1f32;
         for m in 0..bands {
@@ -547,20 +559,16 @@ fn sh_dot_body<const FMA: bool>(
                 let kp = p_cur.scale(norm.k[j]);
                 let base = l * (l + 1);
                 if m == 0 {
-                    for (c, s) in sum.iter_mut().enumerate() {
-                        *s = kp.madd::<FMA>(v(3 * base + c), *s);
-                    }
+                    add3::<FMA>(&mut sum, kp, &values, 3 * base, q);
                 } else {
-                    let (yc, ys) = (kp.mul(cm), kp.mul(sm));
-                    for (c, s) in sum.iter_mut().enumerate() {
-                        let t = ys.madd::<FMA>(v(3 * (base - m) + c), *s);
-                        *s = yc.madd::<FMA>(v(3 * (base + m) + c), t);
-                    }
+                    add3::<FMA>(&mut sum, kp.mul(sm), &values, 3 * (base - m), q);
+                    add3::<FMA>(&mut sum, kp.mul(cm), &values, 3 * (base + m), q);
                 }
+                std::mem::swap(&mut sum, &mut other);
             }
         }
-        for (a, s) in acc.iter_mut().zip(sum) {
-            a[q..q + 8].copy_from_slice(&s.0);
+        for ((a, e), o) in acc.iter_mut().zip(sum).zip(other) {
+            a[q..q + 8].copy_from_slice(&F8(std::array::from_fn(|i| e.0[i] + o.0[i])).0);
         }
     }
 }
