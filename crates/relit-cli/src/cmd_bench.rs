@@ -147,6 +147,9 @@ struct Row {
 
 const CASES: [&str; 3] = ["directional", "environment", "point"];
 
+/// Width, height, k and storage of the maps a read bound belongs to.
+type BoundKey = (usize, usize, usize, &'static str);
+
 /// Timed batches per case; the read probe runs once before each batch of a uniform case.
 const BATCHES: usize = 5;
 
@@ -259,12 +262,8 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
     });
     let mut rows = Vec::new();
     // The read bound of each size, k and storage: the best probe so far.
-    let mut bounds: Vec<((usize, usize, usize, &'static str), f64)> = Vec::new();
-    fn raise(
-        bounds: &mut Vec<((usize, usize, usize, &'static str), f64)>,
-        key: (usize, usize, usize, &'static str),
-        rate: f64,
-    ) {
+    let mut bounds: Vec<(BoundKey, f64)> = Vec::new();
+    fn raise(bounds: &mut Vec<(BoundKey, f64)>, key: BoundKey, rate: f64) {
         match bounds.iter_mut().find(|(k, _)| *k == key) {
             Some((_, r)) => *r = r.max(rate),
             None => bounds.push((key, rate)),

@@ -1018,10 +1018,10 @@ mod tests {
     /// 211 × 97 pixels: two tiles, the second partial, and a partial last run and block.
     #[test]
     fn every_storage_and_kernel_equals_the_reference() {
+        const { assert!(TILE < 211 * 97 && 211 * 97 < 2 * TILE) };
         for space in [MapSpace::Linear, MapSpace::Srgb] {
             for bands in [3, 4, 5] {
                 let img = random_image(211, 97, bands, space);
-                assert!(TILE < 211 * 97 && 211 * 97 < 2 * TILE);
                 for storage in PlaneStorage::ALL {
                     for mode in ["detected", "portable", "streaming"] {
                         let mut r = Relighter::with_storage(&img, storage).unwrap();
