@@ -43,8 +43,8 @@ use tiles::{FastLight, Frame, Scratch, UniformPass, TILE};
 /// Frames of at least this many bytes are written with non-temporal stores (see
 /// `Simd::interleave_stream`): far more than the L2 caches and a fair share of an L3.
 /// Measured: at 8192×2048 (192 MiB frames) 5–10 % faster for f16 and u8 planes, no
-/// change for f32; at 1024×256 (3 MiB, which stays in L3 between frames) 15–25 %
-/// slower, so small frames are written as usual.
+/// change for f32; at 1024×256 (3 MiB, which stays in L3 between frames) about 15 %
+/// slower for f16 and u8, so small frames are written as usual.
 const STREAM_BYTES: usize = 64 << 20;
 
 /// Options of [`relight`].

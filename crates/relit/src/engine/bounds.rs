@@ -15,7 +15,7 @@
 //! * contiguous: each thread reads one share of the planes' bytes as four streams.
 //!
 //! A single stream per thread (the earlier probe: rayon over 256 KiB chunks, an f32 sum
-//! without AVX2) read 30–50 % slower than both on this project's machine, slower than
+//! without AVX2) read 25–40 % slower than both on this project's machine, slower than
 //! the engine itself, which then reported 116–158 % "of the bound"; several streams per
 //! thread let the prefetchers keep more lines in flight. 16-lane (AVX-512) loads were
 //! no faster in either pattern (measured), so the probe does not use them. The caller

@@ -14,7 +14,7 @@
 //! of the speed of four planes per pass; a dot product over all planes per 32-pixel
 //! block (accumulators in registers) reads k streams at once and was 30 % slower than
 //! four planes per pass. [`Simd::axpy`] takes eight planes per pass (every storage;
-//! for u8 planes eight were 5 % faster than four on this project's Intel machine), and
+//! for u8 planes eight were 2–10 % faster than four on this project's Intel machine), and
 //! the first pass of a channel writes the accumulator instead of adding to a cleared
 //! one ([`Simd::axpy_init`]).
 //!

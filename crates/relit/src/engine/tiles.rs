@@ -12,8 +12,9 @@ use std::cell::RefCell;
 
 /// Pixels per tile: each plane's segment (64 KiB in f32, 16 KiB in u8) is read in one
 /// sequential run, and the three channel accumulators (192 KiB) stay in L2. A quarter
-/// of that (accumulators in L1) was 2–10 % slower for every storage at 8192×2048 and
-/// 1024×256 (more, shorter streams per plane).
+/// of that (accumulators in L1) was up to 9 % slower for uniform frames of every
+/// storage at 8192×2048 and 1024×256 (more, shorter streams per plane), and no
+/// different for point lights.
 pub(crate) const TILE: usize = 16384;
 
 /// A uniform pass: weights per channel and coefficient on the stored values (plane
