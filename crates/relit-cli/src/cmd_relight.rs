@@ -3,7 +3,7 @@
 use crate::shared::Bars;
 use anyhow::{bail, Context};
 use relit::codec::exr;
-use relit::engine::{PlaneStorage, RelightOptions, Relighter, Roi};
+use relit::engine::{CompactPlanes, PlaneStorage, RelightOptions, Relighter, Roi};
 use relit::image::ImageRgb;
 use relit::light::{parse_triple, Light, LightRig, RigFile};
 use relit::maps::RelightableImage;
@@ -74,6 +74,16 @@ enum Engine<'a> {
 }
 
 impl Engine<'_> {
+    /// Bytes of the coefficient planes held on the host: the f32 maps (empty when the
+    /// file was decoded straight into compact planes) and any compact copy.
+    fn plane_bytes(&self, image: &RelightableImage) -> usize {
+        let f32_maps = image.maps.bytes();
+        match self {
+            Engine::Cpu(r) if r.storage() != PlaneStorage::F32 => f32_maps + r.plane_bytes(),
+            _ => f32_maps,
+        }
+    }
+
     fn render(
         &self,
         rig: &LightRig,
@@ -120,9 +130,20 @@ fn max_abs_difference(a: &ImageRgb, b: &ImageRgb) -> (f32, f32) {
     (diff, peak)
 }
 
-fn build_engine<'a>(image: &'a RelightableImage, args: &Args) -> anyhow::Result<Engine<'a>> {
-    let storage = PlaneStorage::parse(&args.storage)
-        .with_context(|| format!("--storage `{}`: expected f32, f16 or u8", args.storage))?;
+fn storage_arg(args: &Args) -> anyhow::Result<PlaneStorage> {
+    PlaneStorage::parse(&args.storage)
+        .with_context(|| format!("--storage `{}`: expected f32, f16 or u8", args.storage))
+}
+
+fn build_engine<'a>(
+    image: &'a RelightableImage,
+    compact: Option<CompactPlanes>,
+    args: &Args,
+) -> anyhow::Result<Engine<'a>> {
+    let storage = storage_arg(args)?;
+    if let Some(planes) = compact {
+        return Ok(Engine::Cpu(Relighter::with_compact(image, planes)?));
+    }
     if !args.gpu {
         return Ok(Engine::Cpu(Relighter::with_storage(image, storage)?));
     }
@@ -176,7 +197,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         exposure: args.exposure,
         resource_dir,
     };
-    let image = exr::read(&args.file)?;
+    // Compact CPU planes are decoded straight from the file, so the f32 maps are never
+    // held (--compare and --gpu need them).
+    let storage = storage_arg(&args)?;
+    let (image, compact) = if storage != PlaneStorage::F32 && !args.gpu && !args.compare {
+        let (image, planes) = exr::read_compact(&args.file, storage)?;
+        (image, Some(planes))
+    } else {
+        (exr::read(&args.file)?, None)
+    };
     let roi = match &args.roi {
         Some(s) => {
             let roi = Roi::parse(s)?;
@@ -186,7 +215,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         None => Roi::full(image.width(), image.height()),
     };
-    let relighter = build_engine(&image, &args)?;
+    let relighter = build_engine(&image, compact, &args)?;
 
     if let Some(RigFile::Animation(anim)) = &rig_file {
         let frames = args.frames.context("an animated rig needs --frames N")?;
@@ -257,7 +286,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         seconds * 1e3
     );
     if args.memory {
-        let maps = image.maps.bytes() as u64;
+        let maps = relighter.plane_bytes(&image) as u64;
         let out = (frame.data.len() * 4) as u64;
         let peak = relit::memory::peak_rss_bytes().unwrap_or(0);
         println!(

@@ -30,11 +30,11 @@ use std::sync::{Arc, Mutex, OnceLock};
 
 mod bounds;
 mod kernels;
-mod planes;
+pub(crate) mod planes;
 mod tiles;
 
 pub use bounds::{fma_peak, fma_throughput, FmaPeak};
-pub use planes::PlaneStorage;
+pub use planes::{CompactPlanes, PlaneStorage};
 
 use kernels::{ShNorms, Simd};
 use planes::Planes;
@@ -193,6 +193,39 @@ impl<'a> Relighter<'a> {
             basis,
             bands,
             planes: Planes::new(&image.maps, storage),
+            simd: Simd::detect(),
+            norms: ShNorms::new(),
+            stream_from: STREAM_BYTES,
+            points: OnceLock::new(),
+            point_rows: OnceLock::new(),
+            slides: Mutex::new(HashMap::new()),
+            environments: Mutex::new(HashMap::new()),
+        })
+    }
+
+    /// A relighter over compact planes decoded without the f32 maps
+    /// ([`crate::codec::exr::read_compact`]): `image` supplies the metadata, sizes and
+    /// depth; its `maps.data` is not read and may be empty.
+    pub fn with_compact(image: &'a RelightableImage, planes: CompactPlanes) -> Result<Self> {
+        let basis = image.meta.basis.build()?;
+        let k = image.maps.k;
+        if basis.len() != k || planes.count != 3 * k || planes.pixels != image.maps.pixels() {
+            return Err(Error::invalid(format!(
+                "compact planes ({} of {} values) do not match the file's {}×{} maps of {} coefficients (basis {})",
+                planes.count,
+                planes.pixels,
+                image.width(),
+                image.height(),
+                k,
+                basis.len()
+            )));
+        }
+        let BasisSpec::Sh { bands } = image.meta.basis;
+        Ok(Self {
+            image,
+            basis,
+            bands,
+            planes: planes.planes,
             simd: Simd::detect(),
             norms: ShNorms::new(),
             stream_from: STREAM_BYTES,

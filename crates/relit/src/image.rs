@@ -159,9 +159,8 @@ pub fn save(path: &Path, image: &ImageRgb, exposure: f64) -> Result<()> {
     let factor = 2f32.powf(exposure as f32);
     let ext = extension(path).unwrap_or_default();
     if ext == "exr" {
-        let mut scaled = image.clone();
-        scaled.scale(factor);
-        return crate::codec::exr::write_rgb(path, &scaled);
+        // Scaled while encoding: no copy of a frame that may be gigabytes.
+        return crate::codec::exr::write_rgb_scaled(path, image, factor);
     }
     let format = match ext.as_str() {
         "png" => image::ImageFormat::Png,

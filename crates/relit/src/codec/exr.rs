@@ -6,6 +6,8 @@
 
 use super::Storage;
 use crate::basis::BasisSpec;
+use crate::engine::planes::{fold_range, u8_coding, u8_quantize, EMPTY_RANGE};
+use crate::engine::{CompactPlanes, PlaneStorage};
 use crate::fsutil::write_atomically;
 use crate::image::ImageRgb;
 use crate::maps::{CoefficientMaps, FitInfo, MapSpace, Metadata, RelightableImage, FORMAT_VERSION};
@@ -128,6 +130,91 @@ fn parse_json<T: serde::de::DeserializeOwned>(path: &Path, name: &str, s: &str) 
 
 /// Read a relightable image written by [`write`].
 pub fn read(path: &Path) -> Result<RelightableImage> {
+    Ok(read_planes(path, Sink::F32)?.0)
+}
+
+/// Read a relightable file straight into compact planes (`storage` f16 or u8) for
+/// [`Relighter::with_compact`](crate::engine::Relighter::with_compact), never holding
+/// the f32 maps: the returned image's `maps.data` is empty (sizes, metadata and depth
+/// are there). f16 rounds each value to half (exact for half-float files). u8 reads the
+/// file twice, first for each plane's range, then decoding straight into 8 bits with
+/// that plane's scale and bias: the same bytes as quantising the f32 maps. Peak memory:
+/// the compact planes plus the blocks in flight.
+pub fn read_compact(
+    path: &Path,
+    storage: PlaneStorage,
+) -> Result<(RelightableImage, CompactPlanes)> {
+    let (image, sink) = match storage {
+        PlaneStorage::F32 => {
+            return Err(Error::invalid(
+                "read_compact makes f16 or u8 planes; use read for f32",
+            ))
+        }
+        PlaneStorage::F16 => read_planes(path, Sink::F16(Vec::new()))?,
+        PlaneStorage::U8 => {
+            let ranges = match read_planes(path, Sink::Ranges(Vec::new()))?.1 {
+                Sink::Ranges(r) => r,
+                _ => unreachable!("a range scan returns ranges"),
+            };
+            let (scale, bias) = ranges.iter().map(|&(lo, hi)| u8_coding(lo, hi)).unzip();
+            read_planes(
+                path,
+                Sink::U8 {
+                    data: Vec::new(),
+                    scale,
+                    bias,
+                },
+            )?
+        }
+    };
+    let (pixels, count) = (image.maps.pixels(), 3 * image.maps.k);
+    let planes = match sink {
+        Sink::F16(bits) => CompactPlanes::from_f16_bits(bits, pixels, count),
+        Sink::U8 { data, scale, bias } => CompactPlanes::from_u8(data, scale, bias, pixels, count),
+        _ => None,
+    }
+    .expect("the planes were sized from the header");
+    Ok((image, planes))
+}
+
+/// Where the coefficient planes are decoded to.
+enum Sink {
+    /// The maps' f32 values (`RelightableImage::maps.data`).
+    F32,
+    /// Half-float bits (allocated by the reader).
+    F16(Vec<u16>),
+    /// Only each plane's finite range `(lo, hi)` (allocated by the reader).
+    Ranges(Vec<(f32, f32)>),
+    /// 8 bits in the given coding per plane (`data` allocated by the reader).
+    U8 {
+        data: Vec<u8>,
+        scale: Vec<f32>,
+        bias: Vec<f32>,
+    },
+}
+
+/// A zeroed vector of `len` values, or an error naming what needed it when the memory
+/// cannot be had: sizes come from a file's header, which must not abort the process.
+fn try_zeroed<T: Copy + Default>(len: Option<usize>, what: &str) -> Result<Vec<T>> {
+    let bytes = len.and_then(|n| n.checked_mul(std::mem::size_of::<T>()));
+    let (Some(len), Some(bytes)) = (len, bytes) else {
+        return Err(Error::invalid(format!("{what}: the size overflows")));
+    };
+    let mut v = Vec::new();
+    v.try_reserve_exact(len).map_err(|_| {
+        Error::new(
+            ErrorKind::InvalidInput,
+            format!(
+                "{what} need {:.1} GiB, which could not be allocated",
+                bytes as f64 / (1u64 << 30) as f64
+            ),
+        )
+    })?;
+    v.resize(len, T::default());
+    Ok(v)
+}
+
+fn read_planes(path: &Path, mut sink: Sink) -> Result<(RelightableImage, Sink)> {
     if !path.is_file() {
         return Err(Error::new(
             ErrorKind::Io,
@@ -193,7 +280,28 @@ pub fn read(path: &Path) -> Result<RelightableImage> {
     };
     let (w, h) = (header.layer_size.width(), header.layer_size.height());
     let k = basis.len();
-    let mut maps = CoefficientMaps::zeros(w, h, k);
+    let values = w.checked_mul(h).and_then(|n| n.checked_mul(3 * k));
+    let what = format!("{}: the {w}×{h} maps of {k} coefficients", path.display());
+    let mut maps = CoefficientMaps {
+        width: w,
+        height: h,
+        k,
+        data: Vec::new(),
+    };
+    match &mut sink {
+        Sink::F32 => maps.data = try_zeroed(values, &what)?,
+        Sink::F16(bits) => *bits = try_zeroed(values, &what)?,
+        Sink::Ranges(ranges) => *ranges = vec![EMPTY_RANGE; 3 * k],
+        Sink::U8 { data, scale, .. } => {
+            if scale.len() != 3 * k {
+                return Err(Error::invalid(format!(
+                    "{}: the file changed between its two reads",
+                    path.display()
+                )));
+            }
+            *data = try_zeroed(values, &what)?;
+        }
+    }
     let mut found = vec![false; 3 * k];
     let mut depth: Option<Vec<f32>> = None;
     // Where each channel of the file goes: plane 3i + c, the depth map, or nowhere.
@@ -207,7 +315,10 @@ pub fn read(path: &Path) -> Result<RelightableImage> {
     for channel in &header.channels.list {
         let name = channel.name.to_string();
         targets.push(if name == "Z" {
-            depth = Some(vec![0f32; w * h]);
+            depth = Some(try_zeroed(
+                Some(w * h),
+                &format!("{}: the depth map", path.display()),
+            )?);
             Target::Depth
         } else if let Some((i, c)) = parse_channel_name(&name) {
             if i >= k {
@@ -222,6 +333,7 @@ pub fn read(path: &Path) -> Result<RelightableImage> {
         });
     }
     let n = w * h;
+    let mut samples: Vec<f32> = Vec::new();
     reader
         .all_chunks(false)
         .map_err(|e| exr_error(path, "read", e))?
@@ -234,24 +346,54 @@ pub fn read(path: &Path) -> Result<RelightableImage> {
                 let at = line.location.position;
                 let start = at.y() * w + at.x();
                 let count = line.location.sample_count;
-                let dst = match targets[line.location.channel] {
-                    Target::Plane(j) => &mut maps.data[j * n + start..j * n + start + count],
-                    Target::Depth => match depth.as_mut() {
-                        Some(d) => &mut d[start..start + count],
-                        None => continue,
-                    },
-                    Target::Skip => continue,
-                };
+                let target = targets[line.location.channel];
+                if matches!(target, Target::Skip)
+                    || (matches!(target, Target::Depth) && matches!(sink, Sink::Ranges(_)))
+                {
+                    continue;
+                }
+                samples.clear();
                 match channels.list[line.location.channel].sample_type {
                     SampleType::F16 => {
-                        for (d, v) in dst.iter_mut().zip(line.read_samples::<f16>()) {
-                            *d = v?.to_f32();
+                        for v in line.read_samples::<f16>() {
+                            samples.push(v?.to_f32());
                         }
                     }
-                    SampleType::F32 => line.read_samples_into_slice(dst)?,
+                    SampleType::F32 => {
+                        samples.resize(count, 0.0);
+                        line.read_samples_into_slice(&mut samples)?;
+                    }
                     SampleType::U32 => {
-                        for (d, v) in dst.iter_mut().zip(line.read_samples::<u32>()) {
-                            *d = v? as f32;
+                        for v in line.read_samples::<u32>() {
+                            samples.push(v? as f32);
+                        }
+                    }
+                }
+                let span = start..start + samples.len();
+                let j = match target {
+                    Target::Depth => {
+                        if let Some(d) = depth.as_mut() {
+                            d[span].copy_from_slice(&samples);
+                        }
+                        continue;
+                    }
+                    Target::Plane(j) => j,
+                    Target::Skip => continue,
+                };
+                let at = j * n + span.start..j * n + span.end;
+                match &mut sink {
+                    Sink::F32 => maps.data[at].copy_from_slice(&samples),
+                    Sink::F16(bits) => {
+                        for (d, &v) in bits[at].iter_mut().zip(&samples) {
+                            *d = f16::from_f32(v).to_bits();
+                        }
+                    }
+                    Sink::Ranges(ranges) => {
+                        ranges[j] = samples.iter().copied().fold(ranges[j], fold_range);
+                    }
+                    Sink::U8 { data, scale, bias } => {
+                        for (d, &v) in data[at].iter_mut().zip(&samples) {
+                            *d = u8_quantize(v, scale[j], bias[j]);
                         }
                     }
                 }
@@ -274,7 +416,7 @@ pub fn read(path: &Path) -> Result<RelightableImage> {
         camera,
         fit,
     };
-    Ok(RelightableImage { meta, maps, depth })
+    Ok((RelightableImage { meta, maps, depth }, sink))
 }
 
 fn read_all_data(path: &Path) -> Result<Image<Layers<AnyChannels<FlatSamples>>>> {
@@ -327,13 +469,18 @@ pub fn read_metadata_summary(path: &Path) -> Result<Vec<(String, String)>> {
 
 /// Write a linear RGB image as half-float EXR (relit frames).
 pub fn write_rgb(path: &Path, image: &ImageRgb) -> Result<()> {
+    write_rgb_scaled(path, image, 1.0)
+}
+
+/// [`write_rgb`] of the image times `factor`, scaled while encoding.
+pub fn write_rgb_scaled(path: &Path, image: &ImageRgb, factor: f32) -> Result<()> {
     let (w, h) = (image.width, image.height);
     let channels = SpecificChannels::rgb(|pos: Vec2<usize>| {
         let i = 3 * (pos.y() * w + pos.x());
         (
-            f16::from_f32(image.data[i]),
-            f16::from_f32(image.data[i + 1]),
-            f16::from_f32(image.data[i + 2]),
+            f16::from_f32(image.data[i] * factor),
+            f16::from_f32(image.data[i + 1] * factor),
+            f16::from_f32(image.data[i + 2] * factor),
         )
     });
     let encoding = Encoding {
@@ -457,5 +604,52 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("does not exist"));
+    }
+
+    #[test]
+    fn compact_reads_equal_compact_copies_of_the_maps() {
+        // Decoding straight into f16 or u8 planes relights exactly like the compact copy
+        // a relighter makes from the f32 maps, for half and float files, and holds no
+        // f32 maps.
+        use crate::engine::{RelightOptions, Relighter};
+        use crate::light::{Light, LightRig};
+        let dir = tempfile::tempdir().unwrap();
+        let rig = LightRig::new(vec![Light::directional([0.3, 0.5, 0.8], [1.0, 0.8, 0.6])]);
+        for storage_in_file in [Storage::Half, Storage::Float] {
+            let path = dir.path().join("m.exr");
+            write(&path, &sample_image(4), storage_in_file).unwrap();
+            let full = read(&path).unwrap();
+            for storage in [PlaneStorage::F16, PlaneStorage::U8] {
+                let (image, planes) = read_compact(&path, storage).unwrap();
+                assert!(image.maps.data.is_empty());
+                assert_eq!(
+                    (image.meta.clone(), image.depth.clone()),
+                    (full.meta.clone(), full.depth.clone())
+                );
+                assert_eq!(planes.storage(), storage);
+                let compact = Relighter::with_compact(&image, planes)
+                    .unwrap()
+                    .relight(&rig, &RelightOptions::default())
+                    .unwrap();
+                let copied = Relighter::with_storage(&full, storage)
+                    .unwrap()
+                    .relight(&rig, &RelightOptions::default())
+                    .unwrap();
+                assert_eq!(compact, copied, "{storage_in_file:?} {storage:?}");
+            }
+        }
+        assert!(read_compact(&dir.path().join("m.exr"), PlaneStorage::F32).is_err());
+    }
+
+    #[test]
+    fn a_header_asking_for_more_memory_than_there_is_is_an_error() {
+        // 128 TiB: more than any machine this runs on will hand out.
+        let err = try_zeroed::<f32>(Some(1 << 45), "huge maps").unwrap_err();
+        assert!(err.to_string().contains("could not be allocated"), "{err}");
+        assert!(try_zeroed::<f32>(None, "overflowing maps")
+            .unwrap_err()
+            .to_string()
+            .contains("overflows"));
+        assert_eq!(try_zeroed::<u16>(Some(3), "small").unwrap(), vec![0; 3]);
     }
 }
