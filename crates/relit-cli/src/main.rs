@@ -48,7 +48,40 @@ enum Command {
     ExportWeb(cmd_export_web::Args),
 }
 
+/// Mesa's Vulkan drivers initialise Wayland support when wgpu asks for the
+/// `VK_KHR_wayland_surface` extension, and libwayland prints "XDG_RUNTIME_DIR is
+/// invalid or not set" once per adapter query on headless machines (CI, ssh). There is
+/// no Wayland display to find either way, so point the variable at a private empty
+/// folder, once, before any thread exists (setting the environment later would race
+/// with readers in other threads).
+fn quiet_headless_wayland() {
+    if std::env::var_os("XDG_RUNTIME_DIR").is_some() {
+        return;
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::{DirBuilderExt, MetadataExt, PermissionsExt};
+        // SAFETY: geteuid has no preconditions and cannot fail.
+        let uid = unsafe { libc_geteuid() };
+        let dir = std::env::temp_dir().join(format!("relit-runtime-{uid}"));
+        let ok = std::fs::DirBuilder::new().mode(0o700).create(&dir).is_ok()
+            || std::fs::metadata(&dir).is_ok_and(|m| {
+                m.is_dir() && m.uid() == uid && m.permissions().mode() & 0o077 == 0
+            });
+        if ok {
+            std::env::set_var("XDG_RUNTIME_DIR", &dir);
+        }
+    }
+}
+
+#[cfg(unix)]
+extern "C" {
+    #[link_name = "geteuid"]
+    fn libc_geteuid() -> u32;
+}
+
 fn main() {
+    quiet_headless_wayland();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Fit(args) => cmd_fit::run(args),
