@@ -9,9 +9,19 @@
 //!   `PreparedLight::Weights` a rig's environment light becomes): one folded weight
 //!   vector per channel, one pass over the maps like `directional`;
 //! * `point` — one point light near the eye: per-pixel light vector and SH evaluation;
+//! * `area` — a one-sided rectangular area light above the scene, 16 emitter samples
+//!   per pixel: 16 light vectors and weights per pixel (every pixel is lit);
+//! * `projector` — a slide projector (fov 90°, a 2:1 synthetic slide) beside the eye,
+//!   its frustum covering about a third of the panorama: per-pixel light vector and
+//!   slide colour, SH evaluation where the slide reaches;
 //! * `sh_eval` (CPU) — the per-pixel SH basis alone (`relit::engine::ShEvaluator`, the
 //!   f32 recurrence of the point case) at every pixel's light vector, reported in
 //!   pixels per second (`pixels_per_s`); no coefficient is read.
+//!
+//! Positional cases also report `sh_evals_per_s`: the (pixel, light vector) pairs of
+//! non-zero weight per frame (counted once with the lights' own per-pixel definition,
+//! `PreparedLight::illuminate`) times fps, the rate comparable across them and with
+//! `sh_eval`.
 //!
 //! on the CPU engine (`relit::engine::Relighter`, rayon over all cores) for each plane
 //! storage (`f32`, `f16`, `u8`) and on the GPU engine (`relit-gpu`, skipped with the
@@ -94,8 +104,8 @@ pub struct Args {
     /// Skip the CPU engine.
     #[arg(long)]
     pub no_cpu: bool,
-    /// Cases to run (`directional`, `environment`, `point`, `sh_eval`; repeatable).
-    /// Default: all.
+    /// Cases to run (`directional`, `environment`, `point`, `area`, `projector`,
+    /// `sh_eval`; repeatable). Default: all (the GPU runs the first three).
     #[arg(long = "case")]
     pub cases: Vec<String>,
     /// CPU plane storage types (`f32`, `f16`, `u8`; repeatable). Default: all three.
@@ -125,6 +135,11 @@ struct Row {
     fps_median: f64,
     /// Pixels relit (or, for `sh_eval`, basis evaluations) per second, at `fps`.
     pixels_per_s: f64,
+    /// Positional CPU cases: the per-pixel light vectors of non-zero weight one frame
+    /// evaluates the basis at (area lights: every sample of every lit pixel).
+    sh_evals_per_frame: Option<u64>,
+    /// `fps × sh_evals_per_frame`.
+    sh_evals_per_s: Option<f64>,
     ms_per_frame: f64,
     /// Frames timed, over all batches.
     frames: usize,
@@ -145,7 +160,15 @@ struct Row {
     host_bound: bool,
 }
 
-const CASES: [&str; 3] = ["directional", "environment", "point"];
+const CASES: [&str; 5] = ["directional", "environment", "point", "area", "projector"];
+
+/// The cases the GPU engine has lights for.
+const GPU_CASES: [&str; 3] = ["directional", "environment", "point"];
+
+/// Cases with one weight per plane (a frame streams the planes once).
+fn uniform(case: &str) -> bool {
+    matches!(case, "directional" | "environment")
+}
 
 /// Width, height, k and storage of the maps a read bound belongs to.
 type BoundKey = (usize, usize, usize, &'static str);
@@ -238,7 +261,14 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
         return Ok(None);
     }
 
-    let known = ["directional", "environment", "point", "sh_eval"];
+    let known = [
+        "directional",
+        "environment",
+        "point",
+        "area",
+        "projector",
+        "sh_eval",
+    ];
     if let Some(bad) = args.cases.iter().find(|c| !known.contains(&c.as_str())) {
         bail!("--case `{bad}`: expected one of {}", known.join(", "));
     }
@@ -294,6 +324,8 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
                     fps,
                     fps_median: 1.0 / t.median,
                     pixels_per_s: fps * n as f64,
+                    sh_evals_per_frame: None,
+                    sh_evals_per_s: None,
                     ms_per_frame: t.best * 1e3,
                     frames: t.frames,
                     batches: t.batches,
@@ -306,6 +338,8 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
                 }
             };
 
+            // Light vectors per frame of each positional case (the same for every storage).
+            let mut evals: std::collections::HashMap<&str, u64> = Default::default();
             if !args.no_cpu {
                 for &storage in &cpu_storage {
                     let relighter = Relighter::with_storage(&image, storage)?;
@@ -319,7 +353,7 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
                         let lights = cpu_lights(case, &env)?;
                         // Uniform cases are bandwidth-bound: probe between their batches.
                         let mut probe = || {
-                            if case != "point" {
+                            if uniform(case) {
                                 raise(&mut bounds, key, relighter.plane_read_rate(reps));
                             }
                         };
@@ -328,7 +362,7 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
                             black_box(&frame);
                             Ok(())
                         })?;
-                        let r = row(
+                        let mut r = row(
                             case,
                             storage.name(),
                             storage.bytes_per_value(),
@@ -336,6 +370,13 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
                             engine.clone(),
                             &t,
                         );
+                        if !uniform(case) {
+                            let evals = *evals
+                                .entry(case)
+                                .or_insert_with(|| sh_evals(&relighter, &lights));
+                            r.sh_evals_per_frame = Some(evals);
+                            r.sh_evals_per_s = Some(r.fps * evals as f64);
+                        }
                         report(&r, args.json);
                         rows.push(r);
                     }
@@ -343,7 +384,9 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
             }
             if !args.no_cpu && wanted("sh_eval") {
                 let t = time_sh_eval(&image, bands, seconds)?;
-                let r = row("sh_eval", "-", 0, "cpu", format!("{threads} threads"), &t);
+                let mut r = row("sh_eval", "-", 0, "cpu", format!("{threads} threads"), &t);
+                r.sh_evals_per_frame = Some(n);
+                r.sh_evals_per_s = Some(r.pixels_per_s);
                 report(&r, args.json);
                 rows.push(r);
             }
@@ -380,7 +423,7 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
                         let rate = relighter.plane_read_rate(3 * reps);
                         raise(&mut bounds, key, rate);
                     }
-                    for case in CASES.into_iter().filter(|c| wanted(c)) {
+                    for case in GPU_CASES.into_iter().filter(|c| wanted(c)) {
                         let lighting = gpu_lighting(&gpu, case, &env)?;
                         let t = time_gpu(&gpu, &lighting, seconds)?;
                         let mut r = row(
@@ -421,7 +464,7 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
         }
         if let Some(peak) = &fma {
             r.fma_peak_gs = peak.best() / 1e9;
-            if r.device == "cpu" && r.case != "point" && r.case != "sh_eval" {
+            if r.device == "cpu" && uniform(r.case) {
                 let madds = (3 * r.k * r.width * r.height) as f64;
                 r.fma_fraction = Some(r.fps * madds / peak.best());
             }
@@ -565,10 +608,75 @@ fn directional_light() -> Light {
     Light::directional([-0.4, 0.7, 0.6], [1.0, 0.95, 0.9])
 }
 
+/// The area light of the `area` case: a 0.8 × 0.8 square at height 2 facing down,
+/// above every surface point of the synthetic maps (depth ≤ 2.5 within ±38° of the
+/// horizon), so that every pixel takes all its samples.
+fn area_light() -> Light {
+    Light::Area(relit::light::AreaLight {
+        shape: relit::light::AreaShape::Rect {
+            center: [0.1, 2.0, -0.2].into(),
+            u: [0.4, 0.0, 0.0].into(),
+            v: [0.0, 0.0, 0.4].into(),
+        },
+        color: [1.0, 0.9, 0.8],
+        intensity: 2.0,
+        two_sided: false,
+        samples: 16,
+    })
+}
+
+/// The projector of the `projector` case and its slide (a synthetic 128×64 pattern).
+fn projector_light() -> PreparedLight {
+    let light = relit::light::ProjectorLight {
+        position: [0.2, 0.3, 0.1].into(),
+        direction: [0.0, -0.2, -1.0].into(),
+        up: [0.0, 1.0, 0.0].into(),
+        fov_deg: 90.0,
+        slide: "synthetic".into(),
+        color: [1.0, 0.95, 0.9],
+        intensity: 3.0,
+        attenuation: Default::default(),
+    };
+    let (w, h) = (128, 64);
+    let mut slide = ImageRgb::new(w, h);
+    for (p, px) in slide.data.chunks_exact_mut(3).enumerate() {
+        let (x, y) = ((p % w) as f32 / w as f32, (p / w) as f32 / h as f32);
+        let check = ((p % w) / 16 + (p / w) / 16) % 2 == 0;
+        px.copy_from_slice(&[x, y, if check { 1.0 } else { 0.2 }]);
+    }
+    let rgb = Light::Projector(light.clone()).rgb();
+    PreparedLight::Projector(Box::new(light.with_slide(std::sync::Arc::new(slide))), rgb)
+}
+
+/// The light vectors of non-zero weight one frame of `lights` evaluates the basis at:
+/// every pixel's contributions by the lights' own per-pixel (f64) definition.
+fn sh_evals(relighter: &Relighter, lights: &[PreparedLight]) -> u64 {
+    let Ok(points) = relighter.surface_points() else {
+        return 0;
+    };
+    points
+        .par_iter()
+        .enumerate()
+        .map(|(p, s)| {
+            let mut count = 0u64;
+            if let Some(s) = s {
+                for light in lights {
+                    light.illuminate(*s, p, &mut |_, rgb| {
+                        count += rgb.iter().any(|&c| c != 0.0) as u64
+                    });
+                }
+            }
+            count
+        })
+        .sum()
+}
+
 fn cpu_lights(case: &str, env: &Environment) -> anyhow::Result<Vec<PreparedLight>> {
     let lights = match case {
         "directional" => vec![directional_light()],
         "environment" => return Ok(vec![PreparedLight::Weights(env.weights.clone())]),
+        "area" => vec![area_light()],
+        "projector" => return Ok(vec![projector_light()]),
         _ => vec![point_light()],
     };
     Ok(lights
@@ -690,8 +798,12 @@ fn time_sh_eval(image: &RelightableImage, bands: usize, seconds: f64) -> anyhow:
 
 fn report(row: &Row, json: bool) {
     if !json {
+        let evals = row
+            .sh_evals_per_s
+            .map(|e| format!("  {:>8.1} M SH evaluations/s", e / 1e6))
+            .unwrap_or_default();
         eprintln!(
-            "  {:<11} {:>4}  {:<3} {:>9.1} fps (median {:.1})  {:>8.1} Mpx/s",
+            "  {:<11} {:>4}  {:<3} {:>9.1} fps (median {:.1})  {:>8.1} Mpx/s{evals}",
             row.case,
             row.device,
             row.storage,
@@ -704,7 +816,7 @@ fn report(row: &Row, json: bool) {
 
 fn print_summary(rows: &[Row]) {
     println!(
-        "{:<11} {:>10} {:>3} {:<4} {:<4} {:>9} {:>9} {:>9} {:>9} {:>7} {:>8} {:>7}  engine",
+        "{:<11} {:>10} {:>3} {:<4} {:<4} {:>9} {:>9} {:>9} {:>9} {:>9} {:>7} {:>8} {:>7}  engine",
         "case",
         "size",
         "k",
@@ -713,6 +825,7 @@ fn print_summary(rows: &[Row]) {
         "fps",
         "median",
         "Mpx/s",
+        "Meval/s",
         "ms/frame",
         "GB/s",
         "of bw",
@@ -728,8 +841,12 @@ fn print_summary(rows: &[Row]) {
         } else {
             "-".into()
         };
+        let evals = r
+            .sh_evals_per_s
+            .map(|e| format!("{:.1}", e / 1e6))
+            .unwrap_or_else(|| "-".into());
         println!(
-            "{:<11} {:>10} {:>3} {:<4} {:<4} {:>9.1} {:>9.1} {:>9.1} {:>9.3} {:>7} {:>8} {:>7}  {}",
+            "{:<11} {:>10} {:>3} {:<4} {:<4} {:>9.1} {:>9.1} {:>9.1} {:>9} {:>9.3} {:>7} {:>8} {:>7}  {}",
             r.case,
             format!("{}×{}", r.width, r.height),
             r.k,
@@ -738,6 +855,7 @@ fn print_summary(rows: &[Row]) {
             r.fps,
             r.fps_median,
             r.pixels_per_s / 1e6,
+            evals,
             r.ms_per_frame,
             gbs,
             pct(r.bandwidth_fraction),
@@ -777,7 +895,7 @@ mod tests {
             write_maps: None,
         };
         let rows = measure(args).unwrap().unwrap();
-        assert_eq!(rows.len(), 3 * 3 + 1);
+        assert_eq!(rows.len(), CASES.len() * 3 + 1);
         for r in &rows {
             let json = serde_json::to_value(r).unwrap();
             for field in [
@@ -799,7 +917,8 @@ mod tests {
             } else {
                 assert!(r.read_bandwidth_gbs > 0.0);
                 assert!(r.bandwidth_fraction.is_some_and(|f| f > 0.0));
-                assert_eq!(r.fma_fraction.is_some(), r.case != "point");
+                assert_eq!(r.fma_fraction.is_some(), uniform(r.case));
+                assert_eq!(r.sh_evals_per_s.is_some(), !uniform(r.case));
             }
         }
     }

@@ -1,6 +1,7 @@
 //! `cargo bench -p relit --bench engine`: criterion benchmarks of the CPU engine at the
-//! seed size (1024×256, k = 16): directional, environment and point-light frames for
-//! every plane storage, and per-pixel SH evaluation.
+//! seed size (1024×256, k = 16): directional, environment, point, area (a rectangle,
+//! 16 samples) and projector frames for every plane storage, and per-pixel SH
+//! evaluation.
 //!
 //! Criterion reports time per frame and pixels per second (throughput in elements =
 //! pixels), with its confidence intervals and the change from the last run, which makes
@@ -13,7 +14,7 @@ use relit::basis::BasisSpec;
 use relit::camera::{CameraSpec, Pose, Projection};
 use relit::engine::{PlaneStorage, Relighter, Roi, ShEvaluator};
 use relit::image::ImageRgb;
-use relit::light::{Light, PreparedLight};
+use relit::light::{AreaLight, AreaShape, Light, PreparedLight, ProjectorLight};
 use relit::maps::{CoefficientMaps, MapSpace, Metadata, RelightableImage};
 use std::hint::black_box;
 use std::time::Duration;
@@ -60,6 +61,45 @@ fn synthetic(width: usize, height: usize, bands: usize) -> RelightableImage {
     }
 }
 
+/// A one-sided square above every surface point (all pixels take 16 samples).
+fn area() -> Light {
+    Light::Area(AreaLight {
+        shape: AreaShape::Rect {
+            center: [0.1, 2.0, -0.2].into(),
+            u: [0.4, 0.0, 0.0].into(),
+            v: [0.0, 0.0, 0.4].into(),
+        },
+        color: [1.0; 3],
+        intensity: 2.0,
+        two_sided: false,
+        samples: 16,
+    })
+}
+
+/// A projector of 90° field beside the eye (about a third of the panorama in its
+/// frustum) with a 128×64 gradient slide.
+fn projector() -> PreparedLight {
+    let light = ProjectorLight {
+        position: [0.2, 0.3, 0.1].into(),
+        direction: [0.0, -0.2, -1.0].into(),
+        up: [0.0, 1.0, 0.0].into(),
+        fov_deg: 90.0,
+        slide: String::new(),
+        color: [1.0; 3],
+        intensity: 3.0,
+        attenuation: Default::default(),
+    };
+    let (w, h) = (128, 64);
+    let mut slide = ImageRgb::new(w, h);
+    for (p, v) in slide.data.iter_mut().enumerate() {
+        *v = (p % 97) as f32 / 97.0;
+    }
+    PreparedLight::Projector(
+        Box::new(light.with_slide(std::sync::Arc::new(slide))),
+        [3.0; 3],
+    )
+}
+
 const WIDTH: usize = 1024;
 const HEIGHT: usize = 256;
 const BANDS: usize = 4;
@@ -87,6 +127,8 @@ fn frames(c: &mut Criterion) {
                 .prepare(here)
                 .unwrap()],
         ),
+        ("area", vec![area().prepare(here).unwrap()]),
+        ("projector", vec![projector()]),
     ];
     let full = Roi::full(WIDTH, HEIGHT);
     for (name, lights) in &cases {
