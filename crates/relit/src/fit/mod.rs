@@ -29,11 +29,11 @@
 //!
 //! * [`Objective::Auto`] (default): one of the two, whichever has the smaller
 //!   leave-one-out error of the *displayed* (sRGB-encoded) values on the λ subsample.
-//!   Each captured light counts in that error in proportion to how much it lights the
-//!   scene (the mean radiance of its image on the subsample): the error that matters
-//!   is the one seen where light falls. Without that, a full-sphere capture of a
-//!   scene on a floor, half of whose images are black, is judged by how black the
-//!   prediction stays below the floor, where the sRGB curve is steepest. On
+//!   Captured lights that do not reach the scene at all (images darker than a
+//!   thousandth of the brightest) do not count in that error: without that, a
+//!   full-sphere capture of a scene on a floor, half of whose images are black, is
+//!   judged by how black the prediction stays below the floor, where the sRGB curve is
+//!   steepest. On
 //!   photographs the perceptual objective wins (dark pixels are noisy but never
 //!   exactly black); on renders with hard, exactly black shadows the huge weight it
 //!   gives those zeros costs more than it gains (it biases the lit side), and the
@@ -364,18 +364,22 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
         Objective::Linear => &[Objective::Linear],
     };
     let relevance = light_relevance(&sub, sub_idx.len(), design.n);
+    let loo = |objective: LooObjective, ladder: &[f64]| {
+        loo_scores(&design, &sub, sub_idx.len(), objective, ladder, &relevance)
+    };
     let mut choice: Option<Choice> = None;
     for &candidate in candidates {
-        let perceptual = candidate == Objective::Perceptual;
-        let scored = match options.lambda {
+        // λ by the leave-one-out of the observation-weighted solve (both objectives).
+        let plain = match candidate {
+            Objective::Perceptual => LooObjective::Perceptual { reweights: 0 },
+            _ => LooObjective::Linear,
+        };
+        let mut scored = match options.lambda {
             Lambda::Fixed(l) if l >= 0.0 && l.is_finite() => {
                 if candidates.len() == 1 {
                     Choice::fixed(candidate, l)
                 } else {
-                    Choice::score(
-                        candidate,
-                        &loo_scores(&design, &sub, sub_idx.len(), perceptual, &[l], &relevance),
-                    )
+                    Choice::score(candidate, &loo(plain, &[l]))
                 }
             }
             Lambda::Fixed(l) => {
@@ -383,18 +387,18 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
                     "λ must be a non-negative number, got {l}"
                 )))
             }
-            Lambda::Auto => Choice::score(
-                candidate,
-                &loo_scores(
-                    &design,
-                    &sub,
-                    sub_idx.len(),
-                    perceptual,
-                    &LAMBDA_LADDER,
-                    &relevance,
-                ),
-            ),
+            Lambda::Auto => Choice::score(candidate, &loo(plain, &LAMBDA_LADDER)),
         };
+        // Choosing between objectives, judge the perceptual one as it is fitted: with
+        // its reweighting pass(es), at the chosen λ.
+        if candidates.len() > 1 && candidate == Objective::Perceptual && options.reweights > 0 {
+            let reweighted = LooObjective::Perceptual {
+                reweights: options.reweights,
+            };
+            if let Some(s) = loo(reweighted, &[scored.lambda]).first() {
+                scored.display = s.display;
+            }
+        }
         if !matches!(&choice, Some(c) if c.display <= scored.display) {
             choice = Some(scored);
         }
@@ -772,9 +776,11 @@ struct LooScore {
     display: f64,
 }
 
-/// How much each captured light lights the scene, for weighing display errors: the
-/// mean radiance of its image over the subsample `sub` (`count` pixels × `n` images ×
-/// RGB), relative to the brightest image. All ones when every image is black.
+/// Which captured lights light the scene at all, for weighing display errors: 1 for an
+/// image whose mean radiance over the subsample `sub` (`count` pixels × `n` images ×
+/// RGB) is at least [`DARK_IMAGE`] of the brightest image's, 0 for the others (a light
+/// below the floor of a full-sphere capture, say). Grazing lights, dim but the point of
+/// a raking-light RTI capture, count in full. All ones when every image is black.
 fn light_relevance(sub: &[f32], count: usize, n: usize) -> Vec<f64> {
     let mut mean = vec![0.0f64; n];
     for s in 0..count {
@@ -788,23 +794,53 @@ fn light_relevance(sub: &[f32], count: usize, n: usize) -> Vec<f64> {
     }
     let peak = mean.iter().cloned().fold(0.0, f64::max);
     if peak > 0.0 && peak.is_finite() {
-        mean.iter().map(|m| m / peak).collect()
+        mean.iter()
+            .map(|&m| if m >= DARK_IMAGE * peak { 1.0 } else { 0.0 })
+            .collect()
     } else {
         vec![1.0; n]
     }
 }
 
+/// An image with less than this fraction of the brightest image's mean radiance shows
+/// a scene its light does not reach: a thousandth is below the noise floor of any
+/// photograph and far above a render's exact black.
+const DARK_IMAGE: f64 = 1e-3;
+
 /// Exact leave-one-out errors for each λ of `ladder`, on the subsample. The display
-/// error weighs captured light `j` by `q_j · relevance[j]`.
+/// error weighs captured light `j` by `q_j · relevance[j]`. The perceptual objective's
+/// weights are reweighted `reweights` times from the prediction, as the fit does, and
+/// the leave-one-out residuals are those of the final weighted solve (its weights held
+/// fixed): judged with the observation's weights alone, the perceptual fit would be
+/// judged worse than it is.
 fn loo_scores(
     design: &Design,
     sub: &[f32],
     count: usize,
-    perceptual: bool,
+    objective: LooObjective,
     ladder: &[f64],
     relevance: &[f64],
 ) -> Vec<LooScore> {
     let (k, n) = (design.k, design.n);
+    let normal_equations = |w: &[f64], obs: &[f64], m: &mut [f64], b: &mut [f64]| {
+        m.iter_mut().for_each(|v| *v = 0.0);
+        b.iter_mut().for_each(|v| *v = 0.0);
+        for j in 0..n {
+            let row = design.row(j);
+            for r in 0..k {
+                b[r] += w[j] * row[r] * obs[j];
+                for cc in r..k {
+                    m[r * k + cc] += w[j] * row[r] * row[cc];
+                }
+            }
+        }
+        for r in 0..k {
+            for cc in 0..r {
+                m[r * k + cc] = m[cc * k + r];
+            }
+        }
+        w.iter().sum::<f64>()
+    };
     let totals: Vec<[f64; 4]> = (0..count * 3)
         .into_par_iter()
         .fold(
@@ -812,45 +848,54 @@ fn loo_scores(
             |mut acc, item| {
                 let (s, c) = (item / 3, item % 3);
                 let obs: Vec<f64> = (0..n).map(|j| sub[(s * n + j) * 3 + c] as f64).collect();
-                let w: Vec<f64> = obs
+                let first: Vec<f64> = obs
                     .iter()
                     .enumerate()
-                    .map(|(j, &v)| {
-                        design.q[j]
-                            * if perceptual {
-                                perceptual_weight(v)
-                            } else {
-                                1.0
-                            }
+                    .map(|(j, &v)| match objective {
+                        LooObjective::Linear => design.q[j],
+                        LooObjective::Perceptual { .. } => design.q[j] * perceptual_weight(v),
                     })
                     .collect();
-                let total: f64 = w.iter().sum();
                 let mut m0 = vec![0.0; k * k];
                 let mut b0 = vec![0.0; k];
-                for j in 0..n {
-                    let row = design.row(j);
-                    for r in 0..k {
-                        b0[r] += w[j] * row[r] * obs[j];
-                        for cc in r..k {
-                            m0[r * k + cc] += w[j] * row[r] * row[cc];
-                        }
-                    }
-                }
-                for r in 0..k {
-                    for cc in 0..r {
-                        m0[r * k + cc] = m0[cc * k + r];
-                    }
-                }
+                let total0 = normal_equations(&first, &obs, &mut m0, &mut b0);
                 let mut z = vec![0.0; k];
+                let (mut w, mut mw, mut bw) = (first.clone(), m0.clone(), b0.clone());
                 for (li, &lambda) in ladder.iter().enumerate() {
-                    let mut m = m0.clone();
+                    // The fit's own weights at this λ: the observation's, then reweighted.
+                    w.copy_from_slice(&first);
+                    mw.copy_from_slice(&m0);
+                    bw.copy_from_slice(&b0);
+                    let mut total = total0;
+                    let reweights = match objective {
+                        LooObjective::Linear => 0,
+                        LooObjective::Perceptual { reweights } => reweights,
+                    };
+                    let mut singular = false;
+                    for _ in 0..reweights {
+                        let mut m = mw.clone();
+                        design.regularize(&mut m, lambda, total);
+                        if !linalg::cholesky(&mut m, k) {
+                            singular = true;
+                            break;
+                        }
+                        let mut coef = bw.clone();
+                        linalg::cholesky_solve(&m, k, &mut coef);
+                        for j in 0..n {
+                            let pred: f64 =
+                                design.row(j).iter().zip(&coef).map(|(a, b)| a * b).sum();
+                            w[j] = design.q[j] * secant_weight(pred, obs[j]);
+                        }
+                        total = normal_equations(&w, &obs, &mut mw, &mut bw);
+                    }
+                    let mut m = mw.clone();
                     design.regularize(&mut m, lambda, total);
-                    if !linalg::cholesky(&mut m, k) {
+                    if singular || !linalg::cholesky(&mut m, k) {
                         acc[li][0] += f64::INFINITY;
                         acc[li][2] += f64::INFINITY;
                         continue;
                     }
-                    let mut coef = b0.clone();
+                    let mut coef = bw.clone();
                     linalg::cholesky_solve(&m, k, &mut coef);
                     for j in 0..n {
                         let row = design.row(j);
@@ -890,6 +935,13 @@ fn loo_scores(
             display: shown / qsum.max(1e-30),
         })
         .collect()
+}
+
+/// The objective whose leave-one-out errors [`loo_scores`] computes.
+#[derive(Clone, Copy, Debug)]
+enum LooObjective {
+    Linear,
+    Perceptual { reweights: usize },
 }
 
 /// Training residual on the subsample: RMSE in linear radiance per channel and 8-bit sRGB PSNR.

@@ -257,22 +257,28 @@ fn the_automatic_objective_is_the_better_of_the_two_and_fits_exactly_as_it() {
             sub[o..o + 3].copy_from_slice(&img.data[3 * p..3 * p + 3]);
         }
     }
-    let best = |perceptual| {
-        loo_scores(
-            &design,
-            &sub,
-            sub_idx.len(),
-            perceptual,
-            &LAMBDA_LADDER,
-            &light_relevance(&sub, sub_idx.len(), design.n),
-        )
-        .iter()
-        .filter(|s| s.weighted.is_finite())
-        .min_by(|a, b| a.weighted.total_cmp(&b.weighted))
-        .unwrap()
-        .display
+    let relevance = light_relevance(&sub, sub_idx.len(), design.n);
+    let scores = |objective, ladder: &[f64]| {
+        loo_scores(&design, &sub, sub_idx.len(), objective, ladder, &relevance)
     };
-    let (perceptual, linear) = (best(true), best(false));
+    // λ from the observation-weighted leave-one-out; the perceptual objective's display
+    // error then with its reweighting pass, at that λ.
+    let best = |objective| {
+        *scores(objective, &LAMBDA_LADDER)
+            .iter()
+            .filter(|s| s.weighted.is_finite())
+            .min_by(|a, b| a.weighted.total_cmp(&b.weighted))
+            .unwrap()
+    };
+    let linear = best(LooObjective::Linear).display;
+    let lambda = best(LooObjective::Perceptual { reweights: 0 }).lambda;
+    let perceptual = scores(
+        LooObjective::Perceptual {
+            reweights: options.reweights,
+        },
+        &[lambda],
+    )[0]
+    .display;
     assert!(perceptual.is_finite() && linear.is_finite() && perceptual != linear);
     let expected = if perceptual < linear {
         Objective::Perceptual
@@ -280,4 +286,23 @@ fn the_automatic_objective_is_the_better_of_the_two_and_fits_exactly_as_it() {
         Objective::Linear
     };
     assert_eq!(auto.report.objective, expected);
+}
+
+#[test]
+fn black_images_do_not_count_in_the_objective_choice_but_dim_ones_do() {
+    // Three images of two pixels: bright, grazing (a hundredth as bright) and black.
+    let (count, n) = (2, 3);
+    let mut sub = vec![0f32; count * n * 3];
+    for s in 0..count {
+        for c in 0..3 {
+            sub[(s * n) * 3 + c] = 0.8;
+            sub[(s * n + 1) * 3 + c] = 0.008;
+        }
+    }
+    assert_eq!(light_relevance(&sub, count, n), vec![1.0, 1.0, 0.0]);
+    // Nothing lit at all: every light counts (there is nothing better to go by).
+    assert_eq!(
+        light_relevance(&vec![0.0; count * n * 3], count, n),
+        vec![1.0; 3]
+    );
 }
