@@ -65,9 +65,8 @@ fn quiet_headless_wayland() {
         let uid = unsafe { libc_geteuid() };
         let dir = std::env::temp_dir().join(format!("relit-runtime-{uid}"));
         let ok = std::fs::DirBuilder::new().mode(0o700).create(&dir).is_ok()
-            || std::fs::metadata(&dir).is_ok_and(|m| {
-                m.is_dir() && m.uid() == uid && m.permissions().mode() & 0o077 == 0
-            });
+            || std::fs::metadata(&dir)
+                .is_ok_and(|m| m.is_dir() && m.uid() == uid && m.permissions().mode() & 0o077 == 0);
         if ok {
             std::env::set_var("XDG_RUNTIME_DIR", &dir);
         }
