@@ -16,7 +16,6 @@
 
 use crate::basis::{Basis, BasisSpec};
 use crate::camera::{Camera, CameraSpec};
-use crate::color;
 use crate::envmap::EnvironmentLight;
 use crate::image::ImageRgb;
 use crate::light::{Light, LightRig, PreparedLight};
@@ -38,7 +37,7 @@ pub use planes::{CompactPlanes, PlaneStorage};
 
 use kernels::{ShNorms, Simd};
 use planes::Planes;
-use tiles::{FastLight, Frame, Scratch, UniformPass, TILE};
+use tiles::{Frame, PositionalLight, Scratch, UniformPass, TILE};
 
 /// Frames of at least this many bytes are written with non-temporal stores (see
 /// `Simd::interleave_stream`): far more than the L2 caches and a fair share of an L3.
@@ -502,24 +501,14 @@ impl<'a> Relighter<'a> {
         if any_folded {
             passes.push(UniformPass::new(&folded, [1.0; 3], &self.planes));
         }
-        // Positional lights: point and spot on the vectorised path, the others per pixel.
-        let mut fast = Vec::new();
-        let mut slow = Vec::new();
-        for light in lights.iter().filter(|l| !l.is_uniform()) {
-            match FastLight::new(light, scale) {
-                Some(f) => fast.push(f),
-                None => slow.push(light),
-            }
-        }
-        let points = if fast.is_empty() {
+        let positional: Vec<PositionalLight> = lights
+            .iter()
+            .filter_map(|l| PositionalLight::new(l, scale))
+            .collect();
+        let points = if positional.is_empty() {
             None
         } else {
             Some(self.point_rows()?)
-        };
-        let slow_source = if slow.is_empty() {
-            None
-        } else {
-            Some(self.depth_camera().map_err(Error::invalid)?)
         };
         let frame = Frame {
             simd: self.simd,
@@ -529,21 +518,15 @@ impl<'a> Relighter<'a> {
             bands: self.bands,
             display,
             passes: &passes,
-            lights: &fast,
+            lights: &positional,
             points,
             norms: &self.norms,
             stream: passes.len() == 1
-                && fast.is_empty()
-                && slow.is_empty()
+                && positional.is_empty()
                 && 12 * roi.pixels() >= self.stream_from,
         };
-        let positional = !fast.is_empty();
-        let run = |p0: usize, dst: &mut [f32], scratch: &mut Scratch| {
-            frame.tile(p0, dst, scratch);
-            if let Some((camera, depth)) = &slow_source {
-                self.slow_lights(&slow, camera, depth, scale, p0, dst);
-            }
-        };
+        let positional = !positional.is_empty();
+        let run = |p0: usize, dst: &mut [f32], scratch: &mut Scratch| frame.tile(p0, dst, scratch);
         out.width = roi.width;
         out.height = roi.height;
         // Every value is overwritten by the tiles: no need to clear a reused buffer.
@@ -571,56 +554,6 @@ impl<'a> Relighter<'a> {
                 });
         }
         Ok(())
-    }
-
-    /// Add lights without a vectorised path (projector, area) to pixels
-    /// `p0 .. p0 + dst.len() / 3`, one pixel at a time in f64.
-    fn slow_lights(
-        &self,
-        lights: &[&PreparedLight],
-        camera: &Camera,
-        depth: &[f32],
-        scale: f64,
-        p0: usize,
-        dst: &mut [f32],
-    ) {
-        let k = self.basis.len();
-        let n = self.image.maps.pixels();
-        let width = self.image.width();
-        let display = self.image.meta.color_space == MapSpace::Srgb;
-        let basis = self.basis.as_ref();
-        let mut y = vec![0.0f64; k];
-        let mut coef = vec![0.0f64; 3 * k];
-        for (q, px) in dst.chunks_exact_mut(3).enumerate() {
-            let pixel = p0 + q;
-            let d = depth[pixel];
-            if !(d.is_finite() && d > 0.0) {
-                continue;
-            }
-            let surface = camera.position(pixel % width, pixel / width, d as f64);
-            for (j, v) in coef.iter_mut().enumerate() {
-                *v = self.planes.value(j, pixel, n) as f64;
-            }
-            let mut sum = [0.0f64; 3];
-            for light in lights {
-                light.illuminate(surface, pixel, &mut |l, rgb| {
-                    basis.eval(l, &mut y);
-                    for c in 0..3 {
-                        let mut v = 0.0;
-                        for i in 0..k {
-                            v += coef[3 * i + c] * y[i];
-                        }
-                        if display {
-                            v = color::srgb_to_linear(v.clamp(0.0, 1.0) as f32) as f64;
-                        }
-                        sum[c] += rgb[c] * v;
-                    }
-                });
-            }
-            for c in 0..3 {
-                px[c] += (sum[c] * scale) as f32;
-            }
-        }
     }
 }
 
@@ -689,6 +622,7 @@ mod tests {
     use super::*;
     use crate::basis::BasisSpec;
     use crate::camera::Projection;
+    use crate::color;
     use crate::maps::{CoefficientMaps, Metadata};
     use crate::sphere::Vec3;
 
@@ -1020,6 +954,49 @@ mod tests {
             two_sided: false,
             samples: 4,
         });
+        let area_light = |shape, two_sided, samples| {
+            prep(Light::Area(crate::light::AreaLight {
+                shape,
+                color: [1.0, 0.8, 0.9],
+                intensity: 1.5,
+                two_sided,
+                samples,
+            }))
+        };
+        // Facing down and a little toward the camera: the pixels high in the image lie
+        // behind it (one-sided: dark there).
+        let rect = crate::light::AreaShape::Rect {
+            center: Vec3::new(0.3, 0.9, -0.5),
+            u: Vec3::new(0.4, 0.0, 0.0),
+            v: Vec3::new(0.0, 0.1, 0.3),
+        };
+        // Amid the surface points, edge-on to some of them.
+        let disk = crate::light::AreaShape::Disk {
+            center: Vec3::new(0.2, -0.3, -1.0),
+            normal: Vec3::new(0.0, 1.0, 0.3),
+            radius: 0.4,
+        };
+        // A slide of 13 × 7 texels (odd sizes, distinct colours) and two projectors
+        // whose frusta cover parts of the image.
+        let mut slide = ImageRgb::new(13, 7);
+        for (i, v) in slide.data.iter_mut().enumerate() {
+            *v = 0.1 + (i * 37 % 29) as f32 / 29.0;
+        }
+        let slide = Arc::new(slide);
+        let projector = |position: Vec3, direction: Vec3, up: Vec3, fov_deg, attenuation| {
+            let light = crate::light::ProjectorLight {
+                position,
+                direction,
+                up,
+                fov_deg,
+                slide: String::new(),
+                color: [0.9, 1.0, 0.7],
+                intensity: 2.0,
+                attenuation,
+            };
+            let rgb = Light::Projector(light.clone()).rgb();
+            PreparedLight::Projector(Box::new(light.with_slide(slide.clone())), rgb)
+        };
         vec![
             (
                 "directional",
@@ -1034,7 +1011,38 @@ mod tests {
                 vec![prep(Light::point([0.3, 0.5, 0.2], [1.0, 0.9, 0.8]))],
             ),
             ("spot", vec![prep(spot), prep(hard_spot)]),
-            ("area", vec![prep(area)]),
+            ("area disk one-sided", vec![prep(area)]),
+            (
+                "area rect one-sided",
+                vec![area_light(rect.clone(), false, 5)],
+            ),
+            ("area rect two-sided", vec![area_light(rect, true, 16)]),
+            (
+                "area disk two-sided",
+                vec![
+                    area_light(disk.clone(), true, 7),
+                    area_light(disk, false, 1),
+                ],
+            ),
+            (
+                "projector",
+                vec![
+                    projector(
+                        Vec3::new(0.1, 0.2, 0.3),
+                        Vec3::new(0.1, -0.1, -1.0),
+                        Vec3::new(0.0, 1.0, 0.0),
+                        30.0,
+                        Default::default(),
+                    ),
+                    projector(
+                        Vec3::new(-0.4, -0.1, 0.0),
+                        Vec3::new(-0.2, 0.1, -1.0),
+                        Vec3::new(0.3, 1.0, 0.0),
+                        45.0,
+                        crate::light::Attenuation::InverseDistance(0.6),
+                    ),
+                ],
+            ),
             (
                 "mixed",
                 vec![
@@ -1045,10 +1053,12 @@ mod tests {
         ]
     }
 
-    /// Every storage type, the AVX2 and the portable kernels (and streaming stores), every light type, linear
-    /// and display-referred maps: equal to the per-pixel f64 reference within f32
-    /// rounding (1e-5 of the peak; the f32 SH recurrence of positional lights 1e-4).
-    /// 211 × 97 pixels: two tiles, the second partial, and a partial last run and block.
+    /// Every storage type, the AVX2 and the portable kernels (and streaming stores),
+    /// every light type (area lights: rectangles and disks, one- and two-sided, square
+    /// and ragged strata; projectors), linear and display-referred maps: equal to the
+    /// per-pixel f64 reference within f32 rounding (1e-5 of the peak; the f32 light
+    /// vectors and SH recurrence of positional lights 1e-4). 211 × 97 pixels: two
+    /// tiles, the second partial, and a partial last run and block.
     #[test]
     fn every_storage_and_kernel_equals_the_reference() {
         const { assert!(TILE < 211 * 97 && 211 * 97 < 2 * TILE) };

@@ -21,8 +21,18 @@
 //! Frames larger than the caches are written with non-temporal stores
 //! ([`Simd::interleave_stream`]), so that writing the frame neither reads it first nor
 //! pushes the planes out of the caches.
+//!
+//! Positional lights: `sh` evaluates the SH basis per pixel and dots it with the
+//! coefficients (or projects many light vectors first), `lights` makes each light's
+//! per-pixel vectors and weights; both in the same one-body, two-compilations form.
 
 use half::f16;
+
+mod lights;
+mod sh;
+
+pub(crate) use lights::{AreaSamples, Cone, Falloff, Projector, Shift};
+pub(crate) use sh::{Rows, ShNorms};
 
 /// Pixels per block of the per-pixel (positional light) kernels: their scratch
 /// arrays, a few per block, stay in L1.
@@ -118,26 +128,6 @@ impl Simd {
         }
     }
 
-    /// `acc[c][p] += Σ_i Y_i(dir_p)·v(3i + c)[p]` over one block: the SH basis of
-    /// `bands` bands at the unit vectors `(x, y, z)` (the recurrence of
-    /// `basis::sh`, in f32), dotted with the block's coefficient values, row `j` of
-    /// which is `values[j·stride + offset ..][..BLOCK]` (plane order).
-    pub(crate) fn sh_dot(
-        self,
-        bands: usize,
-        norm: &ShNorms,
-        dir: &[[f32; BLOCK]; 3],
-        values: Rows,
-        acc: &mut [[f32; BLOCK]; 3],
-    ) {
-        #[cfg(target_arch = "x86_64")]
-        if self.avx2 {
-            // SAFETY: as in `axpy`.
-            return unsafe { sh_dot_avx2(bands, norm, dir, values, acc) };
-        }
-        sh_dot_body::<false>(bands, norm, dir, values, acc)
-    }
-
     /// Interleave three channel rows into RGB pixels: `dst[3p + c] = rows[c][p]`.
     pub(crate) fn interleave(self, dst: &mut [f32], rows: [&[f32]; 3]) {
         #[cfg(target_arch = "x86_64")]
@@ -147,123 +137,6 @@ impl Simd {
         }
         interleave_body(dst, rows)
     }
-}
-
-/// How a positional light's irradiance falls off with distance `d` (as
-/// `light::Attenuation`, in f32; `d` is clamped to 1e-9 first).
-#[derive(Clone, Copy, Debug)]
-pub(crate) enum Falloff {
-    InverseSquare,
-    InverseDistance(f32),
-    None,
-}
-
-/// A spotlight's cone: unit axis from the light into the scene, cosines of the outer
-/// and inner half-angles (`SpotLight::cone_factor`, in f32).
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Cone {
-    pub axis: [f32; 3],
-    pub outer: f32,
-    pub inner: f32,
-}
-
-impl Simd {
-    /// Unit light vectors from a block of surface points `at` (NaN where nothing was
-    /// hit) toward `position`, and the factor (falloff × cone) of each; pixels without
-    /// a surface point, or on the light, get a zero vector and factor 0.
-    pub(crate) fn light_block(
-        self,
-        position: [f32; 3],
-        falloff: Falloff,
-        cone: Option<Cone>,
-        at: &[[f32; BLOCK]; 3],
-        dir: &mut [[f32; BLOCK]; 3],
-        factor: &mut [f32; BLOCK],
-    ) {
-        #[cfg(target_arch = "x86_64")]
-        if self.avx2 {
-            // SAFETY: as in `axpy`.
-            return unsafe { light_block_avx2(position, falloff, cone, at, dir, factor) };
-        }
-        light_block_body(position, falloff, cone, at, dir, factor)
-    }
-}
-
-#[inline(always)]
-fn light_block_body(
-    position: [f32; 3],
-    falloff: Falloff,
-    cone: Option<Cone>,
-    at: &[[f32; BLOCK]; 3],
-    dir: &mut [[f32; BLOCK]; 3],
-    factor: &mut [f32; BLOCK],
-) {
-    let mut dist = [0f32; BLOCK];
-    for p in 0..BLOCK {
-        let d = [
-            position[0] - at[0][p],
-            position[1] - at[1][p],
-            position[2] - at[2][p],
-        ];
-        let r = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-        // NaN (no surface point) fails both comparisons.
-        let ok = r > 1e-12 && r < f32::INFINITY;
-        let inv = if ok { 1.0 / r } else { 0.0 };
-        for a in 0..3 {
-            dir[a][p] = if ok { d[a] * inv } else { 0.0 };
-        }
-        dist[p] = if ok { r.max(1e-9) } else { 0.0 };
-    }
-    match falloff {
-        Falloff::InverseSquare => {
-            for p in 0..BLOCK {
-                factor[p] = if dist[p] > 0.0 {
-                    1.0 / (dist[p] * dist[p])
-                } else {
-                    0.0
-                };
-            }
-        }
-        Falloff::InverseDistance(c0) => {
-            for p in 0..BLOCK {
-                factor[p] = if dist[p] > 0.0 { c0 / dist[p] } else { 0.0 };
-            }
-        }
-        Falloff::None => {
-            for p in 0..BLOCK {
-                factor[p] = if dist[p] > 0.0 { 1.0 } else { 0.0 };
-            }
-        }
-    }
-    if let Some(Cone { axis, outer, inner }) = cone {
-        let soft = inner > outer;
-        let scale = if soft { 1.0 / (inner - outer) } else { 0.0 };
-        for p in 0..BLOCK {
-            let cos = -(dir[0][p] * axis[0] + dir[1][p] * axis[1] + dir[2][p] * axis[2]);
-            let edge = if soft {
-                let t = ((cos - outer) * scale).clamp(0.0, 1.0);
-                t * t * (3.0 - 2.0 * t)
-            } else if cos >= inner {
-                1.0
-            } else {
-                0.0
-            };
-            factor[p] *= edge;
-        }
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma,f16c")]
-unsafe fn light_block_avx2(
-    position: [f32; 3],
-    falloff: Falloff,
-    cone: Option<Cone>,
-    at: &[[f32; BLOCK]; 3],
-    dir: &mut [[f32; BLOCK]; 3],
-    factor: &mut [f32; BLOCK],
-) {
-    light_block_body(position, falloff, cone, at, dir, factor)
 }
 
 /// A stored coefficient type: f32, f16 (as bits) or 8-bit.
@@ -415,264 +288,6 @@ impl Stored for u16 {
             *o = h.to_f32().mul_add(scale, bias);
         }
     }
-}
-
-/// Rows of [`BLOCK`] values at a stride: row `j` is `data[j·stride + offset ..][..BLOCK]`.
-#[derive(Clone, Copy)]
-pub(crate) struct Rows<'a> {
-    pub data: &'a [f32],
-    pub stride: usize,
-    pub offset: usize,
-}
-
-impl Rows<'_> {
-    #[inline(always)]
-    fn row(&self, j: usize) -> &[f32; BLOCK] {
-        let at = j * self.stride + self.offset;
-        self.data[at..at + BLOCK].try_into().expect("a block")
-    }
-}
-
-/// `K_lm` (m = 0) and `√2·K_lm` (m > 0) at `l · 8 + m`: the normalisation of
-/// `basis::sh`, and the recurrence's `(2l − 1)/(l − m)`, `(l + m − 1)/(l − m)`.
-#[derive(Clone, Debug)]
-pub(crate) struct ShNorms {
-    k: [f32; 64],
-    a: [f32; 64],
-    b: [f32; 64],
-}
-
-impl ShNorms {
-    pub(crate) fn new() -> Self {
-        let mut out = Self {
-            k: [0.0; 64],
-            a: [0.0; 64],
-            b: [0.0; 64],
-        };
-        for l in 0..8usize {
-            for m in 0..=l {
-                let ratio: f64 = ((l - m + 1)..=(l + m)).map(|f| 1.0 / f as f64).product();
-                let k = ((2 * l + 1) as f64 / (4.0 * std::f64::consts::PI) * ratio).sqrt();
-                let j = l * 8 + m;
-                out.k[j] = if m == 0 {
-                    k
-                } else {
-                    std::f64::consts::SQRT_2 * k
-                } as f32;
-                if l > m + 1 {
-                    out.a[j] = ((2 * l - 1) as f64 / (l - m) as f64) as f32;
-                    out.b[j] = ((l + m - 1) as f64 / (l - m) as f64) as f32;
-                }
-            }
-        }
-        out
-    }
-}
-
-/// Eight f32 lanes: one AVX2 register inside the `avx2` wrappers (LLVM maps each
-/// lane-wise operation to one instruction), two SSE registers elsewhere.
-#[derive(Clone, Copy)]
-struct F8([f32; 8]);
-
-impl F8 {
-    #[inline(always)]
-    fn splat(v: f32) -> Self {
-        F8([v; 8])
-    }
-    #[inline(always)]
-    fn load(s: &[f32]) -> Self {
-        F8(s[..8].try_into().expect("8 lanes"))
-    }
-    #[inline(always)]
-    fn mul(self, o: Self) -> Self {
-        F8(std::array::from_fn(|i| self.0[i] * o.0[i]))
-    }
-    #[inline(always)]
-    fn scale(self, k: f32) -> Self {
-        F8(self.0.map(|v| v * k))
-    }
-    /// `self · a + b`
-    #[inline(always)]
-    fn madd<const FMA: bool>(self, a: Self, b: Self) -> Self {
-        F8(std::array::from_fn(|i| {
-            madd::<FMA>(self.0[i], a.0[i], b.0[i])
-        }))
-    }
-    /// `self · a − b`
-    #[inline(always)]
-    fn msub<const FMA: bool>(self, a: Self, b: Self) -> Self {
-        F8(std::array::from_fn(|i| {
-            madd::<FMA>(self.0[i], a.0[i], -b.0[i])
-        }))
-    }
-}
-
-/// Eight pixels at a time, the whole recurrence in registers: the basis values are used
-/// as they are made and never stored. The block-wide version before it kept `cos mφ`,
-/// `sin mφ`, the Legendre rows and the sums in 64-lane arrays in L1 and was bound by
-/// their stores: point-light frames (1024×256, k = 16) are 1.05–1.2× faster this way.
-/// `sum[c] += y · row(j + c)[q..q + 8]` for the three channels. A function, not a
-/// closure: closures do not inherit the caller's target features, and `mul_add`
-/// outside them is a call to the C library (10× slower, measured).
-#[inline(always)]
-fn add3<const FMA: bool>(sum: &mut [F8; 3], y: F8, values: &Rows, j: usize, q: usize) {
-    for (c, s) in sum.iter_mut().enumerate() {
-        *s = y.madd::<FMA>(F8::load(&values.row(j + c)[q..]), *s);
-    }
-}
-
-#[inline(always)]
-fn sh_dot_body<const FMA: bool>(
-    bands: usize,
-    norm: &ShNorms,
-    dir: &[[f32; BLOCK]; 3],
-    values: Rows,
-    acc: &mut [[f32; BLOCK]; 3],
-) {
-    for q in (0..BLOCK).step_by(8) {
-        let [x, y, z] = dir.each_ref().map(|d| F8::load(&d[q..]));
-        // Two sums per channel, taking turns: half as long a chain of dependent
-        // multiply-adds (latency, not throughput, bounded a single sum).
-        let mut sum = acc.each_ref().map(|a| F8::load(&a[q..]));
-        let mut other = [F8::splat(0.0); 3];
-        let (mut cm, mut sm) = (F8::splat(1.0), F8::splat(0.0));
-        let mut pmm = 1f32;
-        for m in 0..bands {
-            if m > 0 {
-                (cm, sm) = (x.msub::<FMA>(cm, y.mul(sm)), x.madd::<FMA>(sm, y.mul(cm)));
-                pmm *= -((2 * m - 1) as f32);
-            }
-            let mut p_prev = F8::splat(0.0);
-            let mut p_cur = F8::splat(pmm);
-            for l in m..bands {
-                let j = l * 8 + m;
-                if l == m + 1 {
-                    p_prev = p_cur;
-                    p_cur = z.scale((2 * m + 1) as f32 * pmm);
-                } else if l > m + 1 {
-                    let next = z
-                        .scale(norm.a[j])
-                        .msub::<FMA>(p_cur, p_prev.scale(norm.b[j]));
-                    p_prev = p_cur;
-                    p_cur = next;
-                }
-                let kp = p_cur.scale(norm.k[j]);
-                let base = l * (l + 1);
-                if m == 0 {
-                    add3::<FMA>(&mut sum, kp, &values, 3 * base, q);
-                } else {
-                    add3::<FMA>(&mut sum, kp.mul(sm), &values, 3 * (base - m), q);
-                    add3::<FMA>(&mut sum, kp.mul(cm), &values, 3 * (base + m), q);
-                }
-                std::mem::swap(&mut sum, &mut other);
-            }
-        }
-        for ((a, e), o) in acc.iter_mut().zip(sum).zip(other) {
-            a[q..q + 8].copy_from_slice(&F8(std::array::from_fn(|i| e.0[i] + o.0[i])).0);
-        }
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma,f16c")]
-unsafe fn sh_dot_avx2(
-    bands: usize,
-    norm: &ShNorms,
-    dir: &[[f32; BLOCK]; 3],
-    values: Rows,
-    acc: &mut [[f32; BLOCK]; 3],
-) {
-    sh_dot_body::<true>(bands, norm, dir, values, acc)
-}
-
-impl Simd {
-    /// The SH basis of `bands` bands at a block of unit vectors: `out[i][p] = Y_i(dir_p)`
-    /// (`out` holds at least `bands²` rows), the recurrence of [`Simd::sh_dot`].
-    pub(crate) fn sh_values(
-        self,
-        bands: usize,
-        norm: &ShNorms,
-        dir: &[[f32; BLOCK]; 3],
-        out: &mut [[f32; BLOCK]],
-    ) {
-        #[cfg(target_arch = "x86_64")]
-        if self.avx2 {
-            // SAFETY: as in `axpy`.
-            return unsafe { sh_values_avx2(bands, norm, dir, out) };
-        }
-        sh_values_body::<false>(bands, norm, dir, out)
-    }
-}
-
-#[inline(always)]
-fn sh_values_body<const FMA: bool>(
-    bands: usize,
-    norm: &ShNorms,
-    dir: &[[f32; BLOCK]; 3],
-    out: &mut [[f32; BLOCK]],
-) {
-    let [x, y, z] = dir;
-    let mut cm = [1f32; BLOCK];
-    let mut sm = [0f32; BLOCK];
-    let mut p_prev = [0f32; BLOCK];
-    let mut p_cur = [0f32; BLOCK];
-    let mut pmm = 1f32;
-    for m in 0..bands {
-        if m > 0 {
-            for p in 0..BLOCK {
-                let c = x[p] * cm[p] - y[p] * sm[p];
-                let s = x[p] * sm[p] + y[p] * cm[p];
-                cm[p] = c;
-                sm[p] = s;
-            }
-            pmm *= -((2 * m - 1) as f32);
-        }
-        for l in m..bands {
-            let j = l * 8 + m;
-            if l == m {
-                p_cur = [pmm; BLOCK];
-            } else if l == m + 1 {
-                let f = (2 * m + 1) as f32 * pmm;
-                for p in 0..BLOCK {
-                    p_prev[p] = p_cur[p];
-                    p_cur[p] = f * z[p];
-                }
-            } else {
-                let (a, b) = (norm.a[j], norm.b[j]);
-                for p in 0..BLOCK {
-                    let next = madd::<FMA>(a * z[p], p_cur[p], -b * p_prev[p]);
-                    p_prev[p] = p_cur[p];
-                    p_cur[p] = next;
-                }
-            }
-            let k = norm.k[j];
-            let base = l * (l + 1);
-            if m == 0 {
-                for p in 0..BLOCK {
-                    out[base][p] = k * p_cur[p];
-                }
-            } else {
-                let (lo, hi) = out.split_at_mut(base + m);
-                let (minus, plus) = (&mut lo[base - m], &mut hi[0]);
-                for p in 0..BLOCK {
-                    let kp = k * p_cur[p];
-                    plus[p] = kp * cm[p];
-                    minus[p] = kp * sm[p];
-                }
-            }
-        }
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma,f16c")]
-unsafe fn sh_values_avx2(
-    bands: usize,
-    norm: &ShNorms,
-    dir: &[[f32; BLOCK]; 3],
-    out: &mut [[f32; BLOCK]],
-) {
-    sh_values_body::<true>(bands, norm, dir, out)
 }
 
 impl Simd {
@@ -885,8 +500,6 @@ unsafe fn or_streams_avx2<const N: usize>(streams: [&[u8]; N]) -> u64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::basis::{Basis, SphericalHarmonics};
-    use crate::sphere::{fibonacci, Vec3};
 
     fn both() -> [Simd; 2] {
         [Simd::baseline(), Simd::detect()]
@@ -919,83 +532,6 @@ mod tests {
             assert_eq!(out[3], 0.5 * b[3] + 1.0);
             simd.decode(&mut out, &half_a, 1.0, 0.0);
             assert_eq!(out, a);
-        }
-    }
-
-    /// |Y| ≤ 1.2 for 8 bands; the f32 recurrence keeps ~1e-6 relative accuracy.
-    const F32_SH_TOLERANCE: f64 = 2e-5;
-
-    /// The fast f32 evaluator equals `SphericalHarmonics::eval` for every band count and
-    /// every (l, m): each coefficient plane is a one-hot, so `acc` is `Y_i` itself.
-    #[test]
-    fn f32_sh_equals_the_basis_for_every_band() {
-        let dirs: Vec<Vec3> = fibonacci(BLOCK - 2)
-            .into_iter()
-            .chain([Vec3::new(0.0, 0.0, 1.0), Vec3::new(0.0, 0.0, -1.0)])
-            .collect();
-        let mut dir = [[0f32; BLOCK]; 3];
-        for (p, d) in dirs.iter().enumerate() {
-            dir[0][p] = d.x as f32;
-            dir[1][p] = d.y as f32;
-            dir[2][p] = d.z as f32;
-        }
-        let norm = ShNorms::new();
-        for simd in both() {
-            for bands in 1..=8 {
-                let sh = SphericalHarmonics::new(bands).unwrap();
-                let k = bands * bands;
-                for i in 0..k {
-                    // Channel c of coefficient i holds c + 1, every other value 0.
-                    let mut values = vec![0f32; 3 * k * BLOCK];
-                    for c in 0..3 {
-                        values[(3 * i + c) * BLOCK..(3 * i + c + 1) * BLOCK].fill((c + 1) as f32);
-                    }
-                    let rows = Rows {
-                        data: &values,
-                        stride: BLOCK,
-                        offset: 0,
-                    };
-                    let mut acc = [[0f32; BLOCK]; 3];
-                    simd.sh_dot(bands, &norm, &dir, rows, &mut acc);
-                    for (p, d) in dirs.iter().enumerate() {
-                        let want = sh.values(*d)[i];
-                        for (c, row) in acc.iter().enumerate() {
-                            let got = row[p] as f64 / (c + 1) as f64;
-                            assert!(
-                                (got - want).abs() < F32_SH_TOLERANCE,
-                                "{simd:?} bands {bands} Y{i} at {d:?}: {got} vs {want}"
-                            );
-                        }
-                    }
-                }
-            }
-        }
-    }
-
-    #[test]
-    fn f32_sh_values_equal_the_basis() {
-        let dirs = fibonacci(BLOCK);
-        let mut dir = [[0f32; BLOCK]; 3];
-        for (p, d) in dirs.iter().enumerate() {
-            dir[0][p] = d.x as f32;
-            dir[1][p] = d.y as f32;
-            dir[2][p] = d.z as f32;
-        }
-        let norm = ShNorms::new();
-        for simd in both() {
-            for bands in 1..=8 {
-                let sh = SphericalHarmonics::new(bands).unwrap();
-                let mut out = vec![[0f32; BLOCK]; bands * bands];
-                simd.sh_values(bands, &norm, &dir, &mut out);
-                for (p, d) in dirs.iter().enumerate() {
-                    for (i, want) in sh.values(*d).into_iter().enumerate() {
-                        assert!(
-                            (out[i][p] as f64 - want).abs() < F32_SH_TOLERANCE,
-                            "{simd:?} bands {bands} Y{i}"
-                        );
-                    }
-                }
-            }
         }
     }
 

@@ -99,14 +99,7 @@ impl AreaLight {
                 normal,
                 radius,
             } => {
-                let n = normal.normalized().expect("validated");
-                let helper = if n.x.abs() < 0.9 {
-                    Vec3::new(1.0, 0.0, 0.0)
-                } else {
-                    Vec3::new(0.0, 1.0, 0.0)
-                };
-                let a = helper.cross(n).normalized().expect("not parallel");
-                let b = n.cross(a);
+                let (n, a, b) = disk_frame(*normal);
                 // Uniform over the disk: r = R√s.
                 let (r, phi) = (radius * s.sqrt(), std::f64::consts::TAU * t);
                 (*center + a * (r * phi.cos()) + b * (r * phi.sin()), n)
@@ -114,11 +107,34 @@ impl AreaLight {
         }
     }
 
-    /// The light reaching surface point `p` (of pixel `pixel`, which seeds the strata shift).
+    /// The strata of the samples: `columns × rows` cells of `[0, 1)²`, sample `k` in
+    /// cell `(k mod columns, k div columns)` (the last row may be partly empty).
+    pub fn strata(&self) -> (usize, usize) {
+        let columns = (self.samples as f64).sqrt().ceil() as usize;
+        (columns, self.samples.div_ceil(columns))
+    }
+
+    /// The unit normal of a disk and the unit vectors of its `φ = 0` and `φ = π/2` axes
+    /// ([`AreaLight::point`]); `None` for a rectangle.
+    pub(crate) fn disk_frame(&self) -> Option<(Vec3, Vec3, Vec3)> {
+        match &self.shape {
+            AreaShape::Disk { normal, .. } => Some(disk_frame(*normal)),
+            AreaShape::Rect { .. } => None,
+        }
+    }
+
+    /// The per-pixel shift of the strata (Cranley–Patterson rotation) of pixel `pixel`.
+    #[inline]
+    pub(crate) fn shift(pixel: usize) -> (f64, f64) {
+        cranley_patterson(pixel)
+    }
+
+    /// The light reaching surface point `p` (of pixel `pixel`, which seeds the strata
+    /// shift). The CPU engine computes the same samples eight pixels at a time in f32
+    /// (`engine/kernels/lights.rs`): a change here must be made there too.
     pub fn illuminate(&self, p: Vec3, pixel: usize, rgb: [f64; 3], emit: &mut Emit) {
         let n = self.samples;
-        let columns = (n as f64).sqrt().ceil() as usize;
-        let rows = n.div_ceil(columns);
+        let (columns, rows) = self.strata();
         let (jx, jy) = cranley_patterson(pixel);
         let weight = self.area() / n as f64;
         for k in 0..n {
@@ -143,7 +159,21 @@ impl AreaLight {
     }
 }
 
+/// A disk's unit normal and the two unit vectors spanning its plane (`a`, `b`,
+/// `a × b = n`), the axes of `φ = 0` and `φ = π/2` in [`AreaLight::point`].
+fn disk_frame(normal: Vec3) -> (Vec3, Vec3, Vec3) {
+    let n = normal.normalized().expect("validated");
+    let helper = if n.x.abs() < 0.9 {
+        Vec3::new(1.0, 0.0, 0.0)
+    } else {
+        Vec3::new(0.0, 1.0, 0.0)
+    };
+    let a = helper.cross(n).normalized().expect("not parallel");
+    (n, a, n.cross(a))
+}
+
 /// A per-pixel shift in `[0, 1)²` from a hash of the pixel index.
+#[inline]
 fn cranley_patterson(pixel: usize) -> (f64, f64) {
     let mut h = (pixel as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 0xD1B5_4A32_D192_ED03;
     h ^= h >> 31;

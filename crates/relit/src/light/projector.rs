@@ -34,15 +34,20 @@ pub struct ProjectorLight {
 }
 
 /// A projector with its slide loaded and its frame computed.
+///
+/// The CPU engine evaluates [`PreparedProjector::illuminate`] eight pixels at a time in
+/// f32 from these fields (`engine/kernels/lights.rs`): a change here must be made there
+/// too.
 #[derive(Clone, Debug)]
 pub struct PreparedProjector {
     pub light: ProjectorLight,
-    slide: Arc<ImageRgb>,
-    forward: Vec3,
-    right: Vec3,
-    up: Vec3,
-    tan_half_y: f64,
-    tan_half_x: f64,
+    pub(crate) slide: Arc<ImageRgb>,
+    /// Unit vectors of the frustum: along its axis, toward the slide's right and up.
+    pub(crate) forward: Vec3,
+    pub(crate) right: Vec3,
+    pub(crate) up: Vec3,
+    pub(crate) tan_half_y: f64,
+    pub(crate) tan_half_x: f64,
 }
 
 impl ProjectorLight {
