@@ -145,8 +145,9 @@ type ProjectedEnvironment = (EnvironmentLight, [Vec<f64>; 3]);
 /// planar layout, tile by tile (rayon over tiles of [`tiles::TILE`] pixels, or over
 /// rows of a region), with AVX2/FMA/F16C code when the CPU has it. Directional and
 /// environment lights on linear maps fold into one weight per plane, so a frame reads
-/// each plane once; point and spot lights evaluate the SH basis per block of 64
-/// pixels with an f32 recurrence; projector and area lights take a per-pixel f64 path.
+/// each plane once; positional lights (point, spot, projector, area) evaluate the SH
+/// basis per block of 64 pixels with an f32 recurrence at each pixel's light vectors
+/// (an area light's samples summed in SH before one dot with the coefficients).
 pub struct Relighter<'a> {
     image: &'a RelightableImage,
     basis: Box<dyn Basis>,
