@@ -76,6 +76,51 @@ impl Ray {
     }
 }
 
+/// The rays through a camera's pixel centres, factored into a part per column and a
+/// part per row: the ray through pixel `(i, j)` starts at
+/// `rows[j].origin + columns[i].origin` and points along
+/// `rows[j].scale · columns[i].direction + rows[j].direction`, normalised.
+///
+/// Every model relit has factors this way (azimuth per column, height or latitude per
+/// row; image-plane x per column, y per row), so the engine can rebuild the surface
+/// points `P = O + d·V` from the depth map a block at a time from `width + height`
+/// entries instead of holding three more values per pixel.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RayFactors {
+    pub columns: Vec<ColumnRay>,
+    pub rows: Vec<RowRay>,
+    /// The unnormalised direction's length is the same along each row (panoramas and
+    /// orthographic views), so a row's normalisation serves all its pixels.
+    pub norm_per_row: bool,
+}
+
+/// A column's part of [`RayFactors`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ColumnRay {
+    pub origin: Vec3,
+    pub direction: Vec3,
+}
+
+/// A row's part of [`RayFactors`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RowRay {
+    pub origin: Vec3,
+    pub scale: f64,
+    pub direction: Vec3,
+}
+
+impl RayFactors {
+    /// The ray through the centre of pixel `(i, j)`.
+    pub fn ray(&self, i: usize, j: usize) -> Ray {
+        let (c, r) = (self.columns[i], self.rows[j]);
+        let d = c.direction * r.scale + r.direction;
+        Ray {
+            origin: r.origin + c.origin,
+            direction: d * (1.0 / d.length()),
+        }
+    }
+}
+
 /// Where a camera stands and how it is turned, in the global light frame.
 ///
 /// `right`, `up` and `back` are the camera's own x, y and z axes: the camera looks
@@ -183,6 +228,8 @@ pub trait CameraModel {
     fn pixel(&self, p: Vec3) -> Option<[f64; 2]>;
     /// The depth of a visible point: its distance from the ray origin along the ray.
     fn depth(&self, p: Vec3) -> f64;
+    /// The pixel-centre rays of [`CameraModel::ray`], factored per column and per row.
+    fn ray_factors(&self) -> RayFactors;
     /// The stored description of the projection.
     fn projection(&self) -> Projection;
 }
@@ -290,6 +337,32 @@ impl Camera {
     /// The depth a world point would have in the depth map (distance along its ray).
     pub fn depth(&self, p: Vec3) -> f64 {
         self.model.inner().depth(self.pose.to_camera_point(p))
+    }
+
+    /// The world rays through the pixel centres, factored per column and per row.
+    pub fn ray_factors(&self) -> RayFactors {
+        let local = self.model.inner().ray_factors();
+        let pose = &self.pose;
+        RayFactors {
+            columns: local
+                .columns
+                .iter()
+                .map(|c| ColumnRay {
+                    origin: pose.to_world_direction(c.origin),
+                    direction: pose.to_world_direction(c.direction),
+                })
+                .collect(),
+            rows: local
+                .rows
+                .iter()
+                .map(|r| RowRay {
+                    origin: pose.to_world_point(r.origin),
+                    scale: r.scale,
+                    direction: pose.to_world_direction(r.direction),
+                })
+                .collect(),
+            norm_per_row: local.norm_per_row,
+        }
     }
 
     /// The world point seen at the centre of pixel `(i, j)` at depth `d`: `P = O + d·V`.
@@ -477,6 +550,40 @@ mod tests {
                         );
                         assert!((camera.depth(p) - 3.7).abs() < 1e-9);
                     }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn ray_factors_rebuild_every_pixel_ray() {
+        for camera in cameras() {
+            let factors = camera.ray_factors();
+            assert_eq!(factors.columns.len(), camera.width());
+            assert_eq!(factors.rows.len(), camera.height());
+            for (j, r) in factors.rows.iter().enumerate() {
+                let norm = |c: &ColumnRay| (c.direction * r.scale + r.direction).length();
+                let first = norm(&factors.columns[0]);
+                let same = factors
+                    .columns
+                    .iter()
+                    .all(|c| (norm(c) - first).abs() < 1e-12);
+                assert_eq!(
+                    same,
+                    factors.norm_per_row,
+                    "{:?} row {j}",
+                    camera.projection()
+                );
+            }
+            for j in 0..camera.height() {
+                for i in 0..camera.width() {
+                    let (want, got) = (camera.pixel_ray(i, j), factors.ray(i, j));
+                    assert!(
+                        (want.origin - got.origin).length() < 1e-12
+                            && (want.direction - got.direction).length() < 1e-12,
+                        "{:?} pixel ({i}, {j}): {want:?} vs {got:?}",
+                        camera.projection()
+                    );
                 }
             }
         }

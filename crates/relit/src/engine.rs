@@ -30,6 +30,7 @@ use std::sync::{Arc, Mutex, OnceLock};
 mod bounds;
 mod kernels;
 pub(crate) mod planes;
+mod points;
 mod tiles;
 
 pub use bounds::{fma_peak, fma_throughput, FmaPeak};
@@ -37,6 +38,7 @@ pub use planes::{CompactPlanes, PlaneStorage};
 
 use kernels::{ShNorms, Simd};
 use planes::Planes;
+use points::SurfacePoints;
 use tiles::{Frame, PositionalLight, Scratch, UniformPass, TILE};
 
 /// Frames of at least this many bytes are written with non-temporal stores (see
@@ -158,8 +160,8 @@ pub struct Relighter<'a> {
     /// Frames of at least this many bytes are written with non-temporal stores.
     stream_from: usize,
     points: OnceLock<Result<Vec<Option<Vec3>>, String>>,
-    /// Surface points as x, y, z rows in f32, NaN where nothing was hit.
-    point_rows: OnceLock<Result<[Vec<f32>; 3], String>>,
+    /// Surface points rebuilt per block from camera and depth.
+    point_rows: OnceLock<Result<SurfacePoints<'a>, String>>,
     slides: Mutex<HashMap<PathBuf, Arc<ImageRgb>>>,
     /// Environment maps with their unrotated SH projection, by file.
     environments: Mutex<HashMap<PathBuf, Arc<ProjectedEnvironment>>>,
@@ -310,27 +312,11 @@ impl<'a> Relighter<'a> {
         Ok((camera, depth))
     }
 
-    /// Surface points as f32 rows (NaN where nothing was hit), computed once.
-    fn point_rows(&self) -> Result<&[Vec<f32>; 3]> {
+    /// The per-block source of surface points, made once.
+    fn point_rows(&self) -> Result<&SurfacePoints<'a>> {
         let rows = self.point_rows.get_or_init(|| {
             let (camera, depth) = self.depth_camera()?;
-            let w = camera.width();
-            let mut rows: [Vec<f32>; 3] = std::array::from_fn(|_| vec![f32::NAN; depth.len()]);
-            let [xs, ys, zs] = &mut rows;
-            xs.par_chunks_mut(w)
-                .zip(ys.par_chunks_mut(w))
-                .zip(zs.par_chunks_mut(w))
-                .enumerate()
-                .for_each(|(j, ((xs, ys), zs))| {
-                    for i in 0..w {
-                        let d = depth[j * w + i];
-                        if d.is_finite() && d > 0.0 {
-                            let p = camera.position(i, j, d as f64);
-                            (xs[i], ys[i], zs[i]) = (p.x as f32, p.y as f32, p.z as f32);
-                        }
-                    }
-                });
-            Ok(rows)
+            Ok(SurfacePoints::new(&camera, depth))
         });
         rows.as_ref().map_err(|e| Error::invalid(e.clone()))
     }

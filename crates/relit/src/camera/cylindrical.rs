@@ -2,7 +2,7 @@
 
 use super::{
     check_fov, check_size, column_azimuth, panorama_azimuth, panorama_column, CameraModel,
-    Projection, Ray,
+    ColumnRay, Projection, Ray, RayFactors, RowRay,
 };
 use crate::sphere::Vec3;
 use crate::Result;
@@ -49,6 +49,33 @@ impl CameraModel for Cylindrical {
         Ray {
             origin: Vec3::default(),
             direction,
+        }
+    }
+
+    fn ray_factors(&self) -> RayFactors {
+        // (sin φ, h, −cos φ) normalised: the azimuth per column, the height per row.
+        RayFactors {
+            columns: (0..self.width)
+                .map(|i| {
+                    let phi = column_azimuth(i as f64 + 0.5, self.width);
+                    ColumnRay {
+                        origin: Vec3::default(),
+                        direction: Vec3::new(phi.sin(), 0.0, -phi.cos()),
+                    }
+                })
+                .collect(),
+            rows: (0..self.height)
+                .map(|j| RowRay {
+                    origin: Vec3::default(),
+                    scale: 1.0,
+                    direction: Vec3::new(
+                        0.0,
+                        (0.5 - (j as f64 + 0.5) / self.height as f64) * self.span,
+                        0.0,
+                    ),
+                })
+                .collect(),
+            norm_per_row: true,
         }
     }
 

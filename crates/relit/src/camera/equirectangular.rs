@@ -1,7 +1,8 @@
 //! The latitude–longitude panorama: the whole sphere of directions.
 
 use super::{
-    check_size, column_azimuth, panorama_azimuth, panorama_column, CameraModel, Projection, Ray,
+    check_size, column_azimuth, panorama_azimuth, panorama_column, CameraModel, ColumnRay,
+    Projection, Ray, RayFactors, RowRay,
 };
 use crate::sphere::Vec3;
 use crate::Result;
@@ -34,6 +35,33 @@ impl CameraModel for Equirectangular {
         Ray {
             origin: Vec3::default(),
             direction: Vec3::new(c * phi.sin(), s, -c * phi.cos()),
+        }
+    }
+
+    fn ray_factors(&self) -> RayFactors {
+        // (cos θ·sin φ, sin θ, −cos θ·cos φ): the azimuth per column, the latitude per row.
+        RayFactors {
+            columns: (0..self.width)
+                .map(|i| {
+                    let phi = column_azimuth(i as f64 + 0.5, self.width);
+                    ColumnRay {
+                        origin: Vec3::default(),
+                        direction: Vec3::new(phi.sin(), 0.0, -phi.cos()),
+                    }
+                })
+                .collect(),
+            rows: (0..self.height)
+                .map(|j| {
+                    let latitude = (0.5 - (j as f64 + 0.5) / self.height as f64) * PI;
+                    let (s, c) = latitude.sin_cos();
+                    RowRay {
+                        origin: Vec3::default(),
+                        scale: c,
+                        direction: Vec3::new(0.0, s, 0.0),
+                    }
+                })
+                .collect(),
+            norm_per_row: true,
         }
     }
 

@@ -1,6 +1,6 @@
 //! The orthographic camera of RTI on a flat object: parallel rays, no perspective.
 
-use super::{check_size, CameraModel, Projection, Ray};
+use super::{check_size, CameraModel, ColumnRay, Projection, Ray, RayFactors, RowRay};
 use crate::sphere::Vec3;
 use crate::{Error, Result};
 
@@ -51,6 +51,34 @@ impl CameraModel for Orthographic {
         Ray {
             origin: Vec3::new(u, v, 0.0),
             direction: Vec3::new(0.0, 0.0, -1.0),
+        }
+    }
+
+    fn ray_factors(&self) -> RayFactors {
+        // Parallel rays along −z from (u, v, 0): u per column, v per row.
+        RayFactors {
+            columns: (0..self.width)
+                .map(|i| ColumnRay {
+                    origin: Vec3::new(
+                        (2.0 * (i as f64 + 0.5) / self.width as f64 - 1.0) * self.half_width,
+                        0.0,
+                        0.0,
+                    ),
+                    direction: Vec3::default(),
+                })
+                .collect(),
+            rows: (0..self.height)
+                .map(|j| RowRay {
+                    origin: Vec3::new(
+                        0.0,
+                        (1.0 - 2.0 * (j as f64 + 0.5) / self.height as f64) * self.half_height,
+                        0.0,
+                    ),
+                    scale: 0.0,
+                    direction: Vec3::new(0.0, 0.0, -1.0),
+                })
+                .collect(),
+            norm_per_row: true,
         }
     }
 

@@ -1,6 +1,6 @@
 //! The pinhole camera of an ordinary photograph.
 
-use super::{check_fov, check_size, CameraModel, Projection, Ray};
+use super::{check_fov, check_size, CameraModel, ColumnRay, Projection, Ray, RayFactors, RowRay};
 use crate::sphere::Vec3;
 use crate::Result;
 
@@ -48,6 +48,34 @@ impl CameraModel for Perspective {
         Ray {
             origin: Vec3::default(),
             direction,
+        }
+    }
+
+    fn ray_factors(&self) -> RayFactors {
+        // (u, v, −1) normalised: image-plane x per column, y per row.
+        RayFactors {
+            columns: (0..self.width)
+                .map(|i| ColumnRay {
+                    origin: Vec3::default(),
+                    direction: Vec3::new(
+                        (2.0 * (i as f64 + 0.5) / self.width as f64 - 1.0) * self.half_width,
+                        0.0,
+                        0.0,
+                    ),
+                })
+                .collect(),
+            rows: (0..self.height)
+                .map(|j| RowRay {
+                    origin: Vec3::default(),
+                    scale: 1.0,
+                    direction: Vec3::new(
+                        0.0,
+                        (1.0 - 2.0 * (j as f64 + 0.5) / self.height as f64) * self.half_height,
+                        -1.0,
+                    ),
+                })
+                .collect(),
+            norm_per_row: false,
         }
     }
 

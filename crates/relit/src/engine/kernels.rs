@@ -61,6 +61,11 @@ impl Simd {
         }
     }
 
+    /// Whether the AVX2/FMA/F16C versions run (for kernels outside this module).
+    pub(crate) fn avx2(self) -> bool {
+        self.avx2
+    }
+
     /// Which versions run: `avx2+fma+f16c` or `portable`.
     pub(crate) fn name(self) -> &'static str {
         if self.avx2 {

@@ -10,6 +10,7 @@
 use super::kernels::{AreaSamples, Cone, Falloff, Projector, Rows, ShNorms, Shift, Simd};
 use super::kernels::{Stored, BLOCK};
 use super::planes::Planes;
+use super::points::SurfacePoints;
 use crate::color;
 use crate::light::PreparedLight;
 use std::cell::RefCell;
@@ -195,8 +196,8 @@ pub(crate) struct Frame<'a> {
     pub display: bool,
     pub passes: &'a [UniformPass],
     pub lights: &'a [PositionalLight],
-    /// Surface points (x, y, z rows; NaN where nothing was hit), when `lights` is not empty.
-    pub points: Option<&'a [Vec<f32>; 3]>,
+    /// Surface points (NaN where nothing was hit), when `lights` is not empty.
+    pub points: Option<&'a SurfacePoints<'a>>,
     pub norms: &'a ShNorms,
     /// Write the frame with non-temporal stores (one uniform pass, nothing added after
     /// it, a frame larger than the caches).
@@ -320,15 +321,12 @@ impl Frame<'_> {
         b0: usize,
         bl: usize,
         values: Rows,
-        points: &[Vec<f32>; 3],
+        points: &SurfacePoints,
         projection: &mut [[f32; BLOCK]],
         dst: &mut [f32],
     ) {
         let mut at = [[f32::NAN; BLOCK]; 3];
-        for (a, row) in at.iter_mut().enumerate() {
-            row[..bl].copy_from_slice(&points[a][q0..q0 + bl]);
-            row[bl..].fill(f32::NAN);
-        }
+        points.fill(self.simd, q0, bl, &mut at);
         let mut dir = [[0f32; BLOCK]; 3];
         let mut weight = [[0f32; BLOCK]; 3];
         let mut sum = [[0f32; BLOCK]; 3];
