@@ -106,3 +106,80 @@ fn region_storage_and_gpu_frames_agree_with_the_full_cpu_frame() {
         assert!(diff <= 1e-5 * peak.max(1.0), "{light}: GPU vs CPU {diff}");
     }
 }
+
+#[test]
+fn gpu_frames_add_projector_and_area_lights_from_the_cpu_engine() {
+    if let Err(why) = relit_gpu::probe() {
+        eprintln!("skipping relit relight --gpu with projector and area lights: {why}");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let p = |name: &str| dir.path().join(name).to_str().unwrap().to_string();
+    relit(&[
+        "bench",
+        "--write-maps",
+        &p("maps.exr"),
+        "--size",
+        "64x24",
+        "--k",
+        "9",
+    ]);
+    let mut slide = ImageRgb::new(8, 4);
+    for (i, v) in slide.data.iter_mut().enumerate() {
+        *v = (i % 7) as f32 / 6.0;
+    }
+    relit::image::save(Path::new(&p("slide.png")), &slide, 0.0).unwrap();
+    std::fs::write(
+        p("rig.json"),
+        r#"{ "lights": [
+  { "type": "point", "position": [0.3, 0.5, 0.2] },
+  { "type": "projector", "position": [0, 0.2, 0], "direction": [0, 0, -1], "up": [0, 1, 0], "fov_deg": 60, "slide": "slide.png" },
+  { "type": "area", "shape": { "rect": { "center": [0, 0.6, -0.5], "u": [0.2, 0, 0], "v": [0, 0, 0.2] } }, "samples": 8 }
+] }"#,
+    )
+    .unwrap();
+    let rig = p("rig.json");
+    relit(&[
+        "relight",
+        &p("maps.exr"),
+        "--rig",
+        &rig,
+        "-o",
+        &p("cpu.exr"),
+    ]);
+    relit(&[
+        "relight",
+        &p("maps.exr"),
+        "--rig",
+        &rig,
+        "--gpu",
+        "-o",
+        &p("gpu.exr"),
+    ]);
+    let (cpu, gpu) = (
+        load(Path::new(&p("cpu.exr"))),
+        load(Path::new(&p("gpu.exr"))),
+    );
+    let peak = cpu.data.iter().fold(0f32, |m, v| m.max(v.abs()));
+    // Without the CPU's projector and area frame the GPU frame would be the point
+    // light's alone: check both that it is there and that the sum is the CPU's.
+    relit(&[
+        "relight",
+        &p("maps.exr"),
+        "--light",
+        "point:0.3,0.5,0.2",
+        "-o",
+        &p("point.exr"),
+    ]);
+    let point = load(Path::new(&p("point.exr")));
+    let added = max_abs(&point, &cpu);
+    assert!(
+        added > 0.05 * peak,
+        "the rig's projector and area add light: {added}"
+    );
+    // The frames are written as half floats: two sums that differ in the last f32 bits
+    // can round to neighbouring halves (2⁻¹¹ relative), far below what the two lights add.
+    let diff = max_abs(&gpu, &cpu);
+    eprintln!("rig of point + projector + area: relit relight --gpu vs CPU: {diff:.2e} (peak {peak:.3}, projector + area add up to {added:.3})");
+    assert!(diff <= peak / 2048.0, "GPU vs CPU {diff}");
+}
