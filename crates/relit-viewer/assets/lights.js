@@ -2,7 +2,7 @@
 // (crates/relit/src/light/mod.rs): the viewer edits these objects directly, so a saved
 // rig is exactly what the CLI reads.
 
-export const TYPES = ['directional', 'point', 'spot', 'projector', 'environment'];
+export const TYPES = ['directional', 'point', 'spot', 'projector', 'area', 'environment'];
 
 /** Colour × intensity. */
 export function lightRgb(light) {
@@ -24,7 +24,8 @@ export function newLight(type, info, from) {
   const keep = from ? { color: from.color, intensity: from.intensity } : {};
   const color = keep.color || [1, 1, 1];
   const intensity = keep.intensity != null ? keep.intensity : 1;
-  const pos = from && from.position ? [...from.position] : [0, 0.5, -1];
+  const at = from && (from.position || areaCenter(from));
+  const pos = at ? [...at] : [0, 0.5, -1];
   switch (type) {
     case 'directional':
       return { type, direction: from && from.type === 'directional' ? [...from.direction] : [-0.5, 0.5, 0.7], color, intensity };
@@ -34,6 +35,9 @@ export function newLight(type, info, from) {
       return { type, position: pos, direction: [0, -1, -0.3], cone_deg: 30, softness_deg: 5, color, intensity, attenuation: 'inverse_square' };
     case 'projector':
       return { type, position: pos, direction: [0, 0, -1], up: [0, 1, 0], fov_deg: 40, slide: 'slide.png', color, intensity, attenuation: 'inverse_square' };
+    case 'area':
+      // A 0.5 × 0.5 square facing down (u × v = −y), 16 samples (the CLI's default).
+      return { type, shape: { rect: { center: pos, u: [0.25, 0, 0], v: [0, 0, 0.25] } }, color, intensity, two_sided: false, samples: 16 };
     case 'environment': {
       const env = (info.environments || [])[0];
       return { type, map: env ? env.map : 'sky.hdr', yaw_deg: 0, pitch_deg: 0, roll_deg: 0, window: { type: 'none' }, color, intensity };
@@ -51,6 +55,32 @@ const FIELDS = {
   area: ['shape', 'color', 'intensity', 'two_sided', 'samples'],
   environment: ['map', 'yaw_deg', 'pitch_deg', 'roll_deg', 'window', 'color', 'intensity'],
 };
+
+/** The centre of an area light (either shape), or null for other lights. */
+export function areaCenter(light) {
+  if (!light || light.type !== 'area' || !light.shape) return null;
+  const s = light.shape.rect || light.shape.disk;
+  return s ? s.center : null;
+}
+
+/** The same area light with the other shape (`rect` or `disk`): same centre, normal and
+ *  area. A disk's axes a, b (a × b = n) become the square's half edges. */
+export function convertArea(light, to, frame) {
+  const s = light.shape;
+  if (to === 'disk' && s.rect) {
+    const { center, u, v } = s.rect;
+    const c = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
+    const len = Math.hypot(...c);
+    const round = (x) => Math.round(x * 1e4) / 1e4;
+    light.shape = { disk: { center, normal: len > 0 ? c.map(x => round(x / len)) : [0, -1, 0], radius: round(Math.sqrt(4 * len / Math.PI)) || 0.25 } };
+  } else if (to === 'rect' && s.disk) {
+    const { center, normal, radius } = s.disk;
+    const f = frame(normal);
+    const h = (radius * Math.sqrt(Math.PI)) / 2, round = (x) => Math.round(x * 1e4) / 1e4;
+    light.shape = f ? { rect: { center, u: f.a.map(x => round(h * x)), v: f.b.map(x => round(h * x)) } } : { rect: { center, u: [0.25, 0, 0], v: [0, 0, 0.25] } };
+  }
+  return light;
+}
 
 const vec3 = (v, what) => {
   if (!Array.isArray(v) || v.length !== 3 || v.some(x => typeof x !== 'number' || !isFinite(x))) throw new Error(`${what} must be three finite numbers`);
@@ -72,8 +102,32 @@ export function checkRig(rig) {
     if (['point', 'spot', 'projector'].includes(l.type) && l.position == null) throw new Error(`${where}: needs a position`);
     if (['directional', 'spot', 'projector'].includes(l.type) && l.direction == null) throw new Error(`${where}: needs a direction`);
     if (l.attenuation != null) attenuationOf(l.attenuation);
+    if (l.type === 'area') checkArea(l, where);
   });
   return rig;
+}
+
+/** An area light's shape and options (AreaLight::validate, in short). */
+function checkArea(l, where) {
+  const s = l.shape;
+  if (!s || typeof s !== 'object' || Object.keys(s).length !== 1 || !(s.rect || s.disk)) throw new Error(`${where}.shape must be { "rect": { … } } or { "disk": { … } }`);
+  const [kind, body] = Object.entries(s)[0];
+  const fields = kind === 'rect' ? ['center', 'u', 'v'] : ['center', 'normal', 'radius'];
+  if (!body || typeof body !== 'object') throw new Error(`${where}.shape.${kind} must be an object`);
+  for (const key of Object.keys(body)) if (!fields.includes(key)) throw new Error(`${where}: unknown field “${key}” for a ${kind} area light`);
+  for (const key of fields) if (body[key] == null) throw new Error(`${where}.shape.${kind}: needs ${key}`);
+  vec3(body.center, `${where}.shape.${kind}.center`);
+  if (kind === 'rect') {
+    const u = vec3(body.u, `${where}.shape.rect.u`), v = vec3(body.v, `${where}.shape.rect.v`);
+    const c = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
+    if (!(Math.hypot(...c) > 0)) throw new Error(`${where}: a rectangular light needs two non-parallel edges`);
+  } else {
+    const n = vec3(body.normal, `${where}.shape.disk.normal`);
+    if (!(Math.hypot(...n) > 0)) throw new Error(`${where}: a disk light needs a non-zero normal`);
+    if (typeof body.radius !== 'number' || !(body.radius > 0 && isFinite(body.radius))) throw new Error(`${where}: a disk light needs a positive radius`);
+  }
+  if (l.samples != null && !(Number.isInteger(l.samples) && l.samples >= 1 && l.samples <= 4096)) throw new Error(`${where}: an area light needs 1 to 4096 samples`);
+  if (l.two_sided != null && typeof l.two_sided !== 'boolean') throw new Error(`${where}.two_sided must be true or false`);
 }
 
 /** What a rig file shows: the rig itself, or an animation's first keyframe (as

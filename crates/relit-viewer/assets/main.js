@@ -3,7 +3,7 @@
 // on screen).
 import { Renderer } from './renderer.js';
 import { Panel } from './panel.js';
-import { newLight, checkRig, rigOfFile, rigToJson } from './lights.js';
+import { newLight, checkRig, rigOfFile, rigToJson, areaCenter } from './lights.js';
 import { normalize, sub } from './sh.js';
 
 const $ = (id) => document.getElementById(id);
@@ -96,6 +96,9 @@ function applyTool(pos) {
     if (app.tool === 'place' && light.position) {
       const lift = Math.min(0.95, Math.max(0, parseFloat($('lift').value) || 0));
       light.position = hit.origin.map((o, k) => Math.round((o + (1 - lift) * hit.depth * hit.dir[k]) * 1e4) / 1e4);
+    } else if (app.tool === 'place' && areaCenter(light)) {
+      const lift = Math.min(0.95, Math.max(0, parseFloat($('lift').value) || 0));
+      (light.shape.rect || light.shape.disk).center = hit.origin.map((o, k) => Math.round((o + (1 - lift) * hit.depth * hit.dir[k]) * 1e4) / 1e4);
     } else if (app.tool === 'aim' && light.direction && light.position) {
       const d = normalize(sub(hit.point, light.position));
       if (d) light.direction = d.map(v => Math.round(v * 1e4) / 1e4);

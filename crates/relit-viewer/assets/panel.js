@@ -1,5 +1,6 @@
 // The light panel: one card per light of the rig, bound to the rig's JSON objects.
-import { TYPES, newLight } from './lights.js';
+import { TYPES, newLight, convertArea } from './lights.js';
+import { diskFrame, MAX_AREA_SAMPLES } from './renderer.js';
 import { normalize } from './sh.js';
 
 const h = (tag, attrs = {}, ...children) => {
@@ -84,6 +85,7 @@ export class Panel {
       card.append(h('div', { class: 'row' }, 'slide ', name, h('label', { class: 'file-button' }, 'open…', file)));
     }
     if (light.position) card.append(this.attenuation(light));
+    if (light.type === 'area') this.area(light, index, card);
     if (light.type === 'environment') {
       const envs = app.info.environments || [];
       const sel = h('select', { 'data-field': 'map' }, envs.map(e => h('option', { value: e.map, selected: e.map === light.map }, e.map)));
@@ -103,6 +105,37 @@ export class Panel {
       card.append(h('label', {}, 'window ', win));
     }
     return card;
+  }
+
+  /** An area light's controls: shape, centre (placed on the image like a point
+   *  light), the rectangle's half edges u, v (it emits toward u × v) or the disk's
+   *  normal and radius, samples and two-sidedness. */
+  area(light, index, card) {
+    const app = this.app;
+    const kind = light.shape && light.shape.disk ? 'disk' : 'rect';
+    const body = light.shape[kind];
+    const shape = h('select', { 'data-field': 'shape', 'aria-label': 'area light shape' },
+      ['rect', 'disk'].map(t => h('option', { value: t, selected: t === kind }, t === 'rect' ? 'rectangle' : 'disk')));
+    shape.addEventListener('change', () => { convertArea(light, shape.value, diskFrame); app.changed(true); });
+    card.append(h('div', { class: 'row' }, h('label', {}, 'shape ', shape)));
+    card.append(this.vector(body, 'center', 'centre'));
+    card.append(h('div', { class: 'row' }, this.toolButton('place', index, 'place on image')));
+    if (kind === 'rect') {
+      card.append(this.vector(body, 'u', 'half edge u (emits toward u × v)'));
+      card.append(this.vector(body, 'v', 'half edge v'));
+    } else {
+      card.append(this.vector(body, 'normal', 'normal (emitting side)'));
+      card.append(h('div', { class: 'row' }, h('label', {}, 'radius ', this.number(body, 'radius', body.radius, 0.05))));
+    }
+    const samples = h('input', { type: 'number', min: 1, max: 4096, step: 1, value: light.samples != null ? light.samples : 16, 'data-field': 'samples' });
+    samples.addEventListener('input', () => {
+      const v = Math.round(parseFloat(samples.value));
+      if (v >= 1 && v <= 4096) { light.samples = v; app.changed(false); }
+    });
+    const two = h('input', { type: 'checkbox', 'data-field': 'two_sided', checked: !!light.two_sided });
+    two.addEventListener('change', () => { light.two_sided = two.checked; app.changed(false); });
+    card.append(h('div', { class: 'row' }, h('label', {}, 'samples ', samples), h('label', {}, two, ' two-sided')));
+    card.append(h('p', { class: 'hint' }, `The viewer takes up to ${MAX_AREA_SAMPLES} samples per pixel, with the CPU engine's strata and per-pixel shift (identical to relit relight up to ${MAX_AREA_SAMPLES}); saved rigs keep the number set here.`));
   }
 
   markSelected() {

@@ -10,6 +10,7 @@ precision highp sampler2DArray;
 
 #define MAX_LAYERS 48
 #define MAX_LIGHTS 8
+#define MAX_AREA_SAMPLES 64
 
 uniform highp sampler2DArray uPlanes;
 uniform highp sampler2D uDepth;
@@ -49,14 +50,14 @@ uniform float uExposure;        // 2^stops
 uniform vec3 uBackground;
 
 uniform int uNumLights;
-uniform int uLType[MAX_LIGHTS]; // 0 directional (display maps only), 1 point, 2 spot, 3 projector
-uniform vec3 uLPos[MAX_LIGHTS];
-uniform vec3 uLDir[MAX_LIGHTS]; // directional: toward the light; spot/projector: unit axis into the scene
+uniform int uLType[MAX_LIGHTS]; // 0 directional (display maps only), 1 point, 2 spot, 3 projector, 4 area rect, 5 area disk
+uniform vec3 uLPos[MAX_LIGHTS]; // area: centre
+uniform vec3 uLDir[MAX_LIGHTS]; // directional: toward the light; spot/projector: unit axis into the scene; area: unit normal
 uniform vec3 uLRgb[MAX_LIGHTS];
-uniform vec2 uLAtt[MAX_LIGHTS]; // mode (0 1/d², 1 c0/d, 2 none), c0
-uniform vec4 uLCone[MAX_LIGHTS];// spot: cos outer, cos inner; projector: tan½x, tan½y, slide
-uniform vec3 uLRight[MAX_LIGHTS];
-uniform vec3 uLUp[MAX_LIGHTS];
+uniform vec2 uLAtt[MAX_LIGHTS]; // mode (0 1/d², 1 c0/d, 2 none), c0; area: area per sample, disk radius
+uniform vec4 uLCone[MAX_LIGHTS];// spot: cos outer, cos inner; projector: tan½x, tan½y, slide; area: columns, rows, samples, two-sided
+uniform vec3 uLRight[MAX_LIGHTS];// projector: right; area: rect u, disk φ = 0 axis
+uniform vec3 uLUp[MAX_LIGHTS];  // projector: up; area: rect v, disk φ = π/2 axis
 
 out vec4 outColor;
 
@@ -165,6 +166,34 @@ vec3 slide(int s, vec2 uv) {
   return texture(uSlide3, uv).rgb;
 }
 
+// ---- the strata shift of area lights: AreaLight::shift (crates/relit/src/light/area.rs),
+// a 64-bit integer hash of the pixel index, exactly, with 64-bit values as (lo, hi)
+// pairs of 32-bit uints (GLSL ES 3.00 has neither 64-bit integers nor umulExtended).
+
+// The high 32 bits of the 64-bit product of a and b (16-bit limbs).
+uint mulHi32(uint a, uint b) {
+  uint a0 = a & 0xFFFFu, a1 = a >> 16, b0 = b & 0xFFFFu, b1 = b >> 16;
+  uint p00 = a0 * b0, p01 = a0 * b1, p10 = a1 * b0, p11 = a1 * b1;
+  uint mid = (p00 >> 16) + (p01 & 0xFFFFu) + (p10 & 0xFFFFu);
+  return p11 + (p01 >> 16) + (p10 >> 16) + (mid >> 16);
+}
+// a · b mod 2^64.
+uvec2 mul64(uvec2 a, uvec2 b) {
+  return uvec2(a.x * b.x, mulHi32(a.x, b.x) + a.x * b.y + a.y * b.x);
+}
+// a ^ (a >> s) for 0 < s < 32.
+uvec2 xorShift64(uvec2 a, int s) {
+  return a ^ uvec2((a.x >> uint(s)) | (a.y << uint(32 - s)), a.y >> uint(s));
+}
+// The per-pixel shift (jx, jy) in [0, 1)² of pixel `pixel` (row · width + column).
+vec2 cranleyPatterson(uint pixel) {
+  uvec2 h = mul64(uvec2(pixel, 0u), uvec2(0x7F4A7C15u, 0x9E3779B9u)) ^ uvec2(0xD192ED03u, 0xD1B54A32u);
+  h = xorShift64(h, 31);
+  h = mul64(h, uvec2(0x1CE4E5B9u, 0xBF58476Du));
+  h = xorShift64(h, 29);
+  return vec2(float(h.x), float(h.y)) * (1.0 / 4294967296.0);
+}
+
 // The depth of texel t; columns wrap on panoramas, other edges clamp.
 float depthTexel(ivec2 t) {
   ivec2 size = ivec2(uImage);
@@ -246,6 +275,63 @@ void main() {
     for (int i = 0; i < uNumLights; i++) {
       int type = uLType[i];
       vec3 rgb = uLRgb[i], L;
+      if (type >= 4) {
+        // An area light (AreaLight::illuminate): n stratified samples of the emitter,
+        // the strata shifted per source pixel; each sample a light vector of weight
+        // area/n · cos θ_e / r². Linear maps: the samples summed in SH, one dot;
+        // display-referred maps: every sample's value decoded, as the CPU engine does.
+        if (!hasPoint) continue;
+        int columns = int(uLCone[i].x + 0.5), rows = int(uLCone[i].y + 0.5), n = int(uLCone[i].z + 0.5);
+        bool twoSided = uLCone[i].w > 0.5;
+        vec2 j = cranleyPatterson(uint(t.y) * uint(uImage.x) + uint(t.x));
+        vec4 S[N_LAYERS];
+        for (int q = 0; q < N_LAYERS; q++) S[q] = vec4(0.0);
+        vec3 v = vec3(0.0);
+        float total = 0.0;
+        for (int k = 0; k < MAX_AREA_SAMPLES; k++) {
+          if (k >= n) break;
+          float s = (float(k % columns) + j.x) / float(columns);
+          float tt = (float(k / columns) + j.y) / float(rows);
+          vec3 x;
+          if (type == 4) {
+            x = uLPos[i] + uLRight[i] * (2.0 * s - 1.0) + uLUp[i] * (2.0 * tt - 1.0);
+          } else {
+            float r = uLAtt[i].y * sqrt(s), phi = 2.0 * PI * tt;
+            x = uLPos[i] + uLRight[i] * (r * cos(phi)) + uLUp[i] * (r * sin(phi));
+          }
+          vec3 d = x - P;
+          float r2 = dot(d, d);
+          if (!(r2 > 1e-18)) continue;
+          vec3 l = d * inversesqrt(r2);
+          float cosE = -dot(l, uLDir[i]);
+          if (twoSided) cosE = abs(cosE);
+          if (cosE <= 0.0) continue;
+          float g = uLAtt[i].x * cosE / r2;
+          evalSh(l, Y);
+          if (uDisplay) {
+            vec3 e = vec3(0.0);
+            for (int q = 0; q < N_LAYERS; q++) {
+              e.r += dot(C[q], Y[q]);
+              e.g += dot(C[N_LAYERS + q], Y[q]);
+              e.b += dot(C[2 * N_LAYERS + q], Y[q]);
+            }
+            v += g * vec3(srgbToLinear(clamp(e.r, 0.0, 1.0)), srgbToLinear(clamp(e.g, 0.0, 1.0)), srgbToLinear(clamp(e.b, 0.0, 1.0)));
+          } else {
+            for (int q = 0; q < N_LAYERS; q++) S[q] += g * Y[q];
+          }
+          total += g;
+        }
+        if (total <= 0.0) continue;
+        if (!uDisplay) {
+          for (int q = 0; q < N_LAYERS; q++) {
+            v.r += dot(C[q], S[q]);
+            v.g += dot(C[N_LAYERS + q], S[q]);
+            v.b += dot(C[2 * N_LAYERS + q], S[q]);
+          }
+        }
+        col += rgb * v;
+        continue;
+      }
       if (type == 0) {
         L = uLDir[i];
       } else {

@@ -5,11 +5,49 @@ import { shNorm, shEval, normalize, cross, dot, sub, environmentWeights, rotatio
 import { lightRgb, attenuationOf } from './lights.js';
 
 const MAX_LIGHTS = 8, MAX_SLIDES = 4;
+/** Samples per area light the shader takes at most (relight.frag MAX_AREA_SAMPLES). */
+export const MAX_AREA_SAMPLES = 64;
 
 async function fetchOk(url, kind) {
   const r = await fetch(url);
   if (!r.ok) throw new Error(`${url}: HTTP ${r.status}`);
   return kind === 'json' ? r.json() : kind === 'text' ? r.text() : kind === 'blob' ? r.blob() : r.arrayBuffer();
+}
+
+/** An area light as shader uniforms (AreaLight in crates/relit/src/light/area.rs):
+ *  centre, unit normal, the two edge or axis vectors, strata and the area per sample;
+ *  null for a degenerate shape. */
+export function areaUniforms(light) {
+  const wanted = light.samples != null ? light.samples : 16;
+  const n = Math.min(wanted, MAX_AREA_SAMPLES);
+  const columns = Math.ceil(Math.sqrt(n)), rows = Math.ceil(n / columns);
+  const shape = light.shape || {};
+  let entry;
+  if (shape.rect) {
+    const { center, u, v } = shape.rect;
+    const c = cross(u, v), normal = normalize(c);
+    if (!normal) return null;
+    entry = { type: 4, pos: center, dir: normal, right: u, up: v, area: 4 * Math.hypot(...c), radius: 0 };
+  } else if (shape.disk) {
+    const { center, normal, radius } = shape.disk;
+    const f = diskFrame(normal);
+    if (!f || !(radius > 0)) return null;
+    entry = { type: 5, pos: center, dir: f.n, right: f.a, up: f.b, area: Math.PI * radius * radius, radius };
+  } else return null;
+  entry.att = [entry.area / n, entry.radius];
+  entry.cone = [columns, rows, n, light.two_sided ? 1 : 0];
+  entry.capped = wanted > n;
+  return entry;
+}
+
+/** A disk's unit normal n and unit axes a (φ = 0), b (φ = π/2), a × b = n: the frame of
+ *  `disk_frame` in crates/relit/src/light/area.rs. */
+export function diskFrame(normal) {
+  const n = normalize(normal);
+  if (!n) return null;
+  const helper = Math.abs(n[0]) < 0.9 ? [1, 0, 0] : [0, 1, 0];
+  const a = normalize(cross(helper, n));
+  return { n, a, b: cross(n, a) };
 }
 
 export class Renderer {
@@ -335,6 +373,12 @@ export class Renderer {
           entry.cone = [ty * s.aspect, ty, slot, 0];
         }
         pos.push(entry);
+      } else if (light.type === 'area') {
+        if (!this.depth) { warnings.push(`light ${idx + 1}: area lights need a depth map, this file has none`); return; }
+        const a = areaUniforms(light);
+        if (!a) { warnings.push(`light ${idx + 1}: the area light's shape is degenerate`); return; }
+        if (a.capped) warnings.push(`light ${idx + 1}: ${light.samples} samples, the viewer takes at most ${MAX_AREA_SAMPLES} (relit relight takes them all)`);
+        pos.push({ ...a, rgb });
       } else {
         warnings.push(`light ${idx + 1}: ${light.type} lights are not shown by the viewer`);
       }
