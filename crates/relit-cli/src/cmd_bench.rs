@@ -105,7 +105,7 @@ pub struct Args {
     #[arg(long)]
     pub no_cpu: bool,
     /// Cases to run (`directional`, `environment`, `point`, `area`, `projector`,
-    /// `sh_eval`; repeatable). Default: all (the GPU runs the first three).
+    /// `sh_eval`; repeatable). Default: all (the GPU runs all but `sh_eval`).
     #[arg(long = "case")]
     pub cases: Vec<String>,
     /// CPU plane storage types (`f32`, `f16`, `u8`; repeatable). Default: all three.
@@ -162,8 +162,8 @@ struct Row {
 
 const CASES: [&str; 5] = ["directional", "environment", "point", "area", "projector"];
 
-/// The cases the GPU engine has lights for.
-const GPU_CASES: [&str; 3] = ["directional", "environment", "point"];
+/// The cases the GPU engine runs: all of them (`sh_eval` is a CPU measurement).
+const GPU_CASES: [&str; 5] = CASES;
 
 /// Cases with one weight per plane (a frame streams the planes once).
 fn uniform(case: &str) -> bool {
@@ -625,8 +625,15 @@ fn area_light() -> Light {
     })
 }
 
-/// The projector of the `projector` case and its slide (a synthetic 128×64 pattern).
+/// The projector of the `projector` case, prepared.
 fn projector_light() -> PreparedLight {
+    let (light, slide) = projector_parts();
+    let rgb = Light::Projector(light.clone()).rgb();
+    PreparedLight::Projector(Box::new(light.with_slide(slide)), rgb)
+}
+
+/// The projector of the `projector` case and its slide (a synthetic 128×64 pattern).
+fn projector_parts() -> (relit::light::ProjectorLight, std::sync::Arc<ImageRgb>) {
     let light = relit::light::ProjectorLight {
         position: [0.2, 0.3, 0.1].into(),
         direction: [0.0, -0.2, -1.0].into(),
@@ -644,8 +651,7 @@ fn projector_light() -> PreparedLight {
         let check = ((p % w) / 16 + (p / w) / 16) % 2 == 0;
         px.copy_from_slice(&[x, y, if check { 1.0 } else { 0.2 }]);
     }
-    let rgb = Light::Projector(light.clone()).rgb();
-    PreparedLight::Projector(Box::new(light.with_slide(std::sync::Arc::new(slide))), rgb)
+    (light, std::sync::Arc::new(slide))
 }
 
 /// The light vectors of non-zero weight one frame of `lights` evaluates the basis at:
@@ -692,6 +698,13 @@ fn gpu_lighting(gpu: &GpuRelighter, case: &str, env: &Environment) -> anyhow::Re
         "environment" => {
             let mut lighting = gpu.empty_lighting();
             lighting.add_uniform(env.weights.clone(), [1.0; 3])?;
+            lighting
+        }
+        "area" => gpu.lighting(&rig(area_light()), 0.0)?,
+        "projector" => {
+            let (light, slide) = projector_parts();
+            let mut lighting = gpu.empty_lighting();
+            lighting.add_projector(&light, slide, Light::Projector(light.clone()).rgb())?;
             lighting
         }
         _ => gpu.lighting(&rig(point_light()), 0.0)?,

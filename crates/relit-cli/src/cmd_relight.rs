@@ -46,8 +46,8 @@ pub struct Args {
     #[arg(long)]
     pub roi: Option<String>,
     /// Relight on the GPU (wgpu compute shaders; any Vulkan/Metal/DX12 adapter,
-    /// including Mesa's software lavapipe). Directional, environment, point and spot
-    /// lights run in the shaders; projector and area lights are added by the CPU engine.
+    /// including Mesa's software lavapipe). Every light type runs in the shaders;
+    /// environment weights are projected once by the CPU engine.
     #[arg(long)]
     pub gpu: bool,
     /// Value type of the planes the engine reads: f32 (the file's values, no copy), f16
@@ -97,19 +97,9 @@ impl Engine<'_> {
                     .lights
                     .iter()
                     .partition(|l| matches!(l, Light::Environment(_)));
-                // The shaders have no projector or area lights yet; by superposition the
-                // CPU engine renders those and its frame is added to the GPU's.
-                let (cpu_only, rest): (Vec<&Light>, Vec<&Light>) = rest
-                    .into_iter()
-                    .partition(|l| matches!(l, Light::Projector(_) | Light::Area(_)));
-                let cpu_part = (!cpu_only.is_empty())
-                    .then(|| {
-                        let rig = LightRig::new(cpu_only.into_iter().cloned().collect());
-                        cpu.relight_roi(&rig, options, roi)
-                    })
-                    .transpose()?;
                 let rest = LightRig::new(rest.into_iter().cloned().collect());
-                let mut lighting = gpu.lighting(&rest, options.exposure)?;
+                let mut lighting =
+                    gpu.lighting_in(&rest, options.exposure, &options.resource_dir)?;
                 let scale = 2f64.powf(options.exposure);
                 for light in env {
                     let Light::Environment(e) = light else {
@@ -124,13 +114,7 @@ impl Engine<'_> {
                     width: roi.width,
                     height: roi.height,
                 };
-                let mut frame = gpu.render(&lighting, Some(roi))?;
-                if let Some(part) = cpu_part {
-                    for (v, c) in frame.data.iter_mut().zip(&part.data) {
-                        *v += c;
-                    }
-                }
-                Ok(frame)
+                Ok(gpu.render(&lighting, Some(roi))?)
             }
         }
     }

@@ -108,7 +108,7 @@ fn region_storage_and_gpu_frames_agree_with_the_full_cpu_frame() {
 }
 
 #[test]
-fn gpu_frames_add_projector_and_area_lights_from_the_cpu_engine() {
+fn gpu_frames_with_projector_and_area_lights_match_the_cpu() {
     if let Err(why) = relit_gpu::probe() {
         eprintln!("skipping relit relight --gpu with projector and area lights: {why}");
         return;
@@ -161,8 +161,8 @@ fn gpu_frames_add_projector_and_area_lights_from_the_cpu_engine() {
         load(Path::new(&p("gpu.exr"))),
     );
     let peak = cpu.data.iter().fold(0f32, |m, v| m.max(v.abs()));
-    // Without the CPU's projector and area frame the GPU frame would be the point
-    // light's alone: check both that it is there and that the sum is the CPU's.
+    // The projector and the area light add much to the point light's frame: a GPU frame
+    // that dropped or misplaced them could not match the CPU's.
     relit(&[
         "relight",
         &p("maps.exr"),
@@ -177,7 +177,7 @@ fn gpu_frames_add_projector_and_area_lights_from_the_cpu_engine() {
         added > 0.05 * peak,
         "the rig's projector and area add light: {added}"
     );
-    // The frames are written as half floats: two sums that differ in the last f32 bits
+    // The frames are written as half floats: two frames that differ in the last f32 bits
     // can round to neighbouring halves (2⁻¹¹ relative), far below what the two lights add.
     let diff = max_abs(&gpu, &cpu);
     eprintln!("rig of point + projector + area: relit relight --gpu vs CPU: {diff:.2e} (peak {peak:.3}, projector + area add up to {added:.3})");

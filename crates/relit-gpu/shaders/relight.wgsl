@@ -11,6 +11,11 @@
 // Positional lights evaluate the SH basis per pixel with the trig-free recurrence of
 // crates/relit/src/basis/sh.rs, fused with the dot product so no per-pixel array of
 // basis values is kept.
+// Projectors and area lights follow crates/relit/src/engine/kernels/lights.rs (the f32
+// form of relit::light::{projector, area}): a projector weights its light vector with
+// its slide, sampled bilinearly where the surface point projects; an area light sums
+// its stratified emitter samples, the strata shifted per image pixel by the 64-bit hash
+// of AreaLight::shift, done exactly in 32-bit halves.
 
 struct Setup {
     // width, k, bands, display (1 = maps are sRGB-encoded)
@@ -46,11 +51,43 @@ struct PosLight {
     cone: vec4<f32>,
 }
 
+struct Projector {
+    // xyz position; w: attenuation (as PosLight)
+    position: vec4<f32>,
+    // xyz unit axis; w: c0
+    forward: vec4<f32>,
+    // xyz unit vector toward the slide's right; w: tan(horizontal half-angle)
+    right: vec4<f32>,
+    // xyz unit vector toward the slide's up; w: tan(vertical half-angle)
+    up: vec4<f32>,
+    // xyz rgb (colour × intensity × exposure)
+    rgb: vec4<f32>,
+    // offset of the slide in `slides` (floats), its width, height, 1 if it has texels
+    slide: vec4<u32>,
+}
+
+struct Area {
+    // xyz centre; w: 0 rectangle, 1 disk
+    center: vec4<f32>,
+    // rectangle: edge u; disk: unit φ = 0 axis, w radius
+    u: vec4<f32>,
+    // rectangle: edge v; disk: unit φ = π/2 axis
+    v: vec4<f32>,
+    // xyz unit normal of the emitting face; w: 1 if two-sided
+    normal: vec4<f32>,
+    // xyz rgb (colour × intensity × exposure); w: area / samples
+    rgb: vec4<f32>,
+    // samples, columns, rows of the strata
+    strata: vec4<u32>,
+}
+
 struct Frame {
-    // passes, positional lights
+    // passes, point and spot lights, projectors, area lights
     counts: vec4<u32>,
     passes: array<Pass, 16>,
     lights: array<PosLight, 32>,
+    projectors: array<Projector, 8>,
+    areas: array<Area, 8>,
 }
 
 @group(0) @binding(0) var<uniform> setup: Setup;
@@ -58,6 +95,8 @@ struct Frame {
 @group(0) @binding(2) var<storage, read> frame: Frame;
 @group(0) @binding(4) var<storage, read> positions: array<vec4<f32>>;
 @group(0) @binding(5) var<storage, read_write> out: array<f32>;
+// The projectors' slides: linear RGB, row-major from the top, three floats a texel.
+@group(0) @binding(6) var<storage, read> slides: array<f32>;
 
 // The raw stored values of coefficient i (three planes) at pixel p.
 fn raw(i: u32, p: u32) -> vec3<f32> {
@@ -147,6 +186,209 @@ fn light_factor(j: u32, l: vec3<f32>, dist: f32) -> vec3<f32> {
     return light.rgb.xyz * a;
 }
 
+// proj[i] += g · Y_i(d) for a unit vector d: the recurrence of `shade`, projecting
+// an area light's sample into SH instead of dotting it with the coefficients.
+fn project(d: vec3<f32>, g: f32, proj: ptr<function, array<f32, 64>>) {
+    let bands = setup.dims.z;
+    var cm = 1.0;
+    var sm = 0.0;
+    var pmm = 1.0;
+    for (var m = 0u; m < bands; m++) {
+        if m > 0u {
+            let c = d.x * cm - d.y * sm;
+            let s = d.x * sm + d.y * cm;
+            cm = c;
+            sm = s;
+            pmm *= -f32(2u * m - 1u);
+        }
+        var p_prev = 0.0;
+        var p_cur = pmm;
+        for (var l = m; l < bands; l++) {
+            if l == m + 1u {
+                p_prev = p_cur;
+                p_cur = f32(2u * m + 1u) * d.z * pmm;
+            } else if l > m + 1u {
+                let next = (f32(2u * l - 1u) * d.z * p_cur - f32(l + m - 1u) * p_prev) / f32(l - m);
+                p_prev = p_cur;
+                p_cur = next;
+            }
+            let base = l * (l + 1u);
+            let kp = g * (norm(l, m) * p_cur);
+            if m == 0u {
+                (*proj)[base] += kp;
+            } else {
+                (*proj)[base + m] += kp * cm;
+                (*proj)[base - m] += kp * sm;
+            }
+        }
+    }
+}
+
+// The value of light vector l at pixel p (decoded from sRGB on display-referred maps)
+// times the RGB weight w; channels of weight 0 add nothing, even where the
+// coefficients are not finite (as the CPU engine's add_weighted).
+fn weighted(p: u32, l: vec3<f32>, w: vec3<f32>, display: bool) -> vec3<f32> {
+    var v = shade(p, l);
+    if display {
+        v = srgb_to_linear(v);
+    }
+    return select(w * v, vec3<f32>(0.0), w == vec3<f32>(0.0));
+}
+
+// Texel (x, y) of the slide at `offset`, `width` texels a row.
+fn texel(offset: u32, width: u32, x: u32, y: u32) -> vec3<f32> {
+    let i = offset + 3u * (y * width + x);
+    return vec3<f32>(slides[i], slides[i + 1u], slides[i + 2u]);
+}
+
+// Projector j at surface point `at` of pixel p (PreparedProjector::illuminate).
+fn projector(j: u32, at: vec3<f32>, p: u32, display: bool) -> vec3<f32> {
+    let pr = frame.projectors[j];
+    if pr.slide.w == 0u {
+        return vec3<f32>(0.0);
+    }
+    let to_light = pr.position.xyz - at;
+    let r = length(to_light);
+    if !(r > 1e-12) {
+        return vec3<f32>(0.0);
+    }
+    let l = to_light / r;
+    let dist = max(r, 1e-9);
+    var a = 1.0;
+    let kind = pr.position.w;
+    if kind < 0.5 {
+        a = 1.0 / (dist * dist);
+    } else if kind < 1.5 {
+        a = pr.forward.w / dist;
+    }
+    let d = at - pr.position.xyz;
+    let z = dot(d, pr.forward.xyz);
+    let sx = dot(d, pr.right.xyz) / (z * pr.right.w);
+    let sy = dot(d, pr.up.xyz) / (z * pr.up.w);
+    if !(z > 1e-9 && abs(sx) <= 1.0 && abs(sy) <= 1.0) {
+        return vec3<f32>(0.0);
+    }
+    // Slide pixel coordinates: x right, y down, centres at half-integers.
+    let sw = pr.slide.y;
+    let sh = pr.slide.z;
+    let w = f32(sw);
+    let h = f32(sh);
+    let fx = clamp((sx + 1.0) * 0.5 * w - 0.5, 0.0, w - 1.0);
+    let fy = clamp((1.0 - sy) * 0.5 * h - 0.5, 0.0, h - 1.0);
+    let x0 = u32(fx);
+    let y0 = u32(fy);
+    let x1 = min(x0 + 1u, sw - 1u);
+    let y1 = min(y0 + 1u, sh - 1u);
+    let tx = fx - f32(x0);
+    let ty = fy - f32(y0);
+    let o = pr.slide.x;
+    let top = texel(o, sw, x0, y0) * (1.0 - tx) + texel(o, sw, x1, y0) * tx;
+    let bottom = texel(o, sw, x0, y1) * (1.0 - tx) + texel(o, sw, x1, y1) * tx;
+    let weight = pr.rgb.xyz * (top * (1.0 - ty) + bottom * ty) * a;
+    if all(weight == vec3<f32>(0.0)) {
+        return vec3<f32>(0.0);
+    }
+    return weighted(p, l, weight, display);
+}
+
+// The high 32 bits of the 64-bit product of a and b (16-bit limbs).
+fn mul_hi32(a: u32, b: u32) -> u32 {
+    let a0 = a & 0xFFFFu;
+    let a1 = a >> 16u;
+    let b0 = b & 0xFFFFu;
+    let b1 = b >> 16u;
+    let p00 = a0 * b0;
+    let p01 = a0 * b1;
+    let p10 = a1 * b0;
+    let p11 = a1 * b1;
+    let mid = (p00 >> 16u) + (p01 & 0xFFFFu) + (p10 & 0xFFFFu);
+    return p11 + (p01 >> 16u) + (p10 >> 16u) + (mid >> 16u);
+}
+
+// a · b mod 2^64, 64-bit values as (lo, hi).
+fn mul64(a: vec2<u32>, b: vec2<u32>) -> vec2<u32> {
+    return vec2<u32>(a.x * b.x, mul_hi32(a.x, b.x) + a.x * b.y + a.y * b.x);
+}
+
+// a ^ (a >> s) for 0 < s < 32.
+fn xor_shift64(a: vec2<u32>, s: u32) -> vec2<u32> {
+    return a ^ vec2<u32>((a.x >> s) | (a.y << (32u - s)), a.y >> s);
+}
+
+// The strata shift (jx, jy) in [0, 1)² of image pixel `pixel` (row · width + column):
+// AreaLight::shift (crates/relit/src/light/area.rs).
+fn cranley_patterson(pixel: u32) -> vec2<f32> {
+    var h = mul64(vec2<u32>(pixel, 0u), vec2<u32>(0x7F4A7C15u, 0x9E3779B9u)) ^ vec2<u32>(0xD192ED03u, 0xD1B54A32u);
+    h = xor_shift64(h, 31u);
+    h = mul64(h, vec2<u32>(0x1CE4E5B9u, 0xBF58476Du));
+    h = xor_shift64(h, 29u);
+    return vec2<f32>(f32(h.x), f32(h.y)) * (1.0 / 4294967296.0);
+}
+
+// Area light j at surface point `at` of pixel p, image pixel `pixel`
+// (AreaLight::illuminate). Linear maps: the samples summed in SH, one dot with the
+// coefficients; display-referred maps: every sample's value decoded.
+fn area(j: u32, at: vec3<f32>, p: u32, pixel: u32, display: bool) -> vec3<f32> {
+    let light = frame.areas[j];
+    let n = light.strata.x;
+    let columns = light.strata.y;
+    let rows = light.strata.z;
+    let shift = cranley_patterson(pixel);
+    let disk = light.center.w > 0.5;
+    let two_sided = light.normal.w > 0.5;
+    let su = 2.0 / f32(columns);
+    let sv = 2.0 / f32(rows);
+    let inv_columns = 1.0 / f32(columns);
+    let tau = 6.283185307179586;
+    var proj: array<f32, 64>;
+    var total = 0.0;
+    var acc = vec3<f32>(0.0);
+    for (var k = 0u; k < n; k++) {
+        let column = f32(k % columns);
+        let row = f32(k / columns);
+        var x: vec3<f32>;
+        if disk {
+            let r = light.u.w * sqrt((column + shift.x) * inv_columns);
+            let phi = tau * ((row + shift.y) / f32(rows));
+            x = light.center.xyz + light.u.xyz * (r * cos(phi)) + light.v.xyz * (r * sin(phi));
+        } else {
+            let a = (column + shift.x) * su - 1.0;
+            let b = (row + shift.y) * sv - 1.0;
+            x = light.center.xyz + light.u.xyz * a + light.v.xyz * b;
+        }
+        let d = x - at;
+        let r2 = dot(d, d);
+        if !(r2 > 1e-18) {
+            continue;
+        }
+        let inv = 1.0 / sqrt(r2);
+        let l = d * inv;
+        var cos_e = -dot(l, light.normal.xyz);
+        if two_sided {
+            cos_e = abs(cos_e);
+        }
+        if !(cos_e > 0.0) {
+            continue;
+        }
+        let g = light.rgb.w * cos_e * inv * inv;
+        if display {
+            acc += weighted(p, l, light.rgb.xyz * g, display);
+        } else {
+            project(l, g, &proj);
+            total += g;
+        }
+    }
+    if display || !(total > 0.0) {
+        return acc;
+    }
+    var v = vec3<f32>(0.0);
+    let k = setup.dims.y;
+    for (var i = 0u; i < k; i++) {
+        v = fma(vec3<f32>(proj[i]), coef(i, p), v);
+    }
+    return select(light.rgb.xyz * v, vec3<f32>(0.0), light.rgb.xyz == vec3<f32>(0.0));
+}
+
 @compute @workgroup_size(256)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let t = gid.x + gid.y * groups.x * 256u;
@@ -174,9 +416,18 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
     }
 
     let lights = frame.counts.y;
-    if lights > 0u {
+    let projectors = frame.counts.z;
+    let areas = frame.counts.w;
+    if lights + projectors + areas > 0u {
         let surface = positions[p];
         if surface.w > 0.5 {
+            for (var j = 0u; j < projectors; j++) {
+                rgb += projector(j, surface.xyz, p, display);
+            }
+            let pixel = y * setup.dims.x + x;
+            for (var j = 0u; j < areas; j++) {
+                rgb += area(j, surface.xyz, p, pixel, display);
+            }
             for (var j = 0u; j < lights; j++) {
                 let to_light = frame.lights[j].position.xyz - surface.xyz;
                 let dist = length(to_light);

@@ -6,7 +6,8 @@
 //! (computed once from camera and depth, as the CPU engine does). A frame is one
 //! dispatch per slab that meets the region of interest, each writing its rows of the
 //! region into its own output buffer; a readback copies them, in order, into one
-//! staging buffer, which is the region's interleaved RGB image.
+//! staging buffer, which is the region's interleaved RGB image. Projector slides live
+//! in one more buffer, rewritten only when a frame's slides change.
 
 use crate::error::{invalid, GpuError, Result};
 use crate::lighting::{Lighting, MAX_K};
@@ -18,7 +19,8 @@ use relit::camera::Camera;
 use relit::image::ImageRgb;
 use relit::light::{Light, LightRig, PreparedLight};
 use relit::maps::{MapSpace, RelightableImage};
-use std::path::Path;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
 use std::sync::{mpsc, Arc, Mutex};
 use std::time::{Duration, Instant};
 use wgpu::util::DeviceExt;
@@ -110,8 +112,19 @@ struct Part {
 /// Everything a region needs per frame, kept while the region stays the same.
 struct Target {
     roi: Roi,
+    /// The [`SlideStore::generation`] its bind groups were made with.
+    slides: u64,
     parts: Vec<Part>,
     staging: wgpu::Buffer,
+}
+
+/// The projector slides on the GPU: the buffer, what it holds, in order.
+struct SlideStore {
+    buffer: wgpu::Buffer,
+    capacity: u64,
+    held: Vec<Arc<ImageRgb>>,
+    /// Bumped whenever `buffer` is replaced (bind groups refer to it).
+    generation: u64,
 }
 
 /// Coefficient maps on a GPU, relit by a compute shader (see the module docs).
@@ -136,8 +149,12 @@ pub struct GpuRelighter {
     no_positions_reason: Option<String>,
     max_groups: u32,
     max_buffer: u64,
+    max_binding: u64,
     resident_bytes: u64,
     target: Mutex<Option<Target>>,
+    slides: Mutex<SlideStore>,
+    /// Slides loaded from files, by path.
+    slide_files: Mutex<HashMap<PathBuf, Arc<ImageRgb>>>,
 }
 
 /// The adapter relit would use, without opening a device: `Err(NoAdapter)` tells a
@@ -360,6 +377,12 @@ impl GpuRelighter {
             cache: None,
         });
         let layout = pipeline.get_bind_group_layout(0);
+        let slides = SlideStore {
+            buffer: slide_buffer(&device, 16),
+            capacity: 16,
+            held: Vec::new(),
+            generation: 0,
+        };
         let engine = Self {
             device,
             queue,
@@ -380,8 +403,13 @@ impl GpuRelighter {
             no_positions_reason,
             max_groups: limits.max_compute_workgroups_per_dimension.max(1),
             max_buffer: limits.max_buffer_size,
+            max_binding: limits
+                .max_storage_buffer_binding_size
+                .min(limits.max_buffer_size),
             resident_bytes,
             target: Mutex::new(None),
+            slides: Mutex::new(slides),
+            slide_files: Mutex::default(),
         };
         engine.wait()?;
         engine.check_errors()?;
@@ -414,9 +442,23 @@ impl GpuRelighter {
         Lighting::new(self.basis.len(), self.display)
     }
 
-    /// The lighting of `rig` at `exposure` stops. The GPU relights directional, point
-    /// and spot lights; other types are [`GpuError::Unsupported`].
+    /// The lighting of `rig` at `exposure` stops, projector slides relative to the
+    /// working directory ([`GpuRelighter::lighting_in`]).
     pub fn lighting(&self, rig: &LightRig, exposure: f64) -> Result<Lighting> {
+        self.lighting_in(rig, exposure, Path::new(""))
+    }
+
+    /// The lighting of `rig` at `exposure` stops, projector slides relative to
+    /// `resource_dir` (as `RelightOptions::resource_dir`; each file is loaded once).
+    /// The GPU relights directional, point, spot, projector and area lights;
+    /// environment lights are [`GpuError::Unsupported`] here (add their weights with
+    /// [`Lighting::add_uniform`]).
+    pub fn lighting_in(
+        &self,
+        rig: &LightRig,
+        exposure: f64,
+        resource_dir: &Path,
+    ) -> Result<Lighting> {
         if !exposure.is_finite() {
             return Err(invalid("the exposure must be finite"));
         }
@@ -424,10 +466,20 @@ impl GpuRelighter {
         let mut lighting = self.empty_lighting();
         for (i, light) in rig.lights.iter().enumerate() {
             match light {
-                Light::Directional(_) | Light::Point(_) | Light::Spot(_) => {}
+                Light::Directional(_) | Light::Point(_) | Light::Spot(_) | Light::Area(_) => {}
+                Light::Projector(p) => {
+                    light
+                        .validate()
+                        .map_err(|e| invalid(format!("lights[{i}] (projector): {e}")))?;
+                    let slide = self.slide_file(&resource_dir.join(&p.slide)).map_err(|e| {
+                        invalid(format!("lights[{i}] (projector): slide {}: {e}", p.slide))
+                    })?;
+                    lighting.add_projector(p, slide, light.rgb().map(|v| v * scale))?;
+                    continue;
+                }
                 other => {
                     return Err(GpuError::Unsupported(format!(
-                        "lights[{i}] is a {} light; the GPU engine relights directional, point and spot lights",
+                        "lights[{i}] is a {} light; the GPU engine relights directional, point, spot, projector and area lights",
                         other.kind()
                     )))
                 }
@@ -444,6 +496,17 @@ impl GpuRelighter {
             }
         }
         Ok(lighting)
+    }
+
+    /// A slide file, linearised (as `ProjectorLight::prepare` loads it), cached.
+    fn slide_file(&self, path: &Path) -> std::result::Result<Arc<ImageRgb>, String> {
+        let mut cache = self.slide_files.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some(s) = cache.get(path) {
+            return Ok(s.clone());
+        }
+        let slide = Arc::new(relit::image::load_linear(path, None).map_err(|e| e.to_string())?);
+        cache.insert(path.to_path_buf(), slide.clone());
+        Ok(slide)
     }
 
     /// Relight the whole image with `rig`.
@@ -529,6 +592,39 @@ impl GpuRelighter {
             }
         }
         let frame = lighting.to_gpu(&self.coding)?;
+        let wanted = lighting.slides();
+        let mut store = self.slides.lock().unwrap_or_else(|p| p.into_inner());
+        let same = store.held.len() == wanted.len()
+            && store
+                .held
+                .iter()
+                .zip(&wanted)
+                .all(|(a, b)| Arc::ptr_eq(a, b));
+        if !same {
+            let bytes: u64 = wanted.iter().map(|s| 4 * s.data.len() as u64).sum();
+            if bytes > self.max_binding {
+                return Err(GpuError::TooLarge(format!(
+                    "projector slides of {bytes} bytes; {} binds at most {}",
+                    self.adapter, self.max_binding
+                )));
+            }
+            if bytes > store.capacity {
+                let capacity = bytes.next_power_of_two().min(self.max_binding).max(bytes);
+                store.buffer = slide_buffer(&self.device, capacity);
+                store.capacity = capacity;
+                store.generation += 1;
+            }
+            let mut at = 0;
+            for s in &wanted {
+                if !s.data.is_empty() {
+                    self.queue
+                        .write_buffer(&store.buffer, at, bytemuck::cast_slice(&s.data));
+                }
+                at += 4 * s.data.len() as u64;
+            }
+            store.held = wanted;
+        }
+        drop(store);
         self.queue
             .write_buffer(&self.frame, 0, bytemuck::bytes_of(frame.as_ref()));
         Ok(roi)
@@ -536,7 +632,14 @@ impl GpuRelighter {
 
     /// The cached per-region buffers, rebuilt when the region changes.
     fn target_for<'g>(&self, slot: &'g mut Option<Target>, roi: Roi) -> Result<&'g Target> {
-        if slot.as_ref().is_some_and(|t| t.roi == roi) {
+        let (slides, generation) = {
+            let store = self.slides.lock().unwrap_or_else(|p| p.into_inner());
+            (store.buffer.clone(), store.generation)
+        };
+        if slot
+            .as_ref()
+            .is_some_and(|t| t.roi == roi && t.slides == generation)
+        {
             return Ok(slot.as_ref().expect("checked"));
         }
         *slot = None;
@@ -589,6 +692,7 @@ impl GpuRelighter {
                 &slab.planes,
                 positions,
                 &out,
+                &slides,
             ];
             let entries: Vec<wgpu::BindGroupEntry> = buffers
                 .iter()
@@ -624,6 +728,7 @@ impl GpuRelighter {
         self.check_errors()?;
         Ok(slot.insert(Target {
             roi,
+            slides: generation,
             parts,
             staging,
         }))
@@ -653,6 +758,16 @@ impl GpuRelighter {
             Err(GpuError::Device(errors.join("; ")))
         }
     }
+}
+
+/// A buffer for `bytes` of projector slides.
+fn slide_buffer(device: &wgpu::Device, bytes: u64) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("relit slides"),
+        size: bytes.max(16),
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
 }
 
 /// The camera that turns depth into surface points, or why there is none.

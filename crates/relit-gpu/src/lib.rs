@@ -1,9 +1,10 @@
 //! # relit-gpu — relighting on a GPU with wgpu compute shaders
 //!
 //! [`GpuRelighter`] uploads a [`relit::maps::RelightableImage`] once and relights it
-//! with directional, point and spot lights, or with any folded weight vector (an
-//! environment light's `relit::envmap::EnvironmentLight::light_weights`), over the whole
-//! image or a region of interest. Results equal the CPU engine's
+//! with directional, point, spot, projector and area lights, or with any folded
+//! weight vector (an environment light's
+//! `relit::envmap::EnvironmentLight::light_weights`), over the whole image or a region
+//! of interest. Results equal the CPU engine's
 //! ([`relit::engine::relight`]) to f32 rounding; the tests state the bound.
 //!
 //! ```no_run
@@ -20,7 +21,9 @@
 //! type supplies how a stored value is read. Frames of linear maps cost one pass over
 //! the planes whatever the number of uniform lights (they fold into one weight per
 //! plane, as on the CPU); positional lights evaluate the SH basis per pixel with the
-//! trig-free recurrence of `relit::basis::SphericalHarmonics`, in f32.
+//! trig-free recurrence of `relit::basis::SphericalHarmonics`, in f32; projectors
+//! sample their slide as the CPU engine does, area lights take the CPU engine's
+//! stratified samples with the same per-pixel shift (its 64-bit hash, exactly).
 
 mod engine;
 mod error;
@@ -30,6 +33,6 @@ mod storage;
 
 pub use engine::{probe, AdapterSummary, GpuOptions, GpuRelighter};
 pub use error::{GpuError, Result};
-pub use lighting::{Lighting, MAX_PASSES, MAX_POSITIONAL};
+pub use lighting::{Lighting, MAX_AREAS, MAX_PASSES, MAX_POSITIONAL, MAX_PROJECTORS};
 pub use roi::Roi;
 pub use storage::{PlaneCoding, Storage, STRIDE_ALIGN};

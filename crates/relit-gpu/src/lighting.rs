@@ -4,13 +4,17 @@
 //! On linear maps every such light folds into a single pass before any pixel is
 //! touched, exactly as the CPU engine folds them; on display-referred maps each light
 //! keeps its own pass so that it can be decoded from sRGB before lights are added.
-//! Positional lights (point, spot) are sent as they are and evaluated per pixel.
+//! Positional lights (point, spot) are sent as they are and evaluated per pixel;
+//! projectors carry their frustum and the place of their slide in the frame's slide
+//! buffer, area lights their emitter and strata (`relit::light::{projector, area}`).
 
 use crate::error::{invalid, GpuError, Result};
 use crate::storage::PlaneCoding;
 use bytemuck::{Pod, Zeroable};
-use relit::light::{Attenuation, PreparedLight};
+use relit::image::ImageRgb;
+use relit::light::{AreaLight, AreaShape, Attenuation, PreparedLight, ProjectorLight};
 use relit::sphere::Vec3;
+use std::sync::Arc;
 
 /// The most SH coefficients a pass holds (8 bands).
 pub const MAX_K: usize = 64;
@@ -18,6 +22,12 @@ pub const MAX_K: usize = 64;
 pub const MAX_PASSES: usize = 16;
 /// The most positional lights per frame.
 pub const MAX_POSITIONAL: usize = 32;
+/// The most projectors per frame.
+pub const MAX_PROJECTORS: usize = 8;
+/// The most area lights per frame.
+pub const MAX_AREAS: usize = 8;
+/// The most samples of one area light (`AreaLight::validate` allows as many).
+const MAX_AREA_SAMPLES: usize = 4096;
 
 /// `Pass` in relight.wgsl.
 #[repr(C)]
@@ -38,6 +48,30 @@ struct PosLightGpu {
     cone: [f32; 4],
 }
 
+/// `Projector` in relight.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct ProjectorGpu {
+    position: [f32; 4],
+    forward: [f32; 4],
+    right: [f32; 4],
+    up: [f32; 4],
+    rgb: [f32; 4],
+    slide: [u32; 4],
+}
+
+/// `Area` in relight.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct AreaGpu {
+    center: [f32; 4],
+    u: [f32; 4],
+    v: [f32; 4],
+    normal: [f32; 4],
+    rgb: [f32; 4],
+    strata: [u32; 4],
+}
+
 /// `Frame` in relight.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
@@ -45,6 +79,29 @@ pub(crate) struct FrameGpu {
     counts: [u32; 4],
     passes: [PassGpu; MAX_PASSES],
     lights: [PosLightGpu; MAX_POSITIONAL],
+    projectors: [ProjectorGpu; MAX_PROJECTORS],
+    areas: [AreaGpu; MAX_AREAS],
+}
+
+/// A projector: its frustum (as `ProjectorLight::with_slide` computes it), RGB and slide.
+#[derive(Clone, Debug)]
+struct Projector {
+    position: Vec3,
+    forward: Vec3,
+    right: Vec3,
+    up: Vec3,
+    tan_half_x: f64,
+    tan_half_y: f64,
+    attenuation: Attenuation,
+    rgb: [f64; 3],
+    slide: Arc<ImageRgb>,
+}
+
+/// An area light and its RGB (colour × intensity × exposure).
+#[derive(Clone, Debug)]
+struct Area {
+    light: AreaLight,
+    rgb: [f64; 3],
 }
 
 /// A positional light with its RGB (colour × intensity × exposure).
@@ -67,6 +124,8 @@ pub struct Lighting {
     /// Display-referred maps: one (weights, rgb) pass per uniform light.
     passes: Vec<([Vec<f64>; 3], [f64; 3])>,
     positional: Vec<Positional>,
+    projectors: Vec<Projector>,
+    areas: Vec<Area>,
 }
 
 impl Lighting {
@@ -77,12 +136,14 @@ impl Lighting {
             folded: None,
             passes: Vec::new(),
             positional: Vec::new(),
+            projectors: Vec::new(),
+            areas: Vec::new(),
         }
     }
 
     /// Whether any light needs the per-pixel surface points.
     pub fn has_positional(&self) -> bool {
-        !self.positional.is_empty()
+        !(self.positional.is_empty() && self.projectors.is_empty() && self.areas.is_empty())
     }
 
     /// Coefficients per channel the lighting was built for.
@@ -127,7 +188,7 @@ impl Lighting {
         Ok(())
     }
 
-    /// Add a prepared positional light with its RGB already scaled by the exposure.
+    /// Add a prepared point, spot or area light, its RGB scaled by `scale` (2^exposure).
     pub(crate) fn add_positional(&mut self, light: &PreparedLight, scale: f64) -> Result<()> {
         let entry = match light {
             PreparedLight::Point(l, rgb) => Positional {
@@ -150,20 +211,73 @@ impl Lighting {
                     spot: Some((axis, outer, inner)),
                 }
             }
-            PreparedLight::Projector(..) => {
-                return Err(GpuError::Unsupported(
-                    "projector lights (use the CPU engine)".into(),
+            PreparedLight::Area(l, rgb) => {
+                l.validate().map_err(|e| invalid(e.to_string()))?;
+                if l.samples > MAX_AREA_SAMPLES {
+                    return Err(invalid("an area light has at most 4096 samples"));
+                }
+                self.areas.push(Area {
+                    light: l.clone(),
+                    rgb: rgb.map(|v| v * scale),
+                });
+                return Ok(());
+            }
+            _ => {
+                return Err(invalid(
+                    "only point, spot and area lights are positional here",
                 ))
             }
-            PreparedLight::Area(..) => {
-                return Err(GpuError::Unsupported(
-                    "area lights (use the CPU engine)".into(),
-                ))
-            }
-            _ => return Err(invalid("only point and spot lights are positional")),
         };
         self.positional.push(entry);
         Ok(())
+    }
+
+    /// Add a projector with its slide (linear RGB, as `ProjectorLight::prepare` loads
+    /// it; `light.slide` is not read) and `rgb` (colour × intensity × 2^exposure).
+    /// Frames upload a slide again only when the frame's slides change.
+    pub fn add_projector(
+        &mut self,
+        light: &ProjectorLight,
+        slide: Arc<ImageRgb>,
+        rgb: [f64; 3],
+    ) -> Result<()> {
+        light.validate().map_err(|e| invalid(e.to_string()))?;
+        if rgb.iter().any(|v| !v.is_finite()) {
+            return Err(invalid("light colours must be finite"));
+        }
+        if slide.data.len() != 3 * slide.width * slide.height {
+            return Err(invalid("the slide's pixels do not match its size"));
+        }
+        // The frame of `ProjectorLight::with_slide`, computed the same way.
+        let forward = light.direction.normalized().expect("validated");
+        let right = forward.cross(light.up).normalized().expect("validated");
+        let up = right.cross(forward);
+        let tan_half_y = (0.5 * light.fov_deg.to_radians()).tan();
+        let aspect = slide.width as f64 / slide.height.max(1) as f64;
+        self.projectors.push(Projector {
+            position: light.position,
+            forward,
+            right,
+            up,
+            tan_half_x: tan_half_y * aspect,
+            tan_half_y,
+            attenuation: light.attenuation,
+            rgb,
+            slide,
+        });
+        Ok(())
+    }
+
+    /// The distinct slides of the projectors, in the order the frame's offsets count
+    /// them (each `3 · width · height` floats after the previous).
+    pub(crate) fn slides(&self) -> Vec<Arc<ImageRgb>> {
+        let mut out: Vec<Arc<ImageRgb>> = Vec::new();
+        for p in &self.projectors {
+            if !out.iter().any(|s| Arc::ptr_eq(s, &p.slide)) {
+                out.push(p.slide.clone());
+            }
+        }
+        out
     }
 
     /// The shader's `Frame`, with the storage's per-plane coding folded into the passes.
@@ -184,8 +298,25 @@ impl Lighting {
                 self.positional.len()
             )));
         }
+        if self.projectors.len() > MAX_PROJECTORS {
+            return Err(GpuError::Unsupported(format!(
+                "{} projectors (at most {MAX_PROJECTORS} per frame)",
+                self.projectors.len()
+            )));
+        }
+        if self.areas.len() > MAX_AREAS {
+            return Err(GpuError::Unsupported(format!(
+                "{} area lights (at most {MAX_AREAS} per frame)",
+                self.areas.len()
+            )));
+        }
         let mut frame: Box<FrameGpu> = bytemuck::zeroed_box();
-        frame.counts = [uniform.len() as u32, self.positional.len() as u32, 0, 0];
+        frame.counts = [
+            uniform.len() as u32,
+            self.positional.len() as u32,
+            self.projectors.len() as u32,
+            self.areas.len() as u32,
+        ];
         for (dst, (weights, tint)) in frame.passes.iter_mut().zip(&uniform) {
             let mut offset = [0f64; 3];
             for c in 0..3 {
@@ -199,11 +330,7 @@ impl Lighting {
             }
         }
         for (dst, l) in frame.lights.iter_mut().zip(&self.positional) {
-            let (kind, c0) = match l.attenuation {
-                Attenuation::InverseSquare => (0.0, 0.0),
-                Attenuation::InverseDistance(c0) => (1.0, c0),
-                Attenuation::None => (2.0, 0.0),
-            };
+            let (kind, c0) = attenuation_code(l.attenuation);
             dst.position = [
                 l.position.x as f32,
                 l.position.y as f32,
@@ -216,8 +343,90 @@ impl Lighting {
                 dst.cone = [outer as f32, inner as f32, 0.0, 0.0];
             }
         }
+        let slides = self.slides();
+        let mut offsets = Vec::with_capacity(slides.len());
+        let mut at = 0usize;
+        for s in &slides {
+            offsets.push(at);
+            at += s.data.len();
+        }
+        if at > u32::MAX as usize {
+            return Err(GpuError::TooLarge(format!(
+                "projector slides of {at} values (at most {} per frame)",
+                u32::MAX
+            )));
+        }
+        let f4 = |v: Vec3, w: f64| [v.x as f32, v.y as f32, v.z as f32, w as f32];
+        for (dst, p) in frame.projectors.iter_mut().zip(&self.projectors) {
+            let (kind, c0) = attenuation_code(p.attenuation);
+            let i = slides
+                .iter()
+                .position(|s| Arc::ptr_eq(s, &p.slide))
+                .expect("listed");
+            let empty = p.slide.data.is_empty() || p.slide.width == 0 || p.slide.height == 0;
+            dst.position = f4(p.position, kind as f64);
+            dst.forward = f4(p.forward, c0);
+            dst.right = f4(p.right, p.tan_half_x);
+            dst.up = f4(p.up, p.tan_half_y);
+            dst.rgb = [p.rgb[0] as f32, p.rgb[1] as f32, p.rgb[2] as f32, 0.0];
+            dst.slide = [
+                offsets[i] as u32,
+                p.slide.width as u32,
+                p.slide.height as u32,
+                (!empty) as u32,
+            ];
+        }
+        for (dst, a) in frame.areas.iter_mut().zip(&self.areas) {
+            let l = &a.light;
+            let (columns, rows) = l.strata();
+            let weight = (l.area() / l.samples as f64) as f32;
+            match &l.shape {
+                AreaShape::Rect { center, u, v } => {
+                    let n = u.cross(*v).normalized().expect("validated");
+                    dst.center = f4(*center, 0.0);
+                    dst.u = f4(*u, 0.0);
+                    dst.v = f4(*v, 0.0);
+                    dst.normal = f4(n, l.two_sided as u8 as f64);
+                }
+                AreaShape::Disk {
+                    center,
+                    normal,
+                    radius,
+                } => {
+                    let (n, da, db) = disk_frame(*normal);
+                    dst.center = f4(*center, 1.0);
+                    dst.u = f4(da, *radius);
+                    dst.v = f4(db, 0.0);
+                    dst.normal = f4(n, l.two_sided as u8 as f64);
+                }
+            }
+            dst.rgb = [a.rgb[0] as f32, a.rgb[1] as f32, a.rgb[2] as f32, weight];
+            dst.strata = [l.samples as u32, columns as u32, rows as u32, 0];
+        }
         Ok(frame)
     }
+}
+
+/// The shader's code of a falloff (0 inverse square, 1 `c0 / d`, 2 none) and its `c0`.
+fn attenuation_code(a: Attenuation) -> (f32, f64) {
+    match a {
+        Attenuation::InverseSquare => (0.0, 0.0),
+        Attenuation::InverseDistance(c0) => (1.0, c0),
+        Attenuation::None => (2.0, 0.0),
+    }
+}
+
+/// A disk's unit normal and the unit vectors of its `φ = 0` and `φ = π/2` axes: the
+/// private `disk_frame` of `relit::light::area`, computed the same way.
+fn disk_frame(normal: Vec3) -> (Vec3, Vec3, Vec3) {
+    let n = normal.normalized().expect("validated");
+    let helper = if n.x.abs() < 0.9 {
+        Vec3::new(1.0, 0.0, 0.0)
+    } else {
+        Vec3::new(0.0, 1.0, 0.0)
+    };
+    let a = helper.cross(n).normalized().expect("not parallel");
+    (n, a, n.cross(a))
 }
 
 #[cfg(test)]
