@@ -421,12 +421,17 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
     if lights + projectors + areas > 0u {
         let surface = positions[p];
         if surface.w > 0.5 {
-            for (var j = 0u; j < projectors; j++) {
-                rgb += projector(j, surface.xyz, p, display);
-            }
-            let pixel = y * setup.dims.x + x;
-            for (var j = 0u; j < areas; j++) {
-                rgb += area(j, surface.xyz, p, pixel, display);
+            // EXTRA_LIGHTS (prepended by engine.rs) is false in the pipeline for frames
+            // without projector or area lights, which compiles their code out: with it,
+            // lavapipe ran every other frame ~1.7× slower (directional 31 → 17 fps).
+            if EXTRA_LIGHTS {
+                for (var j = 0u; j < projectors; j++) {
+                    rgb += projector(j, surface.xyz, p, display);
+                }
+                let pixel = y * setup.dims.x + x;
+                for (var j = 0u; j < areas; j++) {
+                    rgb += area(j, surface.xyz, p, pixel, display);
+                }
             }
             for (var j = 0u; j < lights; j++) {
                 let to_light = frame.lights[j].position.xyz - surface.xyz;

@@ -134,6 +134,8 @@ pub struct GpuRelighter {
     adapter: AdapterSummary,
     errors: Arc<Mutex<Vec<String>>>,
     pipeline: wgpu::ComputePipeline,
+    /// The pipeline for frames without projector or area lights.
+    basic_pipeline: wgpu::ComputePipeline,
     layout: wgpu::BindGroupLayout,
     setup: wgpu::Buffer,
     frame: wgpu::Buffer,
@@ -359,24 +361,63 @@ impl GpuRelighter {
             usage: wgpu::BufferUsages::STORAGE,
             mapped_at_creation: false,
         });
-        let source = format!(
-            "{}\n{}",
-            storage.shader_fetch(),
-            include_str!("../shaders/relight.wgsl")
-        );
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        let module = |extra: bool| {
+            let source = format!(
+                "const EXTRA_LIGHTS: bool = {extra};\n{}\n{}",
+                storage.shader_fetch(),
+                include_str!("../shaders/relight.wgsl")
+            );
+            device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("relit relight"),
+                source: wgpu::ShaderSource::Wgsl(source.into()),
+            })
+        };
+        // One explicit layout (bindings of relight.wgsl and fetch_*.wgsl) for both
+        // pipelines, so that one bind group serves either.
+        let entry = |binding: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let read = wgpu::BufferBindingType::Storage { read_only: true };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("relit relight"),
-            source: wgpu::ShaderSource::Wgsl(source.into()),
+            entries: &[
+                entry(0, wgpu::BufferBindingType::Uniform),
+                entry(1, wgpu::BufferBindingType::Uniform),
+                entry(2, read),
+                entry(3, read),
+                entry(4, read),
+                entry(5, wgpu::BufferBindingType::Storage { read_only: false }),
+                entry(6, read),
+            ],
+        });
+        let shared = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("relit relight"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
         });
         let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some("relit relight"),
-            layout: None,
-            module: &module,
+            layout: Some(&shared),
+            module: &module(true),
             entry_point: Some("main"),
             compilation_options: Default::default(),
             cache: None,
         });
-        let layout = pipeline.get_bind_group_layout(0);
+        let basic_pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("relit relight, no projector or area lights"),
+            layout: Some(&shared),
+            module: &module(false),
+            entry_point: Some("main"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
         let slides = SlideStore {
             buffer: slide_buffer(&device, 16),
             capacity: 16,
@@ -389,6 +430,7 @@ impl GpuRelighter {
             adapter: summary,
             errors,
             pipeline,
+            basic_pipeline,
             layout,
             setup,
             frame,
@@ -525,7 +567,7 @@ impl GpuRelighter {
         let mut guard = self.target.lock().unwrap_or_else(|p| p.into_inner());
         let target = self.target_for(&mut guard, roi)?;
         let mut encoder = self.device.create_command_encoder(&Default::default());
-        self.encode(&mut encoder, target);
+        self.encode(&mut encoder, target, lighting.has_projectors_or_areas());
         for part in &target.parts {
             encoder.copy_buffer_to_buffer(&part.out, 0, &target.staging, part.offset, part.bytes);
         }
@@ -562,9 +604,10 @@ impl GpuRelighter {
         let roi = self.upload(lighting, roi)?;
         let mut guard = self.target.lock().unwrap_or_else(|p| p.into_inner());
         let target = self.target_for(&mut guard, roi)?;
+        let extra = lighting.has_projectors_or_areas();
         let frame = |engine: &Self| {
             let mut encoder = engine.device.create_command_encoder(&Default::default());
-            engine.encode(&mut encoder, target);
+            engine.encode(&mut encoder, target, extra);
             engine.queue.submit([encoder.finish()]);
         };
         frame(self);
@@ -734,9 +777,13 @@ impl GpuRelighter {
         }))
     }
 
-    fn encode(&self, encoder: &mut wgpu::CommandEncoder, target: &Target) {
+    fn encode(&self, encoder: &mut wgpu::CommandEncoder, target: &Target, extra: bool) {
         let mut pass = encoder.begin_compute_pass(&Default::default());
-        pass.set_pipeline(&self.pipeline);
+        pass.set_pipeline(if extra {
+            &self.pipeline
+        } else {
+            &self.basic_pipeline
+        });
         for part in &target.parts {
             pass.set_bind_group(0, &part.bind, &[]);
             pass.dispatch_workgroups(part.groups[0], part.groups[1], 1);

@@ -141,6 +141,11 @@ impl Lighting {
         }
     }
 
+    /// Whether the frame has projector or area lights (the full pipeline's code).
+    pub(crate) fn has_projectors_or_areas(&self) -> bool {
+        !(self.projectors.is_empty() && self.areas.is_empty())
+    }
+
     /// Whether any light needs the per-pixel surface points.
     pub fn has_positional(&self) -> bool {
         !(self.positional.is_empty() && self.projectors.is_empty() && self.areas.is_empty())
