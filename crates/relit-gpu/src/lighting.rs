@@ -393,12 +393,8 @@ impl Lighting {
                     dst.v = f4(*v, 0.0);
                     dst.normal = f4(n, l.two_sided as u8 as f64);
                 }
-                AreaShape::Disk {
-                    center,
-                    normal,
-                    radius,
-                } => {
-                    let (n, da, db) = disk_frame(*normal);
+                AreaShape::Disk { center, radius, .. } => {
+                    let (n, da, db) = l.disk_frame().expect("a disk has a frame");
                     dst.center = f4(*center, 1.0);
                     dst.u = f4(da, *radius);
                     dst.v = f4(db, 0.0);
@@ -419,19 +415,6 @@ fn attenuation_code(a: Attenuation) -> (f32, f64) {
         Attenuation::InverseDistance(c0) => (1.0, c0),
         Attenuation::None => (2.0, 0.0),
     }
-}
-
-/// A disk's unit normal and the unit vectors of its `φ = 0` and `φ = π/2` axes: the
-/// private `disk_frame` of `relit::light::area`, computed the same way.
-fn disk_frame(normal: Vec3) -> (Vec3, Vec3, Vec3) {
-    let n = normal.normalized().expect("validated");
-    let helper = if n.x.abs() < 0.9 {
-        Vec3::new(1.0, 0.0, 0.0)
-    } else {
-        Vec3::new(0.0, 1.0, 0.0)
-    };
-    let a = helper.cross(n).normalized().expect("not parallel");
-    (n, a, n.cross(a))
 }
 
 #[cfg(test)]

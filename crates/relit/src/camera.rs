@@ -481,6 +481,20 @@ fn column_azimuth(x: f64, width: usize) -> f64 {
     (x / width as f64 - 0.5) * std::f64::consts::TAU
 }
 
+/// The column part of a panorama's [`RayFactors`]: the horizontal unit vector
+/// `(sin φ, 0, −cos φ)` at each column centre's azimuth.
+fn azimuth_columns(width: usize) -> Vec<ColumnRay> {
+    (0..width)
+        .map(|i| {
+            let phi = column_azimuth(i as f64 + 0.5, width);
+            ColumnRay {
+                origin: Vec3::default(),
+                direction: Vec3::new(phi.sin(), 0.0, -phi.cos()),
+            }
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

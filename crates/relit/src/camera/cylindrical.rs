@@ -1,8 +1,8 @@
 //! The cylindrical panorama of seed 004: 360° around the vertical axis.
 
 use super::{
-    check_fov, check_size, column_azimuth, panorama_azimuth, panorama_column, CameraModel,
-    ColumnRay, Projection, Ray, RayFactors, RowRay,
+    azimuth_columns, check_fov, check_size, column_azimuth, panorama_azimuth, panorama_column,
+    CameraModel, Projection, Ray, RayFactors, RowRay,
 };
 use crate::sphere::Vec3;
 use crate::Result;
@@ -55,15 +55,7 @@ impl CameraModel for Cylindrical {
     fn ray_factors(&self) -> RayFactors {
         // (sin φ, h, −cos φ) normalised: the azimuth per column, the height per row.
         RayFactors {
-            columns: (0..self.width)
-                .map(|i| {
-                    let phi = column_azimuth(i as f64 + 0.5, self.width);
-                    ColumnRay {
-                        origin: Vec3::default(),
-                        direction: Vec3::new(phi.sin(), 0.0, -phi.cos()),
-                    }
-                })
-                .collect(),
+            columns: azimuth_columns(self.width),
             rows: (0..self.height)
                 .map(|j| RowRay {
                     origin: Vec3::default(),

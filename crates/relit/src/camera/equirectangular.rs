@@ -1,7 +1,7 @@
 //! The latitude–longitude panorama: the whole sphere of directions.
 
 use super::{
-    check_size, column_azimuth, panorama_azimuth, panorama_column, CameraModel, ColumnRay,
+    azimuth_columns, check_size, column_azimuth, panorama_azimuth, panorama_column, CameraModel,
     Projection, Ray, RayFactors, RowRay,
 };
 use crate::sphere::Vec3;
@@ -41,15 +41,7 @@ impl CameraModel for Equirectangular {
     fn ray_factors(&self) -> RayFactors {
         // (cos θ·sin φ, sin θ, −cos θ·cos φ): the azimuth per column, the latitude per row.
         RayFactors {
-            columns: (0..self.width)
-                .map(|i| {
-                    let phi = column_azimuth(i as f64 + 0.5, self.width);
-                    ColumnRay {
-                        origin: Vec3::default(),
-                        direction: Vec3::new(phi.sin(), 0.0, -phi.cos()),
-                    }
-                })
-                .collect(),
+            columns: azimuth_columns(self.width),
             rows: (0..self.height)
                 .map(|j| {
                     let latitude = (0.5 - (j as f64 + 0.5) / self.height as f64) * PI;

@@ -116,7 +116,7 @@ impl AreaLight {
 
     /// The unit normal of a disk and the unit vectors of its `φ = 0` and `φ = π/2` axes
     /// ([`AreaLight::point`]); `None` for a rectangle.
-    pub(crate) fn disk_frame(&self) -> Option<(Vec3, Vec3, Vec3)> {
+    pub fn disk_frame(&self) -> Option<(Vec3, Vec3, Vec3)> {
         match &self.shape {
             AreaShape::Disk { normal, .. } => Some(disk_frame(*normal)),
             AreaShape::Rect { .. } => None,
