@@ -187,7 +187,9 @@ fn light_factor(j: u32, l: vec3<f32>, dist: f32) -> vec3<f32> {
 }
 
 // proj[i] += g · Y_i(d) for a unit vector d: the recurrence of `shade`, projecting
-// an area light's sample into SH instead of dotting it with the coefficients.
+// an area light's sample into SH instead of dotting it with the coefficients. WGSL has
+// no closures or generics to share the recurrence, and routing `shade` through this
+// array would put 64 floats of function memory on every point light's path.
 fn project(d: vec3<f32>, g: f32, proj: ptr<function, array<f32, 64>>) {
     let bands = setup.dims.z;
     var cm = 1.0;

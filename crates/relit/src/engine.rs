@@ -189,12 +189,17 @@ impl<'a> Relighter<'a> {
                 "the coefficient maps' data does not match their size",
             ));
         }
+        Ok(Self::over(image, basis, Planes::new(&image.maps, storage)))
+    }
+
+    /// A relighter over checked planes, with nothing computed yet.
+    fn over(image: &'a RelightableImage, basis: Box<dyn Basis>, planes: Planes<'a>) -> Self {
         let BasisSpec::Sh { bands } = image.meta.basis;
-        Ok(Self {
+        Self {
             image,
             basis,
             bands,
-            planes: Planes::new(&image.maps, storage),
+            planes,
             simd: Simd::detect(),
             norms: ShNorms::new(),
             stream_from: STREAM_BYTES,
@@ -202,7 +207,7 @@ impl<'a> Relighter<'a> {
             point_rows: OnceLock::new(),
             slides: Mutex::new(HashMap::new()),
             environments: Mutex::new(HashMap::new()),
-        })
+        }
     }
 
     /// A relighter over compact planes decoded without the f32 maps
@@ -222,20 +227,7 @@ impl<'a> Relighter<'a> {
                 basis.len()
             )));
         }
-        let BasisSpec::Sh { bands } = image.meta.basis;
-        Ok(Self {
-            image,
-            basis,
-            bands,
-            planes: planes.planes,
-            simd: Simd::detect(),
-            norms: ShNorms::new(),
-            stream_from: STREAM_BYTES,
-            points: OnceLock::new(),
-            point_rows: OnceLock::new(),
-            slides: Mutex::new(HashMap::new()),
-            environments: Mutex::new(HashMap::new()),
-        })
+        Ok(Self::over(image, basis, planes.planes))
     }
 
     /// Run the portable kernels even where the CPU has AVX2 (tests compare both).
