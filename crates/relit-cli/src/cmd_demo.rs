@@ -88,9 +88,9 @@ struct Fidelity {
 
 impl Fidelity {
     fn add(&mut self, frame: &ImageRgb, truth: &ImageRgb) {
-        let (srgb8, linear) = relit::eval::compare(&frame.data, &truth.data, None);
-        self.srgb8.push(srgb8);
-        self.linear.push(linear);
+        let score = relit::metrics::compare(&frame.data, &truth.data, None);
+        self.srgb8.push(score.psnr_srgb8);
+        self.linear.push(score.psnr_linear);
     }
     fn mean(v: &[f64]) -> f64 {
         v.iter().sum::<f64>() / v.len().max(1) as f64

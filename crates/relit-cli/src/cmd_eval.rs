@@ -32,7 +32,8 @@ pub struct Args {
     /// With --scene: samples per pixel of an environment light's ray-traced truth.
     #[arg(long, default_value_t = relit_studio::emitter::DEFAULT_ENVIRONMENT_SAMPLES, requires = "scene")]
     pub env_samples: usize,
-    /// With --scene: write each light's truth and relit images (PNG) into this folder.
+    /// With --scene: write each light's truth (top) and relit image (bottom) as one 8-bit
+    /// sRGB PNG, never scaled, and `mask.png` (the pixels scored) into this folder.
     #[arg(long, requires = "scene")]
     pub save: Option<PathBuf>,
     /// Images to hold out: `every:N`, `spread:N` (N evenly spread; `spread:5` is the
@@ -179,15 +180,26 @@ fn run_scene(args: Args) -> anyhow::Result<()> {
     if let Some(dir) = &args.save {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
-    // Each light's truth and relit image side by side, when asked for.
+    // Each light's truth above its relit image (8-bit sRGB, never scaled, so the reported
+    // sRGB PSNR can be recomputed from the file), and the mask the figures are computed
+    // over, when asked for.
     let mut save = |i: usize,
                     light: &relit::light::Light,
                     truth: &relit::image::ImageRgb,
-                    relit: &relit::image::ImageRgb|
+                    relit: &relit::image::ImageRgb,
+                    mask: &[f32]|
      -> relit::Result<()> {
         if let Some(dir) = &args.save {
-            let pair = relit::image::contact_sheet(&[truth.clone(), relit.clone()], 1, 2048);
+            let pair = relit::image::contact_sheet(&[truth.clone(), relit.clone()], 1, usize::MAX);
             relit::image::save(&dir.join(format!("{i}_{}.png", light.kind())), &pair, 0.0)?;
+            if i == 0 {
+                let (w, h) = (truth.width, truth.height);
+                let mut m = relit::image::ImageRgb::new(w, h);
+                for (px, &v) in m.data.chunks_exact_mut(3).zip(mask) {
+                    px.fill(if v > 0.5 { 1.0 } else { 0.0 });
+                }
+                relit::image::save(&dir.join("mask.png"), &m, 0.0)?;
+            }
         }
         Ok(())
     };

@@ -100,7 +100,7 @@ fn fit_info_relight_round_trip() {
     ]);
     let got = relit::image::load_linear(&out, None).unwrap();
     let truth = f.plane.render(Vec3::new(0.3, -0.4, 0.75));
-    let (psnr, _) = relit::eval::compare(&got.data, &truth.data, None);
+    let psnr = relit::metrics::psnr_srgb8(&got.data, &truth.data);
     // 16 SH coefficients on a glossy plane with a terminator kink: ~33 dB; a wrong
     // axis or sign convention drops this below 20 dB.
     assert!(psnr > 30.0, "relit vs truth {psnr:.2} dB");
@@ -320,4 +320,74 @@ fn eval_scene_prints_every_light_type_as_json() {
         ],
         "missing.hdr",
     );
+}
+
+/// `relit eval --scene --save`: the sRGB PSNR the report gives for each light is the one
+/// recomputed here, independently, from the 8-bit codes of the saved truth/relit pair
+/// inside the saved mask (the report once divided by 9 samples a pixel, 4.77 dB high).
+#[test]
+fn scene_eval_figures_match_the_saved_images() {
+    let dir = tempfile::tempdir().unwrap();
+    let rig = dir.path().join("rig.json");
+    std::fs::write(
+        &rig,
+        r#"{ "lights": [
+            { "type": "directional", "direction": [0.3, 0.8, 0.5] },
+            { "type": "point", "position": [0.5, 1.2, 1.0], "intensity": 2 } ] }"#,
+    )
+    .unwrap();
+    let save = dir.path().join("saved");
+    let out = ok(&[
+        "eval",
+        "--scene",
+        "box",
+        "--size",
+        "64x48",
+        "--lights",
+        "fibonacci:60",
+        "--bands",
+        "3",
+        "--rig",
+        Fixture::s(&rig),
+        "--save",
+        Fixture::s(&save),
+        "--json",
+        "-q",
+    ]);
+    let report: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let codes = |path: &Path| {
+        let img = relit::image::load_linear(path, None).unwrap();
+        (img.width, img.height, img.to_srgb8())
+    };
+    let (mw, mh, mask) = codes(&save.join("mask.png"));
+    assert_eq!((mw, mh), (64, 48));
+    let lights = report["lights"].as_array().unwrap();
+    assert_eq!(lights.len(), 2);
+    for (i, light) in lights.iter().enumerate() {
+        let kind = light["type"].as_str().unwrap();
+        let (w, h, pair) = codes(&save.join(format!("{i}_{kind}.png")));
+        // Truth above relit, each framed by a 2-pixel gutter.
+        assert_eq!((w, h), (64 + 4, 2 * (48 + 2) + 2));
+        let (mut sq, mut n) = (0.0f64, 0usize);
+        for y in 0..48 {
+            for x in 0..64 {
+                if mask[3 * (y * 64 + x)] < 128 {
+                    continue;
+                }
+                for c in 0..3 {
+                    let t = pair[3 * ((y + 2) * w + x + 2) + c] as f64;
+                    let r = pair[3 * ((y + 2 + 48 + 2) * w + x + 2) + c] as f64;
+                    sq += (t - r) * (t - r);
+                    n += 1;
+                }
+            }
+        }
+        assert!(n > 0);
+        let recomputed = 10.0 * (255.0f64 * 255.0 / (sq / n as f64)).log10();
+        let reported = light["psnr_srgb8"].as_f64().unwrap();
+        assert!(
+            (recomputed - reported).abs() < 0.05,
+            "{kind}: reported {reported:.3} dB, recomputed from the saved images {recomputed:.3} dB"
+        );
+    }
 }

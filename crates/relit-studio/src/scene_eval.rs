@@ -81,13 +81,7 @@ impl Default for SceneEvalOptions {
 }
 
 /// PSNR of one comparison, over the pixels with geometry.
-#[derive(Clone, Copy, Debug, Serialize)]
-pub struct Psnr {
-    /// Linear radiance, peak 1.
-    pub psnr_linear: f64,
-    /// 8-bit sRGB values.
-    pub psnr_srgb8: f64,
-}
+pub use relit::metrics::Psnr;
 
 /// The occlusion limitation under one light.
 #[derive(Clone, Debug, Serialize)]
@@ -99,6 +93,10 @@ pub struct Occlusion {
     pub affected: Option<Psnr>,
     /// PSNR over the other pixels.
     pub clear: Option<Psnr>,
+    /// Mean linear radiance of the truth and of the relit image over the other pixels:
+    /// their ratio is the fit's brightness error alone, without the limitation's.
+    pub clear_truth_mean: f64,
+    pub clear_relit_mean: f64,
 }
 
 /// One light of the rig.
@@ -111,6 +109,9 @@ pub struct LightResult {
     pub psnr_srgb8: f64,
     /// Mean linear radiance of the truth over pixels with geometry (how bright the test is).
     pub truth_mean: f64,
+    /// Mean linear radiance of the relit image over the same pixels: `relit_mean /
+    /// truth_mean` shows a fit that darkens or brightens the scene.
+    pub relit_mean: f64,
     pub relight_seconds: f64,
     pub truth_seconds: f64,
     /// Lights with a position only.
@@ -184,8 +185,9 @@ pub struct SceneEvalReport {
     pub area: Vec<AreaCheck>,
 }
 
-/// Receives, for each light of the rig, its index, the light, the truth and the relit image.
-pub type ImageSink<'a> = dyn FnMut(usize, &Light, &ImageRgb, &ImageRgb) -> Result<()> + 'a;
+/// Receives, for each light of the rig, its index, the light, the truth, the relit image
+/// and the mask of the pixels the figures are computed over (`> 0.5`: geometry).
+pub type ImageSink<'a> = dyn FnMut(usize, &Light, &ImageRgb, &ImageRgb, &[f32]) -> Result<()> + 'a;
 
 /// Capture `scene` through `camera`, fit it, and compare relit and ray-traced images
 /// under each light of `rig` (files it names resolve against `base`). `sink`, if given,
@@ -247,7 +249,7 @@ pub fn evaluate(
         let relight_seconds = t.elapsed().as_secs_f64();
         let all = compare_in(&relit, &reference, &mask);
         if let Some(sink) = sink.as_mut() {
-            sink(index, light, &reference, &relit)?;
+            sink(index, light, &reference, &relit, &mask)?;
         }
         let occlusion = (!light.is_uniform()).then(|| {
             let wrong = truth.visibility_mismatch(emitter);
@@ -267,6 +269,8 @@ pub fn evaluate(
                 affected_fraction: count as f64 / inside as f64,
                 affected: (count > 0).then(|| compare_in(&relit, &reference, &affected)),
                 clear: (count < inside).then(|| compare_in(&relit, &reference, &clear)),
+                clear_truth_mean: mean_in(&reference, &clear),
+                clear_relit_mean: mean_in(&relit, &clear),
             }
         });
         if let Light::Environment(env) = light {
@@ -300,6 +304,7 @@ pub fn evaluate(
             psnr_linear: all.psnr_linear,
             psnr_srgb8: all.psnr_srgb8,
             truth_mean: mean_in(&reference, &mask),
+            relit_mean: mean_in(&relit, &mask),
             relight_seconds,
             truth_seconds,
             occlusion,
@@ -434,41 +439,11 @@ fn brute_force(
 /// PSNR (linear, peak 1; and 8-bit sRGB) of `test` against `reference` over the pixels
 /// where `mask > 0.5`.
 pub fn compare_in(test: &ImageRgb, reference: &ImageRgb, mask: &[f32]) -> Psnr {
-    let (mut sq, mut sq8, mut n) = (0.0f64, 0.0f64, 0usize);
-    for ((t, r), &m) in test
-        .data
-        .chunks_exact(3)
-        .zip(reference.data.chunks_exact(3))
-        .zip(mask)
-    {
-        if m <= 0.5 {
-            continue;
-        }
-        for c in 0..3 {
-            let tv = if t[c].is_finite() { t[c] } else { 0.0 };
-            sq += (tv as f64 - r[c] as f64).powi(2);
-            let d8 = relit::color::linear_to_srgb8(tv) as f64
-                - relit::color::linear_to_srgb8(r[c]) as f64;
-            sq8 += d8 * d8;
-            n += 3;
-        }
-    }
-    let n = n.max(1) as f64;
-    Psnr {
-        psnr_linear: fit::psnr(sq / n, 1.0),
-        psnr_srgb8: fit::psnr(sq8 / n, 255.0),
-    }
+    relit::metrics::compare(&test.data, &reference.data, Some(mask))
 }
 
 fn mean_in(image: &ImageRgb, mask: &[f32]) -> f64 {
-    let (mut sum, mut n) = (0.0f64, 0usize);
-    for (px, &m) in image.data.chunks_exact(3).zip(mask) {
-        if m > 0.5 {
-            sum += px.iter().map(|&v| v as f64).sum::<f64>() / 3.0;
-            n += 1;
-        }
-    }
-    sum / n.max(1) as f64
+    relit::metrics::mean_radiance(&image.data, Some(mask))
 }
 
 /// One light of each type the engine has, placed for `camera`'s view of a scene whose

@@ -17,8 +17,9 @@
 use crate::capture::Capture;
 use crate::codec::Storage;
 use crate::engine::{self, RelightOptions};
-use crate::fit::{self, psnr, FitOptions};
+use crate::fit::{self, FitOptions};
 use crate::light::{Light, LightRig};
+use crate::metrics;
 use crate::progress::Progress;
 use crate::{Error, Result};
 use serde::Serialize;
@@ -204,7 +205,8 @@ pub fn evaluate(
             let rig = LightRig::new(vec![Light::directional(light.direction, color)]);
             let relit = engine::relight(&fitted.image, &rig, &RelightOptions::default())?;
             let reference = capture.load_raw(index)?;
-            let (psnr_srgb8, psnr_linear) = compare(&relit.data, &reference.data, mask.as_deref());
+            let (psnr_srgb8, psnr_linear) =
+                protocol_scores(&relit.data, &reference.data, mask.as_deref());
             results.push(HoldoutResult {
                 index,
                 image: capture.image_name(index),
@@ -260,29 +262,12 @@ fn stored_bytes(image: &crate::maps::RelightableImage, storage: Storage) -> Resu
         .len())
 }
 
-/// (8-bit sRGB PSNR over all samples, linear PSNR inside `mask`) of `test` against `reference`.
-pub fn compare(test: &[f32], reference: &[f32], mask: Option<&[f32]>) -> (f64, f64) {
-    let mut sq8 = 0.0f64;
-    let (mut sq, mut count) = (0.0f64, 0usize);
-    for (p, (t, r)) in test
-        .chunks_exact(3)
-        .zip(reference.chunks_exact(3))
-        .enumerate()
-    {
-        let inside = mask.is_none_or(|m| m[p] > 0.5);
-        for c in 0..3 {
-            let d8 = crate::color::linear_to_srgb8(t[c]) as f64
-                - crate::color::linear_to_srgb8(r[c]) as f64;
-            sq8 += d8 * d8;
-            if inside {
-                let t = if t[c].is_finite() { t[c] } else { 0.0 };
-                sq += (t as f64 - r[c] as f64).powi(2);
-                count += 1;
-            }
-        }
-    }
-    let mse8 = sq8 / test.len().max(1) as f64;
-    (psnr(mse8, 255.0), psnr(sq / count.max(1) as f64, 1.0))
+/// The protocol's two figures of `test` against `reference`: (8-bit sRGB PSNR over the
+/// whole frame, linear PSNR (peak 1) inside `mask`).
+fn protocol_scores(test: &[f32], reference: &[f32], mask: Option<&[f32]>) -> (f64, f64) {
+    let srgb8 = metrics::psnr_srgb8(test, reference);
+    let linear = metrics::psnr_linear(test, reference, mask, 1.0);
+    (srgb8, linear)
 }
 
 #[cfg(test)]
@@ -321,17 +306,17 @@ mod tests {
     #[test]
     fn psnr_follows_the_protocol() {
         let a = vec![0.5f32; 30];
-        assert_eq!(compare(&a, &a, None), (100.0, 100.0));
+        assert_eq!(protocol_scores(&a, &a, None), (100.0, 100.0));
         // One 8-bit step in every sample: MSE 1 → 48.13 dB.
         let t8 = crate::color::srgb8_table();
         let x: Vec<f32> = vec![t8[100]; 30];
         let y: Vec<f32> = vec![t8[101]; 30];
-        assert!((compare(&x, &y, None).0 - 48.1308).abs() < 1e-3);
+        assert!((protocol_scores(&x, &y, None).0 - 48.1308).abs() < 1e-3);
         // The mask restricts the linear figure only.
         let mut z = x.clone();
         z[0] = 1.0;
         let mask = vec![0.0f32, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0];
-        assert_eq!(compare(&z, &x, Some(&mask)).1, 100.0);
-        assert!(compare(&z, &x, None).1 < 100.0);
+        assert_eq!(protocol_scores(&z, &x, Some(&mask)).1, 100.0);
+        assert!(protocol_scores(&z, &x, None).1 < 100.0);
     }
 }

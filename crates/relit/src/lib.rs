@@ -12,7 +12,8 @@
 //! * [`fit`] — streaming, regularised least squares from a capture to [`maps::RelightableImage`];
 //! * [`codec`] — files: OpenEXR, the native format;
 //! * [`light`] and [`engine`] — light rigs and the relighting of maps into images;
-//! * [`eval`] — fidelity against held-out captures.
+//! * [`eval`] — fidelity against held-out captures, scored by [`metrics`] (the one
+//!   definition of PSNR).
 //!
 //! ```
 //! use relit::{basis::BasisSpec, capture::Capture, engine, fit, light::{Light, LightRig}, sphere};
@@ -47,6 +48,7 @@ pub mod light;
 mod linalg;
 pub mod maps;
 pub mod memory;
+pub mod metrics;
 pub mod progress;
 pub mod sphere;
 pub mod synth;

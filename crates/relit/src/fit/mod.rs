@@ -28,17 +28,19 @@
 //!   matrix products (`W · vec(B_j B_jᵀ)`) and a Cholesky factorisation per pixel.
 //!
 //! * [`Objective::Auto`] (default): one of the two, whichever has the smaller
-//!   leave-one-out error of the *displayed* (sRGB-encoded) values on the λ subsample.
-//!   Captured lights that do not reach the scene at all (images darker than a
-//!   thousandth of the brightest) do not count in that error: without that, a
-//!   full-sphere capture of a scene on a floor, half of whose images are black, is
-//!   judged by how black the prediction stays below the floor, where the sRGB curve is
-//!   steepest. On
-//!   photographs the perceptual objective wins (dark pixels are noisy but never
-//!   exactly black); on renders with hard, exactly black shadows the huge weight it
-//!   gives those zeros costs more than it gains (it biases the lit side), and the
-//!   linear objective wins. Both pass-1 states (the spill file and the shared sums) are
-//!   kept until the choice.
+//!   leave-one-out error of the *displayed* values on the λ subsample: sRGB-encoded,
+//!   negative radiance shown as black, as a screen shows it. Captured lights that do not
+//!   reach the scene at all (images darker than a thousandth of the brightest) do not
+//!   count in that error: without that, a full-sphere capture of a scene on a floor,
+//!   half of whose images are black, is judged by how black the prediction stays below
+//!   the floor, where the sRGB curve is steepest. On photographs the perceptual
+//!   objective wins (dark pixels are noisy but never exactly black). On renders with
+//!   hard, exactly black shadows it loses: an exactly black sample weighs
+//!   `12.92² ≈ 167`, a lit one (0.3) about 0.8, so a band-limited function that cannot
+//!   follow the shadow's edge is pulled toward black on the lit side too (the attic at
+//!   1000 lights relit about five times too dark, 5–9 dB below the linear fit against
+//!   ray-traced truth), and the linear objective wins. Both pass-1 states (the spill
+//!   file and the shared sums) are kept until the choice.
 //!
 //! Maps stored display-referred ([`MapSpace::Srgb`]) fit sRGB-encoded values with
 //! plain (quadrature-weighted) least squares.
@@ -57,6 +59,7 @@ use crate::color;
 use crate::image::ImageRgb;
 use crate::linalg;
 use crate::maps::{CoefficientMaps, FitInfo, MapSpace, Metadata, RelightableImage};
+use crate::metrics;
 use crate::progress::Progress;
 use crate::sphere;
 use crate::{Error, ErrorKind, Result};
@@ -259,6 +262,18 @@ fn srgb_extended(v: f64) -> f64 {
     } else {
         color::linear_to_srgb(v as f32) as f64
     }
+}
+
+/// The sRGB value a display shows for radiance `v`: negative radiance is black (the
+/// curve is continued above 1 as in [`srgb_extended`], so that an exposure change keeps
+/// the order of errors). The automatic objective judges fits by this: judged on the
+/// extended curve instead, a linear fit's negative ringing inside exactly black shadows
+/// — invisible on screen — counted as display error, and a dense full-sphere render
+/// (the attic, 1000 lights) chose the perceptual objective, whose relit images came out
+/// about five times too dark (the `fit` module docs say why).
+#[inline]
+fn srgb_shown(v: f64) -> f64 {
+    srgb_extended(v.max(0.0))
 }
 
 /// Squared secant slope of the sRGB curve between a prediction and an observation:
@@ -904,7 +919,7 @@ fn loo_scores(
                         let leverage = w[j] * z.iter().map(|v| v * v).sum::<f64>();
                         let pred: f64 = row.iter().zip(&coef).map(|(a, b)| a * b).sum();
                         let e = (obs[j] - pred) / (1.0 - leverage).max(1e-6);
-                        let shown = srgb_extended(obs[j]) - srgb_extended(obs[j] - e);
+                        let shown = srgb_shown(obs[j]) - srgb_shown(obs[j] - e);
                         acc[li][0] += w[j] * e * e;
                         acc[li][1] += w[j];
                         let seen = design.q[j] * relevance[j];
@@ -969,8 +984,7 @@ fn training_residual(
                     ),
                 };
                 sq[c] += (pred_lin - obs_lin).powi(2);
-                let d = color::linear_to_srgb8(pred_lin as f32) as f64
-                    - color::linear_to_srgb8(obs_lin as f32) as f64;
+                let d = metrics::srgb8_difference(pred_lin as f32, obs_lin as f32);
                 sq8 += d * d;
             }
         }
@@ -978,16 +992,7 @@ fn training_residual(
     let count = (sub_idx.len() * n) as f64;
     let rmse = sq.map(|v| (v / count).sqrt());
     let mse8 = sq8 / (3.0 * count);
-    (rmse, psnr(mse8, 255.0))
-}
-
-/// `10·log10(peak² / mse)`, capped at 100 dB for a perfect match.
-pub fn psnr(mse: f64, peak: f64) -> f64 {
-    if mse <= 0.0 {
-        100.0
-    } else {
-        (20.0 * peak.log10() - 10.0 * mse.log10()).min(100.0)
-    }
+    (rmse, metrics::psnr(mse8, 255.0))
 }
 
 #[cfg(test)]
