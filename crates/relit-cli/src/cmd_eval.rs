@@ -2,7 +2,7 @@
 //! studio's ray-traced truth under every light type.
 
 use crate::cmd_fit::StorageArg;
-use crate::shared::{mib, Bars, FitArgs};
+use crate::shared::{mib, refuse_overwriting_inputs, rig_inputs, scene_inputs, Bars, FitArgs};
 use relit::capture::Capture;
 use relit::codec::Storage;
 use relit::eval::{evaluate, EvalOptions, Holdout};
@@ -137,12 +137,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
 fn run_scene(args: Args) -> anyhow::Result<()> {
     use anyhow::Context;
+    use relit::fsutil::{Output, StagedFolder};
     use relit_studio::scene_eval::{self, SceneEvalOptions};
     use relit_studio::{plan::LightPlan, render::Renderer, setup};
 
     let spec = args.scene.as_deref().expect("checked by the caller");
+    // Only --save writes (the default rig's slide and sky go to a scratch folder).
+    let outputs: Vec<Output> = args.save.iter().map(Output::folder).collect();
+    let mut inputs = scene_inputs(spec, Some(&args.lights));
+    inputs.extend(args.rig.as_deref().map(rig_inputs).unwrap_or_default());
+    inputs.extend(args.mask.clone());
+    refuse_overwriting_inputs(&inputs, &outputs)?;
     let scene =
         relit_studio::open_scene(spec).with_context(|| format!("opening scene `{spec}`"))?;
+    refuse_overwriting_inputs(&scene.files, &outputs)?;
     let projection = args
         .camera
         .as_deref()
@@ -176,18 +184,17 @@ fn run_scene(args: Args) -> anyhow::Result<()> {
             )
         }
     };
-    if let Some(dir) = &args.save {
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    }
+    let staged = args.save.as_deref().map(StagedFolder::new).transpose()?;
     // Each light's truth and relit image side by side, when asked for.
     let mut save = |i: usize,
                     light: &relit::light::Light,
                     truth: &relit::image::ImageRgb,
                     relit: &relit::image::ImageRgb|
      -> relit::Result<()> {
-        if let Some(dir) = &args.save {
+        if let Some(staged) = &staged {
             let pair = relit::image::contact_sheet(&[truth.clone(), relit.clone()], 1, 2048);
-            relit::image::save(&dir.join(format!("{i}_{}.png", light.kind())), &pair, 0.0)?;
+            let path = staged.file(format!("{i}_{}.png", light.kind()))?;
+            relit::image::save(&path, &pair, 0.0)?;
         }
         Ok(())
     };
@@ -200,6 +207,9 @@ fn run_scene(args: Args) -> anyhow::Result<()> {
         &bars,
         Some(&mut save),
     )?;
+    if let Some(staged) = staged {
+        staged.commit()?;
+    }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());
