@@ -249,6 +249,8 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
             .collect::<anyhow::Result<_>>()?
     };
     if let Some(path) = &args.write_maps {
+        // The maps are synthetic: the only file read is the program itself.
+        crate::shared::refuse_overwriting_inputs(&[], &[relit::fsutil::Output::file(path)])?;
         let (width, height) = sizes[0];
         let bands = bands_of(ks[0]).expect("checked");
         let image = synthetic_image(width, height, bands)?;

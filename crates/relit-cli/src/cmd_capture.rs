@@ -1,7 +1,8 @@
 //! `relit capture`: render a synthetic capture with the studio's ray tracer.
 
-use crate::shared::Bars;
+use crate::shared::{refuse_overwriting_inputs, scene_inputs, Bars};
 use anyhow::Context;
+use relit::fsutil::Output;
 use relit_studio::capture::{capture_to_folder, ImageFormat};
 use relit_studio::plan::LightPlan;
 use relit_studio::render::RenderOptions;
@@ -52,6 +53,8 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    let outputs = [Output::folder(&args.out)];
+    refuse_overwriting_inputs(&scene_inputs(&args.scene, Some(&args.lights)), &outputs)?;
     let plan = LightPlan::parse(&args.lights)?;
     let projection = args
         .camera
@@ -66,6 +69,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     options.validate()?;
     let scene = relit_studio::open_scene(&args.scene)
         .with_context(|| format!("opening scene `{}`", args.scene))?;
+    refuse_overwriting_inputs(&scene.files, &outputs)?;
     for warning in &scene.warnings {
         eprintln!("relit capture: warning: {warning}");
     }

@@ -6,13 +6,14 @@
 //! passing under the hanging chair (seed 000, figure 13), each compared with the
 //! ray-traced truth → contact sheet, all under `--out` (default `./relit-demo/`). The
 //! lamp's path is written as a keyframed rig (`lamp-animation.json`) and the frames are
-//! rendered from it, so `relit relight --rig` replays it at any frame count.
+//! rendered from it, so `relit relight --rig` replays it at any frame count. The
+//! folder's files appear when the demo has finished (`relit::fsutil::StagedFolder`).
 
-use crate::shared::{mib, Bars};
-use anyhow::Context;
+use crate::shared::{mib, refuse_overwriting_inputs, scene_inputs, Bars};
 use relit::camera::CameraSpec;
 use relit::engine::{RelightOptions, Relighter};
 use relit::fit::{self, FitOptions};
+use relit::fsutil::{Output, StagedFolder};
 use relit::image::{self, ImageRgb};
 use relit::light::{Animation, Keyframe, Light, LightRig};
 use relit::sphere::{self, Vec3};
@@ -121,9 +122,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "--lights and --frames must be at least 1"
     );
     let total = Instant::now();
+    let outputs = [Output::folder(&args.out)];
+    refuse_overwriting_inputs(&scene_inputs(&args.scene, None), &outputs)?;
     let frames_dir = args.out.join("frames");
-    std::fs::create_dir_all(&frames_dir)
-        .with_context(|| format!("creating {}", frames_dir.display()))?;
     let say = |s: String| {
         if !args.json {
             println!("{s}");
@@ -132,6 +133,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let bars = Bars::new(args.json);
 
     let scene = relit_studio::open_scene(&args.scene)?;
+    refuse_overwriting_inputs(&scene.files, &outputs)?;
+    let staged = StagedFolder::new(&args.out)?;
     let camera = scene.camera.build()?;
     let (w, h) = (camera.width(), camera.height());
     say(format!(
@@ -168,7 +171,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let fitted = fit::fit(&capture, &options, &bars)?;
     drop(capture);
     let maps_path = args.out.join("scene.exr");
-    relit::codec::exr::write(&maps_path, &fitted.image, relit::codec::Storage::Half)?;
+    relit::codec::exr::write(
+        &staged.file("scene.exr")?,
+        &fitted.image,
+        relit::codec::Storage::Half,
+    )?;
     let r = &fitted.report;
     say(format!(
         "  fit       {:>7.2} s  ({:.0} images/s, λ = {:.0e}, peak memory {}) → {}",
@@ -198,13 +205,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         sun_s += t.elapsed().as_secs_f64();
         let reference = truth.render(&[Emitter::from_light(&sun)?]).image;
         sun_fidelity.add(&frame, &reference);
-        image::save(&frames_dir.join(format!("sun_{f:03}.png")), &frame, 0.0)?;
+        image::save(&staged.file(format!("frames/sun_{f:03}.png"))?, &frame, 0.0)?;
         sheet_frames.push(frame);
     }
     let animation = lamp_animation();
     let animation_path = args.out.join("lamp-animation.json");
     relit::fsutil::write_bytes_atomically(
-        &animation_path,
+        &staged.file("lamp-animation.json")?,
         serde_json::to_string_pretty(&serde_json::json!({ "keyframes": &animation.keyframes }))?
             .as_bytes(),
     )?;
@@ -218,12 +225,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .map(Emitter::from_light)
             .collect::<Result<Vec<_>, _>>()?;
         lamp_fidelity.add(&frame, &truth.render(&emitters).image);
-        image::save(&frames_dir.join(format!("lamp_{f:03}.png")), &frame, 0.0)?;
+        image::save(
+            &staged.file(format!("frames/lamp_{f:03}.png"))?,
+            &frame,
+            0.0,
+        )?;
         sheet_frames.push(frame);
     }
     let sheet = image::contact_sheet(&sheet_frames, 4, 2048);
     let sheet_path = args.out.join("contact-sheet.png");
-    image::save(&sheet_path, &sheet, 0.0)?;
+    image::save(&staged.file("contact-sheet.png")?, &sheet, 0.0)?;
+    staged.commit()?;
     let sun_ms = 1e3 * sun_s / args.frames as f64;
     let lamp_ms = 1e3 * lamp_s / args.frames as f64;
     say(format!("  relight   {sun_ms:>7.2} ms per directional frame, {lamp_ms:.2} ms per point-light frame → {}", frames_dir.display()));

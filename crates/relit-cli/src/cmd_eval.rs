@@ -2,7 +2,7 @@
 //! studio's ray-traced truth under every light type.
 
 use crate::cmd_fit::StorageArg;
-use crate::shared::{mib, Bars, FitArgs};
+use crate::shared::{mib, refuse_overwriting_inputs, rig_inputs, scene_inputs, Bars, FitArgs};
 use relit::capture::Capture;
 use relit::codec::Storage;
 use relit::eval::{evaluate, EvalOptions, Holdout};
@@ -138,12 +138,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
 fn run_scene(args: Args) -> anyhow::Result<()> {
     use anyhow::Context;
+    use relit::fsutil::{Output, StagedFolder};
     use relit_studio::scene_eval::{self, SceneEvalOptions};
     use relit_studio::{plan::LightPlan, render::Renderer, setup};
 
     let spec = args.scene.as_deref().expect("checked by the caller");
+    // Only --save writes (the default rig's slide and sky go to a scratch folder).
+    let outputs: Vec<Output> = args.save.iter().map(Output::folder).collect();
+    let mut inputs = scene_inputs(spec, Some(&args.lights));
+    inputs.extend(args.rig.as_deref().map(rig_inputs).unwrap_or_default());
+    inputs.extend(args.mask.clone());
+    refuse_overwriting_inputs(&inputs, &outputs)?;
     let scene =
         relit_studio::open_scene(spec).with_context(|| format!("opening scene `{spec}`"))?;
+    refuse_overwriting_inputs(&scene.files, &outputs)?;
     let projection = args
         .camera
         .as_deref()
@@ -177,9 +185,7 @@ fn run_scene(args: Args) -> anyhow::Result<()> {
             )
         }
     };
-    if let Some(dir) = &args.save {
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    }
+    let staged = args.save.as_deref().map(StagedFolder::new).transpose()?;
     // Each light's truth above its relit image (8-bit sRGB, never scaled, so the reported
     // sRGB PSNR can be recomputed from the file), and the mask the figures are computed
     // over, when asked for.
@@ -189,16 +195,16 @@ fn run_scene(args: Args) -> anyhow::Result<()> {
                     relit: &relit::image::ImageRgb,
                     mask: &[f32]|
      -> relit::Result<()> {
-        if let Some(dir) = &args.save {
+        if let Some(staged) = &staged {
             let pair = relit::image::contact_sheet(&[truth.clone(), relit.clone()], 1, usize::MAX);
-            relit::image::save(&dir.join(format!("{i}_{}.png", light.kind())), &pair, 0.0)?;
+            let path = staged.file(format!("{i}_{}.png", light.kind()))?;
+            relit::image::save(&path, &pair, 0.0)?;
             if i == 0 {
-                let (w, h) = (truth.width, truth.height);
-                let mut m = relit::image::ImageRgb::new(w, h);
+                let mut m = relit::image::ImageRgb::new(truth.width, truth.height);
                 for (px, &v) in m.data.chunks_exact_mut(3).zip(mask) {
                     px.fill(if v > 0.5 { 1.0 } else { 0.0 });
                 }
-                relit::image::save(&dir.join("mask.png"), &m, 0.0)?;
+                relit::image::save(&staged.file("mask.png")?, &m, 0.0)?;
             }
         }
         Ok(())
@@ -212,6 +218,9 @@ fn run_scene(args: Args) -> anyhow::Result<()> {
         &bars,
         Some(&mut save),
     )?;
+    if let Some(staged) = staged {
+        staged.commit()?;
+    }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());

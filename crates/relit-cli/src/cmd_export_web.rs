@@ -1,5 +1,7 @@
 //! `relit export-web`: the viewer and a file's data as a static web folder.
 
+use crate::shared::refuse_overwriting_inputs;
+use relit::fsutil::Output;
 use relit_viewer::{export_web, BundleOptions, PlaneStorage};
 use std::path::PathBuf;
 
@@ -18,6 +20,10 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    // An earlier export in the folder is replaced whole, so nothing it holds may be read.
+    let mut inputs = vec![args.file.clone()];
+    inputs.extend(args.envs.iter().cloned());
+    refuse_overwriting_inputs(&inputs, &[Output::folder(&args.dir)])?;
     let options = BundleOptions {
         storage: args.storage,
         environments: args.envs.clone(),

@@ -1,9 +1,10 @@
 //! `relit fit`: capture in, relightable EXR out.
 
-use crate::shared::{mib, Bars, FitArgs};
+use crate::shared::{mib, refuse_overwriting_inputs, Bars, FitArgs};
 use anyhow::Context;
 use relit::capture::Capture;
 use relit::codec::{exr, Storage};
+use relit::fsutil::Output;
 use std::path::PathBuf;
 
 /// Sample precision of the stored maps.
@@ -35,7 +36,10 @@ pub struct Args {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let options = args.fit.to_options()?;
+    let outputs = [Output::file(&args.output)];
+    refuse_overwriting_inputs(std::slice::from_ref(&args.capture), &outputs)?;
     let capture = Capture::open(&args.capture)?;
+    refuse_overwriting_inputs(&capture.input_files(), &outputs)?;
     if !args.json && !args.quiet {
         eprintln!(
             "relit fit: {} images of {}×{} from {}, {} ({} coefficients), {} objective",

@@ -1,9 +1,10 @@
 //! `relit relight`: a fitted file under new lights, one image or an animated sequence.
 
-use crate::shared::Bars;
+use crate::shared::{refuse_overwriting_inputs, rig_inputs, Bars};
 use anyhow::{bail, Context};
 use relit::codec::exr;
 use relit::engine::{CompactPlanes, PlaneStorage, RelightOptions, Relighter, Roi};
+use relit::fsutil::{Output, StagedFolder};
 use relit::image::ImageRgb;
 use relit::light::{parse_triple, Light, LightRig, RigFile};
 use relit::maps::RelightableImage;
@@ -194,6 +195,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .map(Path::to_path_buf)
         .unwrap_or_default();
     let rig_file = args.rig.as_deref().map(RigFile::load).transpose()?;
+    let animated = matches!(rig_file, Some(RigFile::Animation(_)));
+    let outputs: Vec<Output> = if animated {
+        args.out.iter().map(Output::folder).collect()
+    } else {
+        args.output.iter().map(Output::file).collect()
+    };
+    let mut inputs = vec![args.file.clone()];
+    inputs.extend(args.rig.as_deref().map(rig_inputs).unwrap_or_default());
+    refuse_overwriting_inputs(&inputs, &outputs)?;
     let options = RelightOptions {
         exposure: args.exposure,
         resource_dir,
@@ -229,20 +239,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             args.frame_format == "png" || args.frame_format == "exr",
             "--frame-format is png or exr"
         );
-        std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
         let rigs = anim.frames(frames)?;
+        let staged = StagedFolder::new(out)?;
         let bars = Bars::new(false);
         bars.begin("relighting frames", frames as u64);
         let start = std::time::Instant::now();
         for (f, mut rig) in rigs.into_iter().enumerate() {
             rig.lights.extend(extra.iter().cloned());
             let frame = relighter.render(&rig, &options, roi)?;
-            let path = out.join(format!("frame_{f:04}.{}", args.frame_format));
-            relit::image::save(&path, &frame, 0.0)
-                .with_context(|| format!("writing {}", path.display()))?;
+            let name = format!("frame_{f:04}.{}", args.frame_format);
+            relit::image::save(&staged.file(&name)?, &frame, 0.0)
+                .with_context(|| format!("writing {}", out.join(&name).display()))?;
             bars.advance(1);
         }
         bars.end();
+        staged.commit()?;
         let seconds = start.elapsed().as_secs_f64();
         println!(
             "wrote {frames} frames to {} in {seconds:.2} s ({:.1} ms per frame, writing included)",

@@ -1,6 +1,8 @@
 //! `relit render-truth`: the studio's ground truth under lights the engine relights with.
 
+use crate::shared::{refuse_overwriting_inputs, rig_inputs, scene_inputs};
 use anyhow::Context;
+use relit::fsutil::Output;
 use relit::light::{parse_triple, Light};
 use relit_studio::emitter::Emitter;
 use relit_studio::render::{RenderOptions, Renderer};
@@ -50,6 +52,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.exposure.is_finite(),
         "--exposure must be a finite number of stops"
     );
+    let outputs = [Output::file(&args.output)];
+    let mut inputs = scene_inputs(&args.scene, None);
+    inputs.extend(args.rig.as_deref().map(rig_inputs).unwrap_or_default());
+    refuse_overwriting_inputs(&inputs, &outputs)?;
     let color = args
         .color
         .as_deref()
@@ -83,6 +89,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     options.validate()?;
     let scene = relit_studio::open_scene(&args.scene)
         .with_context(|| format!("opening scene `{}`", args.scene))?;
+    refuse_overwriting_inputs(&scene.files, &outputs)?;
     for warning in &scene.warnings {
         eprintln!("relit render-truth: warning: {warning}");
     }

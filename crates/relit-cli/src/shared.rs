@@ -1,10 +1,14 @@
-//! Pieces several subcommands share: fit flags, progress bars, formatting.
+//! Pieces several subcommands share: fit flags, progress bars, formatting, and the
+//! refusal to write over inputs.
 
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use relit::basis::BasisSpec;
 use relit::fit::{FitOptions, Lambda, Objective, Regularizer};
+use relit::fsutil::{check_outputs, Output, OutputKind};
+use relit::light::RigFile;
 use relit::maps::MapSpace;
+use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
 /// What the fit minimises (see the library docs of `relit::fit`).
@@ -146,4 +150,48 @@ pub fn mib(bytes: Option<u64>) -> String {
     bytes
         .map(relit::memory::mib)
         .unwrap_or_else(|| "n/a".into())
+}
+
+/// Refuse, before any work, outputs that would write over one of `inputs` (see
+/// `relit::fsutil::check_outputs`). Commands call it as soon as they know their
+/// inputs, again when the inputs have named further files.
+pub fn refuse_overwriting_inputs(inputs: &[PathBuf], outputs: &[Output]) -> anyhow::Result<()> {
+    check_outputs(inputs, outputs)?;
+    // The running program is read too. Only a file output can replace it: folder
+    // outputs hold files named by the command, never the program's name.
+    if let Ok(program) = std::env::current_exe() {
+        for output in outputs.iter().filter(|o| o.kind == OutputKind::File) {
+            if check_outputs(std::slice::from_ref(&program), std::slice::from_ref(output)).is_err()
+            {
+                anyhow::bail!(
+                    "refusing to write {}: it is the running relit program ({}); nothing was written",
+                    output.path.display(),
+                    program.display()
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+/// A rig file and the files its lights read (slides, environment maps, resolved
+/// against the rig's folder). A rig that does not parse is just itself: the command
+/// reports why when it reads it.
+pub fn rig_inputs(rig: &Path) -> Vec<PathBuf> {
+    let base = rig.parent().unwrap_or(Path::new(""));
+    let mut files = vec![rig.to_path_buf()];
+    if let Ok(file) = RigFile::load(rig) {
+        files.extend(file.referenced_files(base));
+    }
+    files
+}
+
+/// The files a studio scene spec and light plan name directly (a scene file, a
+/// `list:` file); those the scene file names come from `Scene::files` once it is open.
+pub fn scene_inputs(scene: &str, plan: Option<&str>) -> Vec<PathBuf> {
+    relit_studio::scene_path(scene)
+        .into_iter()
+        .chain(plan.and_then(relit_studio::plan::LightPlan::list_file))
+        .map(Path::to_path_buf)
+        .collect()
 }

@@ -13,16 +13,20 @@
 //! | `mask.png`      | 8-bit grey: 255 (1.0) where geometry was hit, 0 elsewhere         |
 //! | `camera.json`   | the full camera, pose included ([`relit::camera::CameraSpec`])    |
 //!
-//! The manifest is written last, so a folder with a manifest holds a whole capture.
+//! The files appear only when the capture is complete ([`relit::fsutil::StagedFolder`]):
+//! a new folder in one rename, an existing one file by file with the manifest last, so
+//! a folder with a manifest holds a whole capture and a failed capture adds nothing.
 
 use crate::render::{RenderOptions, Renderer};
 use crate::scene::Scene;
-use crate::{invalid, io_error, Result};
+use crate::{invalid, Result};
 use relit::camera::{Camera, CameraSpec};
 use relit::capture::manifest::{Intensity, Manifest, ManifestImage};
 use relit::capture::Capture;
 use relit::color::Encoding;
-use relit::fsutil::{write_atomically, write_bytes_atomically};
+use relit::fsutil::{
+    check_outputs, write_atomically, write_bytes_atomically, Output, StagedFolder,
+};
 use relit::image::ImageRgb;
 use relit::progress::Progress;
 use relit::sphere::Vec3;
@@ -121,8 +125,10 @@ pub fn capture_in_memory(
     })
 }
 
-/// Render as [`capture_in_memory`] but write each image to `folder` as it is done
-/// (see the module docs for the files). The folder is created if needed.
+/// Render as [`capture_in_memory`] but write each image for `folder` as it is done
+/// (see the module docs for the files). The folder is created if needed; its files
+/// appear when the capture is complete, and not at all when it fails. A folder that
+/// holds one of the scene's files is refused.
 pub fn capture_to_folder(
     scene: &Scene,
     camera: &Camera,
@@ -132,11 +138,15 @@ pub fn capture_to_folder(
     format: ImageFormat,
     progress: &dyn Progress,
 ) -> Result<FolderCapture> {
-    std::fs::create_dir_all(folder).map_err(|e| io_error(folder, "create the folder", e))?;
+    if directions.is_empty() {
+        return Err(invalid("a capture needs at least one light"));
+    }
+    check_outputs(&scene.files, &[Output::folder(folder)])?;
+    let staged = StagedFolder::new(folder)?;
     let digits = directions.len().saturating_sub(1).to_string().len().max(4);
     let name = |i: usize| format!("light_{i:0digits$}.{}", format.extension());
     let write_image = |i: usize, image: &ImageRgb| -> Result<()> {
-        let path = folder.join(name(i));
+        let path = staged.file(name(i))?;
         match format {
             ImageFormat::Exr => relit::image::save(&path, image, 0.0),
             ImageFormat::Png16 => relit::image::save_png16_linear(&path, image),
@@ -173,18 +183,18 @@ pub fn capture_to_folder(
         rendered
     })?;
     let (w, h) = (camera.width(), camera.height());
-    write_depth_exr(&folder.join("depth.exr"), w, h, renderer.depth())?;
+    write_depth_exr(&staged.file("depth.exr")?, w, h, renderer.depth())?;
     let mask: Vec<u8> = renderer
         .mask()
         .iter()
         .map(|&m| if m > 0.5 { 255 } else { 0 })
         .collect();
-    write_gray8_png(&folder.join("mask.png"), w, h, mask)?;
+    write_gray8_png(&staged.file("mask.png")?, w, h, mask)?;
     let spec = CameraSpec::from(camera);
-    write_json(&folder.join("camera.json"), &spec)?;
+    write_json(&staged.file("camera.json")?, &spec)?;
     let names: Vec<String> = (0..directions.len()).map(name).collect();
     write_bytes_atomically(
-        &folder.join("capture.lp"),
+        &staged.file("capture.lp")?,
         relit::capture::lp::format(&names, directions).as_bytes(),
     )?;
     let manifest = Manifest {
@@ -203,10 +213,10 @@ pub fn capture_to_folder(
             })
             .collect(),
     };
-    let manifest_path = folder.join("capture.json");
-    write_json(&manifest_path, &manifest)?;
+    write_json(&staged.file("capture.json")?, &manifest)?;
+    staged.commit()?;
     Ok(FolderCapture {
-        manifest: manifest_path,
+        manifest: folder.join("capture.json"),
         stats,
     })
 }

@@ -59,6 +59,14 @@ use render::{RenderOptions, Renderer};
 use scene::Scene;
 use std::path::Path;
 
+/// The file a scene spec names (an `.obj` or `.json` path), `None` for a built-in
+/// name. The files that one names in turn are in [`Scene::files`] once it is open.
+pub fn scene_path(spec: &str) -> Option<&Path> {
+    let path = Path::new(spec);
+    let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+    matches!(ext.as_str(), "obj" | "json").then_some(path)
+}
+
 /// Open a scene by built-in name (`attic`, `city`, `box`), `.obj` path or `.json`
 /// scene-file path.
 pub fn open_scene(spec: &str) -> Result<Scene> {

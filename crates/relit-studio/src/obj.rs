@@ -16,7 +16,7 @@ use crate::texture::{ImageTexture, Texture};
 use crate::{invalid, parse_error, Result};
 use relit::camera::{CameraSpec, Pose, Projection};
 use relit::sphere::Vec3;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 /// A loaded model: meshes with an index into `materials` each.
@@ -26,6 +26,8 @@ pub struct ObjModel {
     pub materials: Vec<Material>,
     /// Problems that did not stop the load (missing MTL or texture…).
     pub warnings: Vec<String>,
+    /// The files read: the OBJ, its MTL files and their textures.
+    pub files: Vec<PathBuf>,
 }
 
 /// The albedo of surfaces whose material is unknown.
@@ -38,13 +40,26 @@ pub fn load(path: &Path) -> Result<ObjModel> {
         single_index: true,
         ..Default::default()
     };
-    let (models, mtl) = tobj::load_obj(path, &options)
-        .map_err(|e| parse_error(format!("cannot load OBJ {}: {e}", path.display())))?;
+    let cannot_load =
+        |e: tobj::LoadError| parse_error(format!("cannot load OBJ {}: {e}", path.display()));
+    let file =
+        std::fs::File::open(path).map_err(|_| cannot_load(tobj::LoadError::OpenFileFailed))?;
+    let folder = path.parent().unwrap_or(Path::new("."));
+    // `tobj::load_obj`, with the MTL files it opens written down.
+    let mtl_files = std::cell::RefCell::new(Vec::new());
+    let (models, mtl) =
+        tobj::load_obj_buf(&mut std::io::BufReader::new(file), &options, |mtl_path| {
+            let mtl_path = folder.join(mtl_path);
+            mtl_files.borrow_mut().push(mtl_path.clone());
+            tobj::load_mtl(mtl_path)
+        })
+        .map_err(cannot_load)?;
+    let mut files = vec![path.to_path_buf()];
+    files.extend(mtl_files.into_inner());
     let stem = path
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| "obj".into());
-    let folder = path.parent().unwrap_or(Path::new("."));
     let mut warnings = Vec::new();
     let mtl = mtl.unwrap_or_else(|e| {
         warnings.push(format!(
@@ -55,7 +70,7 @@ pub fn load(path: &Path) -> Result<ObjModel> {
     });
     let mut materials: Vec<Material> = mtl
         .iter()
-        .map(|m| convert_material(m, &stem, folder, &mut warnings))
+        .map(|m| convert_material(m, &stem, folder, &mut warnings, &mut files))
         .collect();
     let default_index = materials.len();
     materials.push(Material::matte(
@@ -124,6 +139,7 @@ pub fn load(path: &Path) -> Result<ObjModel> {
         parts,
         materials,
         warnings,
+        files,
     })
 }
 
@@ -132,6 +148,7 @@ fn convert_material(
     stem: &str,
     folder: &Path,
     warnings: &mut Vec<String>,
+    files: &mut Vec<PathBuf>,
 ) -> Material {
     let name = format!("{stem}/{}", m.name);
     let clamp01 = |c: [f32; 3]| {
@@ -151,6 +168,7 @@ fn convert_material(
         .filter(|f| !f.trim().is_empty())
     {
         let texture_path = folder.join(file.trim());
+        files.push(texture_path.clone());
         match relit::image::load_linear(&texture_path, None) {
             Ok(img) => {
                 albedo = Texture::Image(ImageTexture {
@@ -215,6 +233,10 @@ pub fn load_scene(path: &Path) -> Result<Scene> {
     let model = load(path)?;
     let mut builder = SceneBuilder::new();
     model.warnings.iter().for_each(|w| builder.warn(w.clone()));
+    model
+        .files
+        .iter()
+        .for_each(|f| builder.read_file(f.clone()));
     model.add_to(&mut builder, &Transform::IDENTITY, None);
     let (lo, hi) = model.bounds();
     let camera = framing_camera(lo, hi, 40.0, 640, 480)?;

@@ -69,6 +69,14 @@ impl LightPlan {
         Ok(plan)
     }
 
+    /// The file a `list:FILE` plan string reads, `None` for the other plans.
+    pub fn list_file(spec: &str) -> Option<&Path> {
+        let (kind, arg) = spec.split_once(':')?;
+        kind.trim()
+            .eq_ignore_ascii_case("list")
+            .then(|| Path::new(arg.trim()))
+    }
+
     /// The unit light directions, in capture order.
     pub fn directions(&self) -> Vec<Vec3> {
         match self {

@@ -7,6 +7,7 @@ use crate::shapes::{Mesh, Triangle};
 use crate::{invalid, Result};
 use relit::camera::{Camera, CameraSpec};
 use std::collections::HashMap;
+use std::path::PathBuf;
 
 /// Index of a material in its scene.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -20,12 +21,20 @@ pub struct SceneBuilder {
     materials: Vec<Material>,
     by_name: HashMap<String, MaterialId>,
     warnings: Vec<String>,
+    files: Vec<PathBuf>,
 }
 
 impl SceneBuilder {
     /// Note a problem that does not stop the build (a missing texture…).
     pub fn warn(&mut self, message: String) {
         self.warnings.push(message);
+    }
+
+    /// Note a file the scene is read from (see [`Scene::files`]).
+    pub fn read_file(&mut self, path: PathBuf) {
+        if !self.files.contains(&path) {
+            self.files.push(path);
+        }
     }
 
     pub fn new() -> SceneBuilder {
@@ -121,6 +130,7 @@ impl SceneBuilder {
             shadow_bvh,
             camera,
             warnings: self.warnings,
+            files: self.files,
         })
     }
 }
@@ -139,6 +149,9 @@ pub struct Scene {
     pub camera: CameraSpec,
     /// Problems met while loading that did not stop it, for the caller to show.
     pub warnings: Vec<String>,
+    /// The files the scene was read from: scene file, OBJ and MTL files, textures
+    /// (empty for built-in scenes), so that commands can refuse to write over them.
+    pub files: Vec<PathBuf>,
 }
 
 /// What a primary or bounce ray sees.

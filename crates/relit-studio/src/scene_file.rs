@@ -223,14 +223,19 @@ pub fn load(path: &Path) -> Result<Scene> {
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| "scene".into());
-    build(&file, path.parent().unwrap_or(Path::new(".")), &name)
-        .map_err(|e| relit::Error::new(e.kind(), format!("{}: {e}", path.display())))
+    let mut scene = build(&file, path.parent().unwrap_or(Path::new(".")), &name)
+        .map_err(|e| relit::Error::new(e.kind(), format!("{}: {e}", path.display())))?;
+    scene.files.insert(0, path.to_path_buf());
+    Ok(scene)
 }
 
 /// Build a parsed scene file; relative paths resolve against `folder`.
 pub fn build(file: &SceneFile, folder: &Path, name: &str) -> Result<Scene> {
     let mut builder = SceneBuilder::new();
     for (material_name, entry) in &file.materials {
+        if let Some(TextureEntry::Image { file }) = &entry.texture {
+            builder.read_file(folder.join(file));
+        }
         let material = material(material_name, entry, folder)
             .map_err(|e| invalid(format!("material `{material_name}`: {e}")))?;
         builder.material(material);
@@ -314,6 +319,10 @@ pub fn build(file: &SceneFile, folder: &Path, name: &str) -> Result<Scene> {
                     .map(|m| lookup(&builder, i, m))
                     .transpose()?;
                 model.warnings.iter().for_each(|w| builder.warn(w.clone()));
+                model
+                    .files
+                    .iter()
+                    .for_each(|f| builder.read_file(f.clone()));
                 model.add_to(&mut builder, &to_transform(transform).map_err(context)?, id);
             }
         }

@@ -14,7 +14,7 @@ use relit_studio::render::{RenderOptions, Renderer};
 use relit_studio::scene::{Scene, SceneBuilder};
 use relit_studio::shapes;
 use relit_studio::texture::Texture;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 const ALBEDO: f32 = 0.5;
 
@@ -362,6 +362,90 @@ fn a_small_obj_model_loads_with_its_material() {
     assert_eq!(bare.warnings.len(), 1);
     std::fs::write(dir.path().join("broken.obj"), "v 0 0 0\nf 1 2 7\n").unwrap();
     assert!(relit_studio::open_scene(dir.path().join("broken.obj").to_str().unwrap()).is_err());
+}
+
+#[test]
+fn a_scene_lists_every_file_it_was_read_from() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let tex = relit::image::ImageRgb::new(2, 2);
+    relit::image::save(&d.join("wood.png"), &tex, 0.0).unwrap();
+    relit::image::save(&d.join("paint.png"), &tex, 0.0).unwrap();
+    std::fs::write(
+        d.join("tri.mtl"),
+        "newmtl m\nKd 0.5 0.5 0.5\nmap_Kd paint.png\n",
+    )
+    .unwrap();
+    std::fs::write(
+        d.join("tri.obj"),
+        "mtllib tri.mtl\nv -1 -1 0\nv 1 -1 0\nv 0 1 0\nusemtl m\nf 1 2 3\n",
+    )
+    .unwrap();
+    std::fs::write(
+        d.join("scene.json"),
+        r#"{"materials":{"wood":{"texture":{"type":"image","file":"wood.png"}}},
+            "objects":[{"type":"quad","size":[1,1],"material":"wood"},{"type":"obj","file":"tri.obj"}]}"#,
+    )
+    .unwrap();
+    let scene = relit_studio::open_scene(d.join("scene.json").to_str().unwrap()).unwrap();
+    let expected: Vec<PathBuf> = ["scene.json", "wood.png", "tri.obj", "tri.mtl", "paint.png"]
+        .iter()
+        .map(|n| d.join(n))
+        .collect();
+    assert_eq!(scene.files, expected);
+    let obj = relit_studio::open_scene(d.join("tri.obj").to_str().unwrap()).unwrap();
+    assert_eq!(obj.files, expected[2..]);
+    assert!(relit_studio::scenes::build("box").unwrap().files.is_empty());
+    assert_eq!(
+        relit_studio::scene_path("x/scene.JSON"),
+        Some(Path::new("x/scene.JSON"))
+    );
+    assert_eq!(relit_studio::scene_path("box"), None);
+    assert_eq!(
+        relit_studio::plan::LightPlan::list_file(" List: dirs.txt"),
+        Some(Path::new("dirs.txt"))
+    );
+    assert_eq!(
+        relit_studio::plan::LightPlan::list_file("fibonacci:8"),
+        None
+    );
+}
+
+#[test]
+fn a_folder_capture_refuses_a_folder_holding_the_scene_and_leaves_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(
+        d.join("scene.json"),
+        r#"{"materials":{"grey":{}},"objects":[{"type":"quad","size":[1,1],"material":"grey"}]}"#,
+    )
+    .unwrap();
+    let scene = relit_studio::open_scene(d.join("scene.json").to_str().unwrap()).unwrap();
+    let camera = Camera::new(
+        &Projection::Planar {
+            fov_y_deg: Some(50.0),
+        },
+        8,
+        6,
+        scene.camera.pose,
+    )
+    .unwrap();
+    let dirs = sphere::hemisphere_fibonacci(2);
+    let before = std::fs::read(d.join("scene.json")).unwrap();
+    let err = capture_to_folder(
+        &scene,
+        &camera,
+        &dirs,
+        &RenderOptions::default(),
+        d,
+        ImageFormat::Exr,
+        &Silent,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(err.contains("scene.json"), "{err}");
+    assert_eq!(std::fs::read(d.join("scene.json")).unwrap(), before);
+    assert_eq!(std::fs::read_dir(d).unwrap().count(), 1, "nothing written");
 }
 
 /// The shared models (`../shared/data/models`), when present beside the repository.

@@ -3,6 +3,7 @@
 use crate::assets::ASSETS;
 use crate::bundle::{BundleOptions, WebBundle};
 use crate::{invalid, io_error};
+use relit::fsutil::{check_outputs, Output};
 use relit::{Error, ErrorKind, Result};
 use std::path::Path;
 
@@ -18,7 +19,12 @@ pub struct ExportSummary {
 /// Everything goes to a temporary folder beside `dir` first, renamed onto `dir` when
 /// complete; an existing `dir` must be empty or an earlier export (it then is replaced),
 /// so a failure never leaves a half-written site and no unrelated folder is deleted.
+/// A `dir` that holds `input` or an environment map is refused before anything is read.
 pub fn export_web(input: &Path, dir: &Path, options: &BundleOptions) -> Result<ExportSummary> {
+    let inputs: Vec<&Path> = std::iter::once(input)
+        .chain(options.environments.iter().map(|p| p.as_path()))
+        .collect();
+    check_outputs(&inputs, &[Output::folder(dir)])?;
     let image = relit::codec::exr::read(input)?;
     let mut options = options.clone();
     if options.source_name.is_empty() {

@@ -154,3 +154,33 @@ fn export_replaces_an_earlier_export_but_not_other_folders() {
         .collect();
     assert!(leftovers.is_empty());
 }
+
+#[test]
+fn an_export_never_replaces_a_folder_holding_its_input() {
+    let (dir, _, _) = export(PlaneStorage::U8);
+    // The maps moved into the earlier export, which a new export would replace whole.
+    let site = dir.path().join("site");
+    let inside = site.join("scene.exr");
+    std::fs::rename(dir.path().join("scene.exr"), &inside).unwrap();
+    let before = std::fs::read(&inside).unwrap();
+    let err = export_web(&inside, &site, &BundleOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("refusing") && err.contains("scene.exr"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read(&inside).unwrap(), before);
+    // An environment map inside the folder.
+    let outside = dir.path().join("scene.exr");
+    std::fs::rename(&inside, &outside).unwrap();
+    let options = BundleOptions {
+        environments: vec![site.join("data/info.json")],
+        ..Default::default()
+    };
+    let err = export_web(&outside, &site, &options)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("info.json"), "{err}");
+    assert!(site.join("data/info.json").is_file());
+}

@@ -125,6 +125,7 @@ pub fn read(path: &Path) -> Result<Capture> {
         depth: None,
         mask: None,
         origin,
+        source_files: vec![path.to_path_buf()],
     })
 }
 
@@ -201,5 +202,6 @@ mod tests {
         std::fs::write(&lp, "1\nC:\\captures\\a.png 0 0 1\n").unwrap();
         let cap = read(&lp).unwrap();
         assert_eq!((cap.width, cap.height, cap.len()), (4, 3, 1));
+        assert_eq!(cap.input_files(), [lp.clone(), dir.path().join("a.png")]);
     }
 }

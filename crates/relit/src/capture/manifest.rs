@@ -166,6 +166,14 @@ pub fn read(path: &Path) -> Result<Capture> {
         depth,
         mask,
         origin,
+        source_files: std::iter::once(path.to_path_buf())
+            .chain(
+                [&manifest.depth, &manifest.mask]
+                    .into_iter()
+                    .flatten()
+                    .map(|name| resolve_image_path(folder, name)),
+            )
+            .collect(),
     })
 }
 
@@ -213,5 +221,26 @@ mod tests {
         )
         .unwrap();
         assert!(read(&path).unwrap_err().to_string().contains("images[0]"));
+    }
+
+    #[test]
+    fn input_files_name_the_manifest_images_depth_and_mask() {
+        let dir = tempfile::tempdir().unwrap();
+        let img = crate::image::ImageRgb::new(2, 2);
+        for name in ["a.exr", "b.exr", "depth.exr", "mask.png"] {
+            crate::image::save(&dir.path().join(name), &img, 0.0).unwrap();
+        }
+        let path = dir.path().join("cap.json");
+        std::fs::write(
+            &path,
+            r#"{"depth":"depth.exr","mask":"mask.png","images":[{"file":"a.exr","direction":[0,0,1]},{"file":"b.exr","direction":[0,1,1]}]}"#,
+        )
+        .unwrap();
+        let files = read(&path).unwrap().input_files();
+        let expected: Vec<_> = ["cap.json", "depth.exr", "mask.png", "a.exr", "b.exr"]
+            .iter()
+            .map(|n| dir.path().join(n))
+            .collect();
+        assert_eq!(files, expected);
     }
 }

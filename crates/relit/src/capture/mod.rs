@@ -63,6 +63,9 @@ pub struct Capture {
     pub mask: Option<Arc<Vec<f32>>>,
     /// Where the capture was read from, for messages.
     pub origin: String,
+    /// The files it was read from besides its images: the `.lp` or manifest, and the
+    /// depth and mask the manifest names (empty for captures made in memory).
+    pub source_files: Vec<PathBuf>,
 }
 
 impl Capture {
@@ -119,6 +122,7 @@ impl Capture {
             depth: None,
             mask: None,
             origin: "memory".into(),
+            source_files: Vec::new(),
         })
     }
 
@@ -160,6 +164,7 @@ impl Capture {
             depth: None,
             mask: None,
             origin: "generated".into(),
+            source_files: Vec::new(),
         })
     }
 
@@ -171,6 +176,15 @@ impl Capture {
     /// Whether the capture has no images.
     pub fn is_empty(&self) -> bool {
         self.lights.is_empty()
+    }
+
+    /// Every file the capture reads: [`Capture::source_files`] and the image files.
+    pub fn input_files(&self) -> Vec<PathBuf> {
+        let images = self.lights.iter().filter_map(|l| match &l.image {
+            ImageSource::File { path, .. } => Some(path.clone()),
+            ImageSource::Memory(_) | ImageSource::Generated(_) => None,
+        });
+        self.source_files.iter().cloned().chain(images).collect()
     }
 
     /// The light vectors in capture order.

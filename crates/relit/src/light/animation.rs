@@ -16,7 +16,7 @@ use super::{AreaLight, AreaShape, Light, LightRig};
 use crate::sphere::Vec3;
 use crate::{Error, Result};
 use serde::{Deserialize, Serialize};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// The lights at one instant.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -65,6 +65,23 @@ impl RigFile {
     pub fn load(path: &Path) -> Result<RigFile> {
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, "read", e))?;
         Self::parse(&text, &path.display().to_string())
+    }
+
+    /// The files the rig's lights read (slides, environment maps) in every keyframe,
+    /// resolved against `base`, the rig file's folder.
+    pub fn referenced_files(&self, base: &Path) -> Vec<PathBuf> {
+        let lights: Vec<&Light> = match self {
+            RigFile::Rig(rig) => rig.lights.iter().collect(),
+            RigFile::Animation(anim) => anim.keyframes.iter().flat_map(|k| &k.lights).collect(),
+        };
+        let mut files: Vec<PathBuf> = Vec::new();
+        for file in lights.into_iter().filter_map(Light::file) {
+            let path = base.join(file);
+            if !files.contains(&path) {
+                files.push(path);
+            }
+        }
+        files
     }
 }
 

@@ -184,6 +184,16 @@ impl Light {
         }
     }
 
+    /// The file the light reads, relative to its rig file's folder: a projector's
+    /// slide or an environment light's map.
+    pub fn file(&self) -> Option<&str> {
+        match self {
+            Light::Projector(l) => Some(&l.slide),
+            Light::Environment(l) => Some(&l.map),
+            Light::Directional(_) | Light::Point(_) | Light::Spot(_) | Light::Area(_) => None,
+        }
+    }
+
     /// Load what the light refers to (a projector's slide, relative to `base`).
     /// Environment lights depend on the maps' basis: prepare them with
     /// [`crate::engine::Relighter`].

@@ -182,3 +182,31 @@ fn animations_interpolate_and_validate() {
     let backwards = r#"{"keyframes":[{"time":1,"lights":[]},{"time":0,"lights":[]}]}"#;
     assert!(RigFile::parse(backwards, "t").is_err());
 }
+
+#[test]
+fn rig_files_name_every_slide_and_map_they_read() {
+    let projector = |slide: &str| {
+        format!(
+            r#"{{"type":"projector","position":[0,0,2],"direction":[0,0,-1],"up":[0,1,0],"fov_deg":40,"slide":"{slide}"}}"#
+        )
+    };
+    let text = format!(
+        r#"{{"keyframes":[{{"time":0,"lights":[{},{{"type":"environment","map":"sky.hdr"}}]}},
+                         {{"time":1,"lights":[{},{{"type":"environment","map":"sky.hdr"}}]}}]}}"#,
+        projector("a.png"),
+        projector("sub/b.png")
+    );
+    let files = RigFile::parse(&text, "t")
+        .unwrap()
+        .referenced_files(Path::new("rigs"));
+    let expected: Vec<std::path::PathBuf> = ["rigs/a.png", "rigs/sky.hdr", "rigs/sub/b.png"]
+        .iter()
+        .map(Into::into)
+        .collect();
+    assert_eq!(files, expected);
+    let plain = RigFile::parse(
+        r#"{"lights":[{"type":"directional","direction":[0,0,1]}]}"#,
+        "t",
+    );
+    assert!(plain.unwrap().referenced_files(Path::new(".")).is_empty());
+}
