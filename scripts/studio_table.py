@@ -65,7 +65,7 @@ with tempfile.TemporaryDirectory() as tmp:
         for bands in (4, 5):
             log(f"eval: {scene}, {bands * bands} coefficients")
             out, _ = run("eval", cap / "capture.json", "--holdout", ",".join(map(str, held)), "--joint",
-                         "--bands", bands, "--json", "-q")
+                         "--basis", f"sh:{bands * bands}", "--json", "-q")
             r = json.loads(out)
             results[f"holdout_{scene}_{bands}"] = r
             h = r["holdouts"][0]

@@ -559,7 +559,7 @@ fn synthetic_image(width: usize, height: usize, bands: usize) -> anyhow::Result<
         .for_each(|(p, d)| *d = 2.0 + 0.5 * ((p * 7919 % 1000) as f32 / 1000.0 - 0.5));
     let projection = Projection::Cylindrical { fov_y_deg: None };
     let mut meta = Metadata::new(
-        BasisSpec::Sh { bands },
+        BasisSpec::named(&format!("sh:{}", bands * bands)).unwrap(),
         MapSpace::Linear,
         projection.clone(),
     );

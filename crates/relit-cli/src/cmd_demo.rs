@@ -36,9 +36,9 @@ pub struct Args {
     /// Frames of each animation.
     #[arg(long, default_value_t = 12)]
     pub frames: usize,
-    /// Spherical-harmonic bands.
-    #[arg(long, default_value_t = 5)]
-    pub bands: usize,
+    /// The basis, `family:K` (`sh:25`, …).
+    #[arg(long, default_value = "sh:25", value_parser = crate::shared::parse_basis)]
+    pub basis: relit::basis::BasisChoice,
     /// Print the summary as JSON.
     #[arg(long)]
     pub json: bool,
@@ -165,7 +165,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     capture.camera = Some(CameraSpec::from(&camera));
 
     let options = FitOptions {
-        basis: relit::basis::BasisSpec::Sh { bands: args.bands },
+        basis: args.basis.clone(),
         ..Default::default()
     };
     let fitted = fit::fit(&capture, &options, &bars)?;

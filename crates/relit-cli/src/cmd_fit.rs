@@ -42,13 +42,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     refuse_overwriting_inputs(&capture.input_files(), &outputs)?;
     if !args.json && !args.quiet {
         eprintln!(
-            "relit fit: {} images of {}×{} from {}, {} ({} coefficients), {} objective",
+            "relit fit: {} images of {}×{} from {}, basis {}, {} objective",
             capture.len(),
             capture.width,
             capture.height,
             args.capture.display(),
-            options.basis.short_name(),
-            options.basis.len(),
+            options.basis.name(),
             options.objective.name()
         );
     }

@@ -46,7 +46,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     println!("  size          {}×{}", image.width(), image.height());
     println!(
         "  basis         {} ({} coefficients × RGB)",
-        meta.basis.short_name(),
+        meta.basis.build()?.name(),
         image.maps.k
     );
     println!("  color space   {}", meta.color_space.name());

@@ -3,7 +3,7 @@
 
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
-use relit::basis::BasisSpec;
+use relit::basis::BasisChoice;
 use relit::fit::{FitOptions, Lambda, Objective, Regularizer};
 use relit::fsutil::{check_outputs, Output, OutputKind};
 use relit::light::RigFile;
@@ -40,12 +40,17 @@ pub enum RegularizerArg {
     Ridge,
 }
 
+/// A `--basis` value, checked while parsing the command line (a bad one is a usage error).
+pub fn parse_basis(s: &str) -> Result<BasisChoice, String> {
+    BasisChoice::parse(s).map_err(|e| e.to_string())
+}
+
 /// Flags that shape a fit.
 #[derive(Args, Debug, Clone)]
 pub struct FitArgs {
-    /// Spherical-harmonic bands (k = bands² coefficients, 1..=8).
-    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u8).range(1..=8))]
-    pub bands: u8,
+    /// The basis, `family:K` with K coefficients per colour channel (`sh:25`, …).
+    #[arg(long, default_value = "sh:25", value_parser = parse_basis)]
+    pub basis: BasisChoice,
     /// Fit objective.
     #[arg(long, value_enum, default_value_t = ObjectiveArg::Auto)]
     pub objective: ObjectiveArg,
@@ -79,9 +84,7 @@ impl FitArgs {
             Lambda::Fixed(v)
         };
         Ok(FitOptions {
-            basis: BasisSpec::Sh {
-                bands: self.bands as usize,
-            },
+            basis: self.basis.clone(),
             objective: match self.objective {
                 ObjectiveArg::Auto => Objective::Auto,
                 ObjectiveArg::Perceptual => Objective::Perceptual,

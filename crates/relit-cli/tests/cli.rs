@@ -74,8 +74,8 @@ fn fit_info_relight_round_trip() {
         Fixture::s(&f.lp),
         "-o",
         Fixture::s(&maps),
-        "--bands",
-        "4",
+        "--basis",
+        "sh:16",
         "-q",
     ]);
     assert!(summary.contains("training residual"), "{summary}");
@@ -145,8 +145,8 @@ fn eval_reports_json_with_the_required_fields() {
         Fixture::s(&f.lp),
         "--holdout",
         "0,12,24,35,47",
-        "--bands",
-        "3",
+        "--basis",
+        "sh:9",
         "--json",
     ]);
     let r: serde_json::Value = serde_json::from_str(&out).unwrap();
@@ -170,8 +170,8 @@ fn eval_reports_json_with_the_required_fields() {
         "--holdout",
         "every:16",
         "--joint",
-        "--bands",
-        "2",
+        "--basis",
+        "sh:4",
         "--json",
     ]);
     let r: serde_json::Value = serde_json::from_str(&every).unwrap();
@@ -224,8 +224,8 @@ fn bad_input_is_a_clear_error_and_leaves_no_partial_file() {
         Fixture::s(&f.lp),
         "-o",
         Fixture::s(&out),
-        "--bands",
-        "2",
+        "--basis",
+        "sh:4",
         "-q",
     ]);
     fails(
@@ -256,7 +256,7 @@ fn bad_input_is_a_clear_error_and_leaves_no_partial_file() {
     );
     // Bad flags are usage errors (exit 2).
     assert_eq!(
-        relit(&["fit", Fixture::s(&f.lp), "-o", "x.exr", "--bands", "9"])
+        relit(&["fit", Fixture::s(&f.lp), "-o", "x.exr", "--basis", "sh:81"])
             .status
             .code(),
         Some(2)
@@ -273,8 +273,8 @@ fn eval_scene_prints_every_light_type_as_json() {
         "80x60",
         "--lights",
         "fibonacci:80",
-        "--bands",
-        "3",
+        "--basis",
+        "sh:9",
         "--env-samples",
         "32",
         "--json",
@@ -347,8 +347,8 @@ fn scene_eval_figures_match_the_saved_images() {
         "64x48",
         "--lights",
         "fibonacci:60",
-        "--bands",
-        "3",
+        "--basis",
+        "sh:9",
         "--rig",
         Fixture::s(&rig),
         "--save",

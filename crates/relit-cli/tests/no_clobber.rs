@@ -147,7 +147,7 @@ impl Fixture {
         let dirs = hemisphere_fibonacci(12);
         plane.write_lp_capture(&d.join("cap"), &dirs).unwrap();
         let options = relit::fit::FitOptions {
-            basis: relit::basis::BasisSpec::Sh { bands: 2 },
+            basis: relit::basis::BasisChoice::parse("sh:4").unwrap(),
             lambda: relit::fit::Lambda::Fixed(1e-3),
             ..Default::default()
         };
@@ -583,7 +583,7 @@ fn eval_save_refuses_a_folder_holding_its_inputs() {
     let f = Fixture::new();
     let d = f.d();
     let run = |extra: &[&str], save: &str, named: &[&str]| {
-        let mut args = vec!["eval", "--save", save, "--bands", "2", "-q"];
+        let mut args = vec!["eval", "--save", save, "--basis", "sh:4", "-q"];
         args.extend_from_slice(extra);
         refused(d, &args, named);
     };
@@ -824,8 +824,8 @@ fn a_failing_command_leaves_no_partial_output() {
             "16x12",
             "--lights",
             "fibonacci:12",
-            "--bands",
-            "2",
+            "--basis",
+            "sh:4",
             "--rig",
             "rig/env.json",
             "--save",

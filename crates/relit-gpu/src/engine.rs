@@ -14,7 +14,7 @@ use crate::lighting::{Lighting, MAX_K};
 use crate::roi::Roi;
 use crate::storage::{PlaneCoding, Storage, STRIDE_ALIGN};
 use bytemuck::{Pod, Zeroable};
-use relit::basis::{Basis, BasisSpec, SphericalHarmonics, MAX_BANDS};
+use relit::basis::{Basis, SphericalHarmonics, MAX_BANDS};
 use relit::camera::Camera;
 use relit::image::ImageRgb;
 use relit::light::{Light, LightRig, PreparedLight};
@@ -211,9 +211,8 @@ impl GpuRelighter {
     /// Upload `image` with `options`.
     pub fn with_options(image: &RelightableImage, options: GpuOptions) -> Result<Self> {
         let (width, height, k) = (image.maps.width, image.maps.height, image.maps.k);
-        let bands = match image.meta.basis {
-            BasisSpec::Sh { bands } => bands,
-        };
+        let bands = SphericalHarmonics::bands_of(&image.meta.basis)
+            .ok_or_else(|| invalid("the GPU engine does not yet relight bases other than SH"))?;
         let basis = SphericalHarmonics::new(bands)?;
         if basis.len() != k || k > MAX_K {
             return Err(invalid(format!(

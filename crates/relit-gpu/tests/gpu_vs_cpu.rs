@@ -64,7 +64,11 @@ fn image(w: usize, h: usize, bands: usize, space: MapSpace) -> RelightableImage 
     let projection = Projection::Planar {
         fov_y_deg: Some(60.0),
     };
-    let mut meta = Metadata::new(BasisSpec::Sh { bands }, space, projection.clone());
+    let mut meta = Metadata::new(
+        BasisSpec::named(&format!("sh:{}", bands * bands)).unwrap(),
+        space,
+        projection.clone(),
+    );
     meta.camera = Some(CameraSpec {
         projection,
         width: w,

@@ -1,7 +1,6 @@
 //! Every light type against ray-traced truth, the environment emitter's units, and the
 //! occlusion limitation, on the box scene at a small size.
 
-use relit::basis::BasisSpec;
 use relit::camera::{Camera, Projection};
 use relit::fit::{FitOptions, Objective};
 use relit::image::ImageRgb;
@@ -31,7 +30,7 @@ fn options() -> SceneEvalOptions {
     SceneEvalOptions {
         plan: LightPlan::parse("fibonacci:160").unwrap(),
         fit: FitOptions {
-            basis: BasisSpec::Sh { bands: 5 },
+            basis: relit::basis::BasisChoice::parse("sh:25").unwrap(),
             ..FitOptions::default()
         },
         ..SceneEvalOptions::default()

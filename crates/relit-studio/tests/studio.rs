@@ -501,7 +501,6 @@ fn shared_models_load_and_render() {
 
 #[test]
 fn capture_fit_relight_beats_the_psnr_floor_at_a_held_out_light() {
-    use relit::basis::BasisSpec;
     use relit::engine::{relight, RelightOptions};
     use relit::fit::{fit, FitOptions, Lambda, Objective};
     use relit::light::{Light, LightRig};
@@ -523,7 +522,7 @@ fn capture_fit_relight_beats_the_psnr_floor_at_a_held_out_light() {
     // λ = 1e-3 is what the automatic leave-one-out choice picks here; fixing it keeps
     // the test at a tenth of a second instead of seconds.
     let options = FitOptions {
-        basis: BasisSpec::Sh { bands: 6 },
+        basis: relit::basis::BasisChoice::parse("sh:36").unwrap(),
         objective: Objective::Linear,
         lambda: Lambda::Fixed(1e-3),
         ..Default::default()

@@ -16,7 +16,6 @@
 //! viewer recomputes each pixel's surface point `P = O + d·V` exactly as the CPU engine.
 
 use crate::{invalid, Result};
-use relit::basis::BasisSpec;
 use relit::camera::CameraSpec;
 use relit::envmap::EnvironmentLight;
 use relit::maps::RelightableImage;
@@ -180,7 +179,7 @@ fn check_image(image: &RelightableImage) -> Result<usize> {
             "the viewer shows images of 1 to {MAX_SIDE} pixels a side, not {w}×{h}"
         )));
     }
-    let BasisSpec::Sh { bands } = image.meta.basis;
+    let bands = relit::basis::SphericalHarmonics::bands_of(&image.meta.basis).unwrap_or(0);
     if bands * bands != k || !(1..=8).contains(&bands) {
         return Err(invalid(format!(
             "the viewer needs 1 to 8 SH bands with k = bands² maps, not {k} maps of {bands} bands"
@@ -334,7 +333,7 @@ fn project_environment(
     path: &Path,
     index: usize,
 ) -> Result<(EnvironmentInfo, Vec<u8>)> {
-    let BasisSpec::Sh { bands } = image.meta.basis;
+    let bands = relit::basis::SphericalHarmonics::bands_of(&image.meta.basis).unwrap_or(0);
     let env = EnvironmentLight::load(path)?;
     let coefficients = env.project(bands)?;
     let map = env.map();

@@ -22,7 +22,7 @@ pub fn sample_image(width: usize, height: usize, bands: usize) -> RelightableIma
     }
     let projection = Projection::Cylindrical { fov_y_deg: None };
     let mut meta = Metadata::new(
-        BasisSpec::Sh { bands },
+        BasisSpec::named(&format!("sh:{}", bands * bands)).unwrap(),
         MapSpace::Linear,
         projection.clone(),
     );

@@ -38,7 +38,7 @@ fn synthetic(width: usize, height: usize, bands: usize) -> RelightableImage {
         .collect();
     let projection = Projection::Cylindrical { fov_y_deg: None };
     let mut meta = Metadata::new(
-        BasisSpec::Sh { bands },
+        BasisSpec::named(&format!("sh:{}", bands * bands)).unwrap(),
         MapSpace::Linear,
         projection.clone(),
     );

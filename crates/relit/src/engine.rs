@@ -14,7 +14,7 @@
 //! through a pixel still relights with the shadow the capture recorded, because the
 //! pixel's function knows only directions, not distances.
 
-use crate::basis::{Basis, BasisSpec};
+use crate::basis::Basis;
 use crate::camera::{Camera, CameraSpec};
 use crate::envmap::EnvironmentLight;
 use crate::image::ImageRgb;
@@ -194,7 +194,8 @@ impl<'a> Relighter<'a> {
 
     /// A relighter over checked planes, with nothing computed yet.
     fn over(image: &'a RelightableImage, basis: Box<dyn Basis>, planes: Planes<'a>) -> Self {
-        let BasisSpec::Sh { bands } = image.meta.basis;
+        // 0: no SH fast path (positional and environment lights need the table path).
+        let bands = kernels::sh_bands(basis.as_ref()).unwrap_or(0);
         Self {
             image,
             basis,
@@ -322,6 +323,12 @@ impl<'a> Relighter<'a> {
     ) -> Result<[Vec<f64>; 3]> {
         light.validate()?;
         let bands = self.bands;
+        if bands == 0 {
+            return Err(Error::invalid(format!(
+                "environment lights are not yet supported on basis {}",
+                self.basis.name()
+            )));
+        }
         let path = resource_dir.join(&light.map);
         let entry = {
             let mut cache = self.environments.lock().expect("environment cache");
@@ -613,7 +620,11 @@ mod tests {
             }
         }
         RelightableImage {
-            meta: Metadata::new(BasisSpec::Sh { bands: 2 }, space, Projection::default()),
+            meta: Metadata::new(
+                BasisSpec::named("sh:4").unwrap(),
+                space,
+                Projection::default(),
+            ),
             maps,
             depth: None,
         }
@@ -632,7 +643,7 @@ mod tests {
             assert!((both.data[c] - ra.data[c] - rb.data[c]).abs() < 1e-6);
         }
         // White light from the pole: Σ c_i Y_i(0,0,1).
-        let sh = BasisSpec::Sh { bands: 2 }.build().unwrap();
+        let sh = BasisSpec::named("sh:4").unwrap().build().unwrap();
         let y = sh.values(Vec3::new(0.0, 0.0, 1.0));
         let want = 0.5 * y[0] + 0.3 * y[2];
         let pole = relight(
@@ -684,7 +695,7 @@ mod tests {
             };
         }
         let mut meta = Metadata::new(
-            BasisSpec::Sh { bands: 3 },
+            BasisSpec::named("sh:9").unwrap(),
             MapSpace::Linear,
             Projection::Planar {
                 fov_y_deg: Some(50.0),
@@ -808,7 +819,11 @@ mod tests {
         let projection = Projection::Planar {
             fov_y_deg: Some(60.0),
         };
-        let mut meta = Metadata::new(BasisSpec::Sh { bands }, space, projection.clone());
+        let mut meta = Metadata::new(
+            BasisSpec::named(&format!("sh:{}", bands * bands)).unwrap(),
+            space,
+            projection.clone(),
+        );
         meta.camera = Some(crate::camera::CameraSpec {
             projection,
             width: w,
@@ -1159,7 +1174,7 @@ mod tests {
         let e = ShEvaluator::new(5).unwrap();
         let mut out = vec![0f32; e.len() * dirs.len()];
         e.eval(&x, &y, &z, &mut out);
-        let sh = BasisSpec::Sh { bands: 5 }.build().unwrap();
+        let sh = BasisSpec::named("sh:25").unwrap().build().unwrap();
         for (p, d) in dirs.iter().enumerate() {
             for (i, want) in sh.values(*d).into_iter().enumerate() {
                 assert!((out[i * dirs.len() + p] as f64 - want).abs() < 2e-5);

@@ -182,10 +182,16 @@ pub fn evaluate(
     let mut bytes_per_pixel = f64::NAN;
     let mut fit_seconds = Vec::new();
     let mut chosen: Vec<&'static str> = Vec::new();
+    let mut bases: Vec<String> = Vec::new();
+    let mut coefficients = 0;
     for group in &groups {
         let train: Vec<usize> = (0..n).filter(|i| !group.contains(i)).collect();
         let mut fitted = fit::fit(&capture.subset(&train), &options.fit, progress)?;
         fit_seconds.push(fitted.report.seconds);
+        coefficients = fitted.report.coefficients;
+        if !bases.contains(&fitted.report.basis) {
+            bases.push(fitted.report.basis.clone());
+        }
         if !chosen.contains(&fitted.report.objective.name()) {
             chosen.push(fitted.report.objective.name());
         }
@@ -226,8 +232,8 @@ pub fn evaluate(
         images: n,
         width: capture.width,
         height: capture.height,
-        basis: options.fit.basis.short_name(),
-        coefficients: options.fit.basis.len(),
+        basis: bases.join(", "),
+        coefficients,
         objective: match options.fit.objective {
             fit::Objective::Auto if options.fit.color_space == crate::maps::MapSpace::Linear => {
                 format!("auto ({})", chosen.join(", "))

@@ -1,27 +1,58 @@
-//! Spherical bases: how a pixel's apparent BRDF is expressed as a few coefficients.
+//! Bases: how a pixel's apparent BRDF is expressed as a few coefficients.
 //!
-//! Everything downstream (fitting, files, relighting) works through the [`Basis`] trait
-//! and never assumes a particular basis. [`BasisSpec`] is the serialisable name of a
-//! basis and the one factory that builds it; adding a basis is one new file plus one
-//! variant there.
+//! A [`Basis`] is `k` real functions `b_i` on the sphere of light directions. A pixel's
+//! response to a unit directional light toward `L` is `Σ_i c_i b_i(L)`: relighting is a
+//! dot product of the pixel's coefficients with the weight vector `b(L)`, which is all
+//! that anything after the fit asks of a basis. Files, the CPU and GPU engines, the
+//! browser viewer, environment lights and the studio never name a particular basis: a
+//! directional or environment light is one weight vector per frame, a light with a
+//! position evaluates [`Basis::eval`] per pixel (or samples a [`WeightTable`] of it,
+//! which is how back ends that cannot run Rust get any basis).
+//!
+//! The bases live one per file, each registered once in [`FAMILIES`]:
+//!
+//! | name | functions |
+//! |---|---|
+//! | `sh:K` | real spherical harmonics, K = 1, 4, 9, …, 64 ([`sh`]) |
+//!
+//! A basis is named `family:K` (K coefficients per colour channel), optionally with
+//! family options: `sg:25:centres=hemisphere,sharpness=8`. [`BasisSpec`] is what a file
+//! stores: the family and every parameter needed to rebuild the basis, data-dependent
+//! tables included.
 
 mod rotation;
 mod sh;
+mod table;
 
 pub use rotation::{
     check_rotation, compose, mat3_apply, rotation_about_axis, rotation_from_yaw_pitch_roll,
     transpose, Mat3, ShRotation, MAT3_IDENTITY,
 };
 pub use sh::{sh_index, SphericalHarmonics, MAX_BANDS};
+pub use table::{octahedral_direction, octahedral_uv, TableAccuracy, WeightTable};
 
 use crate::sphere::Vec3;
 use crate::{Error, Result};
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 
-/// A set of `len()` real functions on the sphere of light directions.
+/// Where a basis is meant to represent functions.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Domain {
+    /// Every direction.
+    Sphere,
+    /// Directions with `z ≥ 0` (toward the camera: an RTI dome's lights). Below the
+    /// horizon the basis has its own continuation; fits regularise on the hemisphere.
+    UpperHemisphere,
+}
+
+/// `k` real functions on the sphere of light directions.
 pub trait Basis: Send + Sync + std::fmt::Debug {
     /// The serialisable description that rebuilds this basis.
     fn spec(&self) -> BasisSpec;
+
+    /// The family's name (`sh`, `rbf`, …).
+    fn family(&self) -> &'static str;
 
     /// The number of coefficients `k`.
     fn len(&self) -> usize;
@@ -31,17 +62,32 @@ pub trait Basis: Send + Sync + std::fmt::Debug {
         self.len() == 0
     }
 
-    /// Evaluate every basis function at the unit light vector `dir` into `out[..len()]`.
+    /// `family:K`, the name users type.
+    fn name(&self) -> String {
+        format!("{}:{}", self.family(), self.len())
+    }
+
+    /// Where the basis is meant to represent functions.
+    fn domain(&self) -> Domain {
+        Domain::Sphere
+    }
+
+    /// Evaluate every basis function at the unit light vector `dir` into `out[..len()]`:
+    /// the weights that relight a pixel lit from `dir` by a dot product.
     fn eval(&self, dir: Vec3, out: &mut [f64]);
 
-    /// The diagonal of the smoothness penalty the fit regularises with, one entry per
-    /// coefficient, scaled so that `Σ_i p_i c_i²` is the mean over the sphere of the
-    /// squared magnitude being penalised. Entries may be zero for functions that must
-    /// not be shrunk (a constant term).
-    fn penalty(&self) -> Vec<f64>;
+    /// The smoothness penalty the fit regularises with: a symmetric `k×k` matrix
+    /// (row-major) with `cᵀ P c` the mean over the basis' domain of the squared gradient
+    /// of `Σ c_i b_i` (a constant function costs nothing). The default measures it
+    /// numerically ([`roughness_penalty`]); bases with a closed form override it.
+    fn penalty(&self) -> Vec<f64> {
+        roughness_penalty(self, 2048)
+    }
 
     /// A short human label for coefficient `i` (e.g. `l2m-1`).
-    fn label(&self, i: usize) -> String;
+    fn label(&self, i: usize) -> String {
+        format!("c{i}")
+    }
 
     /// Evaluate at `dir`, allocating.
     fn values(&self, dir: Vec3) -> Vec<f64> {
@@ -49,62 +95,339 @@ pub trait Basis: Send + Sync + std::fmt::Debug {
         self.eval(dir, &mut out);
         out
     }
+
+    /// This basis as `Any`, for back ends with a fast path of their own for one family
+    /// (the SH kernel of the CPU engine); nothing else may downcast.
+    fn as_any(&self) -> &dyn std::any::Any;
 }
 
-/// The serialisable identity of a basis, stored in every relightable file.
-#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(tag = "type", rename_all = "lowercase", deny_unknown_fields)]
-pub enum BasisSpec {
-    /// Real spherical harmonics of `bands` bands (`bands²` coefficients, 1 ≤ bands ≤ 8).
-    Sh { bands: usize },
-}
-
-impl Default for BasisSpec {
-    fn default() -> Self {
-        BasisSpec::Sh { bands: 5 }
+/// The mean over `basis`' domain of `∇b_i · ∇b_j`, by central differences along two
+/// tangent directions at `points` Fibonacci points (step 1e-4 rad: far below any
+/// basis' detail, far above rounding).
+pub fn roughness_penalty<B: Basis + ?Sized>(basis: &B, points: usize) -> Vec<f64> {
+    let k = basis.len();
+    let dirs = match basis.domain() {
+        Domain::Sphere => crate::sphere::fibonacci(points),
+        Domain::UpperHemisphere => crate::sphere::hemisphere_fibonacci(points),
+    };
+    const H: f64 = 1e-4;
+    let mut p = vec![0.0; k * k];
+    let (mut plus, mut minus, mut grad) = (vec![0.0; k], vec![0.0; k], vec![0.0; k]);
+    for d in &dirs {
+        let helper = if d.x.abs() < 0.9 {
+            Vec3::new(1.0, 0.0, 0.0)
+        } else {
+            Vec3::new(0.0, 1.0, 0.0)
+        };
+        let t1 = d.cross(helper).normalized().expect("a tangent");
+        let t2 = d.cross(t1);
+        for t in [t1, t2] {
+            basis.eval((*d + t * H).normalized().expect("unit"), &mut plus);
+            basis.eval((*d - t * H).normalized().expect("unit"), &mut minus);
+            for i in 0..k {
+                grad[i] = (plus[i] - minus[i]) / (2.0 * H);
+            }
+            for i in 0..k {
+                for j in 0..k {
+                    p[i * k + j] += grad[i] * grad[j];
+                }
+            }
+        }
     }
+    p.iter_mut().for_each(|v| *v /= dirs.len() as f64);
+    p
+}
+
+/// The pixel samples a data-driven family builds its functions from: `series` series
+/// (a pixel's channel) of `n` values, one per captured light, series-major.
+#[derive(Clone, Copy, Debug)]
+pub struct Samples<'a> {
+    pub values: &'a [f32],
+    pub n: usize,
+}
+
+impl Samples<'_> {
+    pub fn series(&self) -> usize {
+        self.values.len() / self.n.max(1)
+    }
+    pub fn row(&self, s: usize) -> &[f32] {
+        &self.values[s * self.n..(s + 1) * self.n]
+    }
+}
+
+/// What a family builds a basis from.
+#[derive(Clone, Copy, Debug)]
+pub struct BuildContext<'a> {
+    /// The captured light directions (unit vectors), in the order of the samples.
+    pub directions: &'a [Vec3],
+    /// Samples of the capture (a pixel subsample), for families whose functions depend
+    /// on the data; analytic families ignore them.
+    pub samples: Option<Samples<'a>>,
+    /// Family options from the name (`key=value`).
+    pub options: &'a BTreeMap<String, String>,
+}
+
+impl BuildContext<'_> {
+    /// Whether every captured light lies in the upper hemisphere (an RTI dome).
+    pub fn hemisphere_only(&self) -> bool {
+        !self.directions.is_empty() && self.directions.iter().all(|d| d.z > -1e-9)
+    }
+
+    /// A family option parsed as `T`, or `default`.
+    pub fn option<T: std::str::FromStr>(&self, key: &str, default: T) -> Result<T> {
+        match self.options.get(key) {
+            None => Ok(default),
+            Some(v) => v
+                .parse()
+                .map_err(|_| Error::parse(format!("bad basis option `{key}={v}`"))),
+        }
+    }
+}
+
+/// A kind of basis: how to build one of a given size and how to rebuild a stored one.
+pub trait Family: Sync {
+    /// The name before the colon (`sh`).
+    fn name(&self) -> &'static str;
+
+    /// One line for help texts.
+    fn summary(&self) -> &'static str;
+
+    /// The sizes (coefficients per channel) this family offers, up to `max`, ascending.
+    fn sizes(&self, max: usize) -> Vec<usize>;
+
+    /// Whether [`Family::build`] needs [`BuildContext::samples`].
+    fn needs_samples(&self) -> bool {
+        false
+    }
+
+    /// The option keys the family understands.
+    fn option_keys(&self) -> &'static [&'static str] {
+        &[]
+    }
+
+    /// A basis of `k` functions for a capture.
+    fn build(&self, k: usize, context: &BuildContext) -> Result<Box<dyn Basis>>;
+
+    /// Rebuild a basis from the parameters its [`Basis::spec`] stored.
+    fn rebuild(
+        &self,
+        params: &serde_json::Map<String, serde_json::Value>,
+    ) -> Result<Box<dyn Basis>>;
+}
+
+/// Every family relit knows: adding a basis is one file and one line here.
+pub static FAMILIES: &[&dyn Family] = &[&sh::FAMILY];
+
+/// The family called `name`.
+pub fn family(name: &str) -> Result<&'static dyn Family> {
+    FAMILIES
+        .iter()
+        .copied()
+        .find(|f| f.name() == name)
+        .ok_or_else(|| {
+            Error::parse(format!(
+                "unknown basis `{name}` (known: {})",
+                FAMILIES
+                    .iter()
+                    .map(|f| f.name())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ))
+        })
+}
+
+/// The serialisable identity of a built basis, stored in every relightable file: its
+/// family (`"type"`) and the family's parameters beside it, e.g.
+/// `{"type": "sh", "bands": 5}`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BasisSpec {
+    #[serde(rename = "type")]
+    pub family: String,
+    #[serde(flatten)]
+    pub params: serde_json::Map<String, serde_json::Value>,
 }
 
 impl BasisSpec {
-    /// Build the basis, checking its parameters.
+    /// A spec of `family` with `params` (a JSON object's fields).
+    pub fn new(family: &str, params: serde_json::Value) -> BasisSpec {
+        let params = match params {
+            serde_json::Value::Object(map) => map,
+            _ => serde_json::Map::new(),
+        };
+        BasisSpec {
+            family: family.to_string(),
+            params,
+        }
+    }
+
+    /// The spec of an analytic basis by name (`sh:25`): one that needs no capture.
+    pub fn named(name: &str) -> Result<BasisSpec> {
+        Ok(BasisChoice::parse(name)?.build(&[], None)?.spec())
+    }
+
+    /// Rebuild the basis, checking its parameters.
     pub fn build(&self) -> Result<Box<dyn Basis>> {
-        match *self {
-            BasisSpec::Sh { bands } => Ok(Box::new(SphericalHarmonics::new(bands)?)),
-        }
+        family(&self.family)?.rebuild(&self.params)
     }
+}
 
-    /// The number of coefficients, without building.
-    pub fn len(&self) -> usize {
-        match *self {
-            BasisSpec::Sh { bands } => bands * bands,
-        }
+impl Default for BasisSpec {
+    /// `sh:25`.
+    fn default() -> Self {
+        sh::SphericalHarmonics::new(5).expect("five bands").spec()
     }
+}
 
-    /// Whether the spec describes no functions.
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
+/// A basis a user names before any data is seen: `family:K[:key=value,…]`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BasisChoice {
+    pub family: &'static str,
+    pub k: usize,
+    pub options: BTreeMap<String, String>,
+}
 
-    /// A compact name such as `sh5`.
-    pub fn short_name(&self) -> String {
-        match *self {
-            BasisSpec::Sh { bands } => format!("sh{bands}"),
-        }
-    }
-
-    /// Parse the compact name (`sh5`, `sh:5`).
-    pub fn parse_short(s: &str) -> Result<Self> {
+impl BasisChoice {
+    /// Parse `sh:25`, `sg:25:centres=hemisphere,sharpness=8`.
+    pub fn parse(s: &str) -> Result<BasisChoice> {
         let s = s.trim().to_ascii_lowercase();
-        if let Some(rest) = s.strip_prefix("sh") {
-            let bands: usize = rest.trim_start_matches(':').parse().map_err(|_| {
-                Error::parse(format!("bad basis `{s}`: expected e.g. `sh5` (5 bands)"))
-            })?;
-            let spec = BasisSpec::Sh { bands };
-            spec.build()?;
-            return Ok(spec);
+        let mut parts = s.splitn(3, ':');
+        let name = parts.next().unwrap_or_default();
+        let fam = family(name)?;
+        let k: usize = parts
+            .next()
+            .ok_or_else(|| {
+                Error::parse(format!(
+                    "basis `{s}` needs a size: `{name}:K` with K one of {:?}",
+                    fam.sizes(64)
+                ))
+            })?
+            .parse()
+            .map_err(|_| Error::parse(format!("bad basis size in `{s}`")))?;
+        if !fam.sizes(usize::MAX >> 1).contains(&k) {
+            return Err(Error::invalid(format!(
+                "basis `{name}` has no size {k}: it offers {:?} (up to 64)",
+                fam.sizes(64)
+            )));
         }
-        Err(Error::parse(format!(
-            "unknown basis `{s}` (known: sh1..sh8)"
-        )))
+        let mut options = BTreeMap::new();
+        if let Some(rest) = parts.next() {
+            for kv in rest.split(',').filter(|p| !p.is_empty()) {
+                let (key, value) = kv.split_once('=').ok_or_else(|| {
+                    Error::parse(format!("bad basis option `{kv}`: expected key=value"))
+                })?;
+                if !fam.option_keys().contains(&key) {
+                    return Err(Error::parse(format!(
+                        "basis `{name}` has no option `{key}` (options: {:?})",
+                        fam.option_keys()
+                    )));
+                }
+                options.insert(key.to_string(), value.to_string());
+            }
+        }
+        Ok(BasisChoice {
+            family: fam.name(),
+            k,
+            options,
+        })
+    }
+
+    /// `family:K` (options left out).
+    pub fn name(&self) -> String {
+        format!("{}:{}", self.family, self.k)
+    }
+
+    /// Whether building needs pixel samples.
+    pub fn needs_samples(&self) -> bool {
+        family(self.family).is_ok_and(|f| f.needs_samples())
+    }
+
+    /// Build for a capture lit from `directions`, with `samples` for data-driven families.
+    pub fn build(&self, directions: &[Vec3], samples: Option<Samples>) -> Result<Box<dyn Basis>> {
+        let fam = family(self.family)?;
+        if fam.needs_samples() && samples.is_none() {
+            return Err(Error::invalid(format!(
+                "basis `{}` is built from the capture's samples",
+                self.name()
+            )));
+        }
+        fam.build(
+            self.k,
+            &BuildContext {
+                directions,
+                samples,
+                options: &self.options,
+            },
+        )
+    }
+}
+
+impl Default for BasisChoice {
+    fn default() -> Self {
+        BasisChoice::parse("sh:25").expect("a valid basis")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_parse_and_refuse_what_is_not_there() {
+        let c = BasisChoice::parse("sh:25").unwrap();
+        assert_eq!((c.family, c.k), ("sh", 25));
+        assert_eq!(c.name(), "sh:25");
+        assert!(BasisChoice::parse("sh:24").is_err());
+        assert!(BasisChoice::parse("sh").is_err());
+        assert!(BasisChoice::parse("nope:4").is_err());
+        assert!(BasisChoice::parse("sh:9:bogus=1").is_err());
+        for fam in FAMILIES {
+            for k in fam.sizes(64) {
+                let name = format!("{}:{k}", fam.name());
+                assert_eq!(BasisChoice::parse(&name).unwrap().k, k, "{name}");
+            }
+        }
+    }
+
+    #[test]
+    fn every_analytic_family_round_trips_through_its_spec() {
+        let dirs = crate::sphere::fibonacci(64);
+        for fam in FAMILIES.iter().filter(|f| !f.needs_samples()) {
+            for k in fam.sizes(64) {
+                let options = BTreeMap::new();
+                let context = BuildContext {
+                    directions: &dirs,
+                    samples: None,
+                    options: &options,
+                };
+                let basis = fam.build(k, &context).unwrap();
+                assert_eq!(basis.len(), k);
+                let json = serde_json::to_string(&basis.spec()).unwrap();
+                let spec: BasisSpec = serde_json::from_str(&json).unwrap();
+                let again = spec.build().unwrap();
+                assert_eq!(again.name(), basis.name());
+                for d in crate::sphere::fibonacci(7) {
+                    assert_eq!(again.values(d), basis.values(d), "{}", basis.name());
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_numerical_penalty_equals_the_closed_form_of_sh() {
+        let sh = SphericalHarmonics::new(4).unwrap();
+        let exact = sh.penalty();
+        let numeric = roughness_penalty(&sh, 4096);
+        let k = sh.len();
+        for i in 0..k {
+            for j in 0..k {
+                let scale = exact[i * k + i].max(exact[j * k + j]).max(0.05);
+                assert!(
+                    (numeric[i * k + j] - exact[i * k + j]).abs() < 0.02 * scale,
+                    "P[{i},{j}] = {} vs {}",
+                    numeric[i * k + j],
+                    exact[i * k + j]
+                );
+            }
+        }
     }
 }

@@ -6,10 +6,56 @@
 //! so each `Y_lm` is a polynomial in `(x, y, z)` built by the appendix's recurrence on
 //! the associated Legendre functions with the `sinᵐθ` factor taken out.
 
-use super::{Basis, BasisSpec};
+use super::{Basis, BasisSpec, BuildContext, Family};
 use crate::sphere::Vec3;
 use crate::{Error, Result};
 use std::f64::consts::PI;
+
+/// The `sh` family: `sh:K` with K = bands², 1 ≤ bands ≤ [`MAX_BANDS`].
+pub(super) struct ShFamily;
+
+pub(super) static FAMILY: ShFamily = ShFamily;
+
+impl Family for ShFamily {
+    fn name(&self) -> &'static str {
+        "sh"
+    }
+
+    fn summary(&self) -> &'static str {
+        "real spherical harmonics (K = 1, 4, 9, …, 64)"
+    }
+
+    fn sizes(&self, max: usize) -> Vec<usize> {
+        (1..=MAX_BANDS)
+            .map(|b| b * b)
+            .filter(|&k| k <= max)
+            .collect()
+    }
+
+    fn build(&self, k: usize, _: &BuildContext) -> Result<Box<dyn Basis>> {
+        let bands = (k as f64).sqrt().round() as usize;
+        if bands * bands != k {
+            return Err(Error::invalid(format!(
+                "spherical harmonics have a square number of coefficients, not {k}"
+            )));
+        }
+        Ok(Box::new(SphericalHarmonics::new(bands)?))
+    }
+
+    fn rebuild(
+        &self,
+        params: &serde_json::Map<String, serde_json::Value>,
+    ) -> Result<Box<dyn Basis>> {
+        let bands = params
+            .get("bands")
+            .and_then(|v| v.as_u64())
+            .ok_or_else(|| Error::parse("an `sh` basis needs an integer `bands`"))?;
+        if params.len() != 1 {
+            return Err(Error::parse("an `sh` basis has only `bands`"));
+        }
+        Ok(Box::new(SphericalHarmonics::new(bands as usize)?))
+    }
+}
 
 /// The most bands relit supports (k = 64 coefficients).
 pub const MAX_BANDS: usize = 8;
@@ -50,6 +96,14 @@ impl SphericalHarmonics {
     pub fn bands(&self) -> usize {
         self.bands
     }
+
+    /// The bands of `spec` if it is a spherical-harmonic basis.
+    pub fn bands_of(spec: &BasisSpec) -> Option<usize> {
+        (spec.family == "sh")
+            .then(|| spec.params.get("bands").and_then(|b| b.as_u64()))
+            .flatten()
+            .map(|b| b as usize)
+    }
 }
 
 /// Flat index `l(l+1) + m`.
@@ -60,7 +114,15 @@ pub fn sh_index(l: usize, m: isize) -> usize {
 
 impl Basis for SphericalHarmonics {
     fn spec(&self) -> BasisSpec {
-        BasisSpec::Sh { bands: self.bands }
+        BasisSpec::new("sh", serde_json::json!({ "bands": self.bands }))
+    }
+
+    fn family(&self) -> &'static str {
+        "sh"
+    }
+
+    fn as_any(&self) -> &dyn std::any::Any {
+        self
     }
 
     fn len(&self) -> usize {
@@ -108,9 +170,14 @@ impl Basis for SphericalHarmonics {
 
     fn penalty(&self) -> Vec<f64> {
         // ∫|∇f|² dω = Σ l(l+1) c_lm² for orthonormal SH; divided by 4π it is a mean.
-        (0..self.bands)
-            .flat_map(|l| std::iter::repeat_n((l * (l + 1)) as f64 / (4.0 * PI), 2 * l + 1))
-            .collect()
+        let k = self.len();
+        let mut p = vec![0.0; k * k];
+        for l in 0..self.bands {
+            for i in l * l..(l + 1) * (l + 1) {
+                p[i * k + i] = (l * (l + 1)) as f64 / (4.0 * PI);
+            }
+        }
+        p
     }
 
     fn label(&self, i: usize) -> String {

@@ -279,7 +279,7 @@ fn read_planes(path: &Path, mut sink: Sink) -> Result<(RelightableImage, Sink)> 
         None => None,
     };
     let (w, h) = (header.layer_size.width(), header.layer_size.height());
-    let k = basis.len();
+    let k = basis.build()?.len();
     let values = w.checked_mul(h).and_then(|n| n.checked_mul(3 * k));
     let what = format!("{}: the {w}×{h} maps of {k} coefficients", path.display());
     let mut maps = CoefficientMaps {
@@ -532,7 +532,7 @@ mod tests {
             *v = ((i * 7919) % 1000) as f32 / 137.0 - 3.0 + 1e-7 * i as f32;
         }
         let mut meta = Metadata::new(
-            BasisSpec::Sh { bands: 2 },
+            BasisSpec::named("sh:4").unwrap(),
             MapSpace::Linear,
             Projection::Cylindrical {
                 fov_y_deg: Some(60.0),

@@ -209,7 +209,7 @@ mod tests {
         let img = crate::maps::CoefficientMaps::zeros(70, 30, 9);
         let image = crate::maps::RelightableImage {
             meta: crate::maps::Metadata::new(
-                crate::basis::BasisSpec::Sh { bands: 3 },
+                crate::basis::BasisSpec::named("sh:9").unwrap(),
                 crate::maps::MapSpace::Linear,
                 Default::default(),
             ),

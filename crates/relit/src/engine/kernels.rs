@@ -32,7 +32,7 @@ mod lights;
 mod sh;
 
 pub(crate) use lights::{AreaSamples, Cone, Falloff, Projector, Shift};
-pub(crate) use sh::{Rows, ShNorms};
+pub(crate) use sh::{sh_bands, Rows, ShNorms};
 
 /// Pixels per block of the per-pixel (positional light) kernels: their scratch
 /// arrays, a few per block, stay in L1.

@@ -53,7 +53,7 @@
 
 mod spill;
 
-use crate::basis::{Basis, BasisSpec};
+use crate::basis::{Basis, BasisChoice};
 use crate::capture::Capture;
 use crate::color;
 use crate::image::ImageRgb;
@@ -131,7 +131,7 @@ pub const LAMBDA_LADDER: [f64; 13] = [
 /// Options of [`fit`].
 #[derive(Clone, Debug)]
 pub struct FitOptions {
-    pub basis: BasisSpec,
+    pub basis: BasisChoice,
     pub objective: Objective,
     pub color_space: MapSpace,
     pub regularizer: Regularizer,
@@ -147,7 +147,7 @@ pub struct FitOptions {
 impl Default for FitOptions {
     fn default() -> Self {
         Self {
-            basis: BasisSpec::default(),
+            basis: BasisChoice::default(),
             objective: Objective::default(),
             color_space: MapSpace::Linear,
             regularizer: Regularizer::default(),
@@ -162,6 +162,8 @@ impl Default for FitOptions {
 /// What a fit measured about itself.
 #[derive(Clone, Debug, Serialize)]
 pub struct FitReport {
+    /// The basis fitted, `family:K`.
+    pub basis: String,
     pub images: usize,
     pub width: usize,
     pub height: usize,
@@ -197,19 +199,19 @@ struct Design {
     a: Vec<f64>,
     /// Quadrature weight per image (mean 1).
     q: Vec<f64>,
-    /// Penalty diagonal, scaled as configured.
+    /// The k×k penalty matrix, as configured.
     penalty: Vec<f64>,
 }
 
 impl Design {
     fn new(capture: &Capture, options: &FitOptions) -> Result<Design> {
-        let basis = options.basis.build()?;
-        let k = basis.len();
         let n = capture.len();
         if n == 0 {
             return Err(Error::invalid("the capture has no images"));
         }
         let dirs = capture.directions();
+        let basis = options.basis.build(&dirs, None)?;
+        let k = basis.len();
         let mut a = vec![0.0; n * k];
         for (j, d) in dirs.iter().enumerate() {
             basis.eval(*d, &mut a[j * k..(j + 1) * k]);
@@ -217,7 +219,11 @@ impl Design {
         let q = sphere::grid_quadrature_weights(&dirs).unwrap_or_else(|| vec![1.0; n]);
         let penalty = match options.regularizer {
             Regularizer::Roughness => basis.penalty(),
-            Regularizer::Ridge => vec![1.0 / (4.0 * std::f64::consts::PI); k],
+            Regularizer::Ridge => {
+                let mut p = vec![0.0; k * k];
+                (0..k).for_each(|i| p[i * k + i] = 1.0 / (4.0 * std::f64::consts::PI));
+                p
+            }
         };
         Ok(Design {
             basis,
@@ -234,11 +240,14 @@ impl Design {
     }
 
     /// Add `λ·W·P` (and a tiny multiple of `W·I` so that the system stays definite when
-    /// the data leave a coefficient undetermined) to the diagonal of `m`.
+    /// the data leave a coefficient undetermined) to `m`.
     fn regularize(&self, m: &mut [f64], lambda: f64, total_weight: f64) {
         const DEFINITENESS: f64 = 1e-10; // relative to the data weight, far below any λ
+        for (v, &p) in m.iter_mut().zip(&self.penalty) {
+            *v += total_weight * lambda * p;
+        }
         for i in 0..self.k {
-            m[i * self.k + i] += total_weight * (lambda * self.penalty[i] + DEFINITENESS);
+            m[i * self.k + i] += total_weight * DEFINITENESS;
         }
     }
 }
@@ -468,6 +477,7 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
         seconds,
     });
     let report = FitReport {
+        basis: design.basis.name(),
         images: design.n,
         width: w,
         height: h,

@@ -27,7 +27,10 @@ fn known_coefficients(pixels: usize, k: usize) -> Vec<f64> {
 
 /// Images of the band-limited function with coefficients `coef` (pixel, i, c).
 fn capture_of(coef: &[f64], w: usize, h: usize, bands: usize, dirs: &[Vec3]) -> Capture {
-    let sh = BasisSpec::Sh { bands }.build().unwrap();
+    let sh = BasisSpec::named(&format!("sh:{}", bands * bands))
+        .unwrap()
+        .build()
+        .unwrap();
     let k = sh.len();
     let images = dirs
         .iter()
@@ -62,7 +65,7 @@ fn max_coefficient_error(maps: &CoefficientMaps, coef: &[f64]) -> f64 {
 
 fn options(bands: usize, objective: Objective, lambda: f64) -> FitOptions {
     FitOptions {
-        basis: BasisSpec::Sh { bands },
+        basis: crate::basis::BasisChoice::parse(&format!("sh:{}", bands * bands)).unwrap(),
         objective,
         lambda: Lambda::Fixed(lambda),
         ..Default::default()
@@ -197,7 +200,7 @@ fn below_the_horizon_stays_bounded() {
     };
     let capture = plane.capture(&hemisphere_fibonacci(60));
     let out = fit(&capture, &FitOptions::default(), &Silent).unwrap();
-    let sh = BasisSpec::Sh { bands: 5 }.build().unwrap();
+    let sh = BasisSpec::named("sh:25").unwrap().build().unwrap();
     let mut worst = 0.0f64;
     for d in fibonacci(200).into_iter().filter(|d| d.z < -0.2) {
         let y = sh.values(d);
@@ -222,7 +225,7 @@ fn the_automatic_objective_is_the_better_of_the_two_and_fits_exactly_as_it() {
         fit(
             &capture,
             &FitOptions {
-                basis: BasisSpec::Sh { bands: 3 },
+                basis: crate::basis::BasisChoice::parse("sh:9").unwrap(),
                 objective,
                 ..Default::default()
             },
@@ -244,7 +247,7 @@ fn the_automatic_objective_is_the_better_of_the_two_and_fits_exactly_as_it() {
 
     // The choice is the one of smaller leave-one-out display error.
     let options = FitOptions {
-        basis: BasisSpec::Sh { bands: 3 },
+        basis: crate::basis::BasisChoice::parse("sh:9").unwrap(),
         ..Default::default()
     };
     let design = Design::new(&capture, &options).unwrap();
@@ -334,8 +337,8 @@ fn hard_shadow_capture(w: usize, h: usize, dirs: &[Vec3]) -> Capture {
                 } else {
                     0.0
                 };
-                for c in 0..3 {
-                    img.data[3 * p + c] = (albedo[c] * lit) as f32;
+                for (dst, a) in img.data[3 * p..3 * p + 3].iter_mut().zip(albedo) {
+                    *dst = (a * lit) as f32;
                 }
             }
             img
@@ -384,7 +387,7 @@ fn the_automatic_objective_is_never_worse_than_either_on_validation_lights() {
         let training = capture.subset(&train);
         let error = |objective| {
             let options = FitOptions {
-                basis: BasisSpec::Sh { bands },
+                basis: crate::basis::BasisChoice::parse(&format!("sh:{}", bands * bands)).unwrap(),
                 objective,
                 ..Default::default()
             };

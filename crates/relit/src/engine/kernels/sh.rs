@@ -8,6 +8,15 @@
 use super::{madd, Simd, BLOCK};
 use crate::color;
 
+/// The bands of `basis` if it is the real SH basis, whose per-pixel evaluation has the
+/// vectorised recurrence below; other bases take the weight-table path.
+pub(crate) fn sh_bands(basis: &dyn crate::basis::Basis) -> Option<usize> {
+    basis
+        .as_any()
+        .downcast_ref::<crate::basis::SphericalHarmonics>()
+        .map(|sh| sh.bands())
+}
+
 /// Rows of [`BLOCK`] values at a stride: row `j` is `data[j·stride + offset ..][..BLOCK]`.
 #[derive(Clone, Copy)]
 pub(crate) struct Rows<'a> {
