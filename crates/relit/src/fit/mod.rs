@@ -390,16 +390,16 @@ fn choose_basis(
         let mut own: Option<CandidateScore> = None;
         for &o in objectives {
             let score = select::validate(choice, o, options.regularizer, dirs, &q, &view)?;
-            if !matches!(&best, Some((_, _, b)) if b.display_rmse <= score.display_rmse) {
+            if !matches!(&best, Some((_, _, b)) if b.psnr >= score.psnr) {
                 best = Some((i, o, score.clone()));
             }
-            if !matches!(&own, Some(b) if b.display_rmse <= score.display_rmse) {
+            if !matches!(&own, Some(b) if b.psnr >= score.psnr) {
                 own = Some(score);
             }
         }
         scores.extend(own);
     }
-    scores.sort_by(|a, b| a.display_rmse.total_cmp(&b.display_rmse));
+    scores.sort_by(|a, b| b.psnr.total_cmp(&a.psnr));
     let (i, chosen_objective, score) = best.expect("at least one candidate");
     let samples: Vec<f32> = (0..sub_count * 3)
         .flat_map(|s| (0..n).map(move |j| sub[((s / 3) * n + j) * 3 + s % 3]))
