@@ -28,7 +28,7 @@ const FOLDS: usize = 10;
 /// Multiply-adds one candidate's perceptual validation may spend per fold on normal
 /// matrices (each series has its own, `n·k²`): a dense capture validates on fewer
 /// pixels rather than for minutes (a 60-light RTI capture keeps all of them).
-const PERCEPTUAL_BUDGET: f64 = 2e9;
+const PERCEPTUAL_BUDGET: f64 = 3e8;
 
 /// Pixels of the subsample a perceptual validation of `k` coefficients on `n` lights
 /// uses, out of `count`.
@@ -74,8 +74,12 @@ pub fn candidates(max_coefficients: usize, lights: usize) -> Vec<BasisChoice> {
         .collect()
 }
 
+/// Folds for `n` lights: [`FOLDS`], fewer when there are few lights (each fold keeps
+/// four or more) and half as many for dense captures, whose folds hold plenty of lights
+/// (and each fold costs a basis and a fit).
 fn folds(n: usize) -> usize {
-    FOLDS.min(n / 4).max(2)
+    let f = if n > 200 { FOLDS / 2 } else { FOLDS };
+    f.min(n / 4).max(2)
 }
 
 /// The pixel subsample the fit reads, as the validation sees it.
