@@ -14,16 +14,19 @@
 //! | name | functions |
 //! |---|---|
 //! | `sh:K` | real spherical harmonics, K = 1, 4, 9, …, 64 ([`sh`]) |
+//! | `hsh:K` | hemispherical harmonics, orthonormal over `z ≥ 0`, K = 4, 9, 16, 25 ([`hsh`]) |
 //!
 //! A basis is named `family:K` (K coefficients per colour channel), optionally with
 //! family options: `sg:25:centres=hemisphere,sharpness=8`. [`BasisSpec`] is what a file
 //! stores: the family and every parameter needed to rebuild the basis, data-dependent
 //! tables included.
 
+mod hsh;
 mod rotation;
 mod sh;
 mod table;
 
+pub use hsh::HemisphericalHarmonics;
 pub use rotation::{
     check_rotation, compose, mat3_apply, rotation_about_axis, rotation_from_yaw_pitch_roll,
     transpose, Mat3, ShRotation, MAT3_IDENTITY,
@@ -216,7 +219,7 @@ pub trait Family: Sync {
 }
 
 /// Every family relit knows: adding a basis is one file and one line here.
-pub static FAMILIES: &[&dyn Family] = &[&sh::FAMILY];
+pub static FAMILIES: &[&dyn Family] = &[&sh::FAMILY, &hsh::FAMILY];
 
 /// The family called `name`.
 pub fn family(name: &str) -> Result<&'static dyn Family> {
