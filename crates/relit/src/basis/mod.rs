@@ -15,6 +15,7 @@
 //! |---|---|
 //! | `sh:K` | real spherical harmonics, K = 1, 4, 9, …, 64 ([`sh`]) |
 //! | `hsh:K` | hemispherical harmonics, orthonormal over `z ≥ 0`, K = 4, 9, 16, 25 ([`hsh`]) |
+//! | `ptm:6` | polynomial texture map, biquadratic in the light's `(x, y)` ([`ptm`]) |
 //!
 //! A basis is named `family:K` (K coefficients per colour channel), optionally with
 //! family options: `sg:25:centres=hemisphere,sharpness=8`. [`BasisSpec`] is what a file
@@ -22,11 +23,13 @@
 //! tables included.
 
 mod hsh;
+mod ptm;
 mod rotation;
 mod sh;
 mod table;
 
 pub use hsh::HemisphericalHarmonics;
+pub use ptm::PolynomialTextureMap;
 pub use rotation::{
     check_rotation, compose, mat3_apply, rotation_about_axis, rotation_from_yaw_pitch_roll,
     transpose, Mat3, ShRotation, MAT3_IDENTITY,
@@ -219,7 +222,7 @@ pub trait Family: Sync {
 }
 
 /// Every family relit knows: adding a basis is one file and one line here.
-pub static FAMILIES: &[&dyn Family] = &[&sh::FAMILY, &hsh::FAMILY];
+pub static FAMILIES: &[&dyn Family] = &[&sh::FAMILY, &hsh::FAMILY, &ptm::FAMILY];
 
 /// The family called `name`.
 pub fn family(name: &str) -> Result<&'static dyn Family> {
