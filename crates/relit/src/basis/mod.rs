@@ -16,6 +16,7 @@
 //! | `sh:K` | real spherical harmonics, K = 1, 4, 9, …, 64 ([`sh`]) |
 //! | `hsh:K` | hemispherical harmonics, orthonormal over `z ≥ 0`, K = 4, 9, 16, 25 ([`hsh`]) |
 //! | `ptm:6` | polynomial texture map, biquadratic in the light's `(x, y)` ([`ptm`]) |
+//! | `sg:K` | spherical Gaussian lobes of one sharpness plus a constant, K = 4, 9, …, 64 ([`sg`]) |
 //!
 //! A basis is named `family:K` (K coefficients per colour channel), optionally with
 //! family options: `sg:25:centres=hemisphere,sharpness=8`. [`BasisSpec`] is what a file
@@ -25,6 +26,7 @@
 mod hsh;
 mod ptm;
 mod rotation;
+mod sg;
 mod sh;
 mod table;
 
@@ -34,6 +36,7 @@ pub use rotation::{
     check_rotation, compose, mat3_apply, rotation_about_axis, rotation_from_yaw_pitch_roll,
     transpose, Mat3, ShRotation, MAT3_IDENTITY,
 };
+pub use sg::{mean_nearest_angle, sharpness_for_width, SphericalGaussians};
 pub use sh::{sh_index, SphericalHarmonics, MAX_BANDS};
 pub use table::{octahedral_direction, octahedral_uv, TableAccuracy, WeightTable};
 
@@ -222,7 +225,7 @@ pub trait Family: Sync {
 }
 
 /// Every family relit knows: adding a basis is one file and one line here.
-pub static FAMILIES: &[&dyn Family] = &[&sh::FAMILY, &hsh::FAMILY, &ptm::FAMILY];
+pub static FAMILIES: &[&dyn Family] = &[&sh::FAMILY, &hsh::FAMILY, &ptm::FAMILY, &sg::FAMILY];
 
 /// The family called `name`.
 pub fn family(name: &str) -> Result<&'static dyn Family> {
