@@ -12,8 +12,10 @@
 //! with `Y_lm` relit's real spherical harmonics ([`super::sh`]): the same flat index
 //! `l(l+1) + m`, cos for `m > 0`, sin for `m < 0`, **with the Condon–Shortley phase**.
 //! Since `d(cos θ) = d(cos θ')/2` the `√2` makes them orthonormal over the hemisphere:
-//! `∫_{z≥0} H_i H_j dω = δ_ij`. The RTI tools (RTIBuilder, relight, OpenLIME) use the
-//! same functions with every `m ≠ 0` one negated, listed `m = l … −l` within a band.
+//! `∫_{z≥0} H_i H_j dω = δ_ij`. The OpenLIME viewer (`shared/clients/openlime`, whose
+//! formulas come from relight) hard-codes the first nine functions with every `m ≠ 0`
+//! one negated, lists them `m = l … −l` within a band, and clamps the light's elevation
+//! to at least 0.15 rad; these functions follow the paper down to the horizon.
 //!
 //! The stretched direction `(sin θ' cos φ, sin θ' sin φ, cos θ')` is
 //! `(a·x, a·y, 2z − 1)` with `a = sin θ'/sin θ = 2·√(z/(1+z))`, so the evaluator is the
@@ -213,10 +215,10 @@ mod tests {
     }
 
     #[test]
-    fn the_nine_functions_of_rti_tools_up_to_sign() {
-        // RTIBuilder, relight and OpenLIME hard-code the first nine functions (order 3)
-        // in the frame of an `.lp` file; every one with m ≠ 0 is ours negated (no
-        // Condon–Shortley phase for |m| = 1, the opposite sign for |m| = 2).
+    fn the_nine_functions_of_openlime_up_to_sign() {
+        // OpenLIME hard-codes the first nine functions (order 3) in the frame of an `.lp`
+        // file; every one with m ≠ 0 is ours negated (no Condon–Shortley phase for
+        // |m| = 1, the opposite sign for |m| = 2). Written out here from its formulas.
         let d = Vec3::new(0.3, -0.5, 0.8).normalized().unwrap();
         let (theta, phi) = d.to_spherical();
         let (c, s) = (theta.cos(), (theta.cos() - theta.cos().powi(2)).sqrt());

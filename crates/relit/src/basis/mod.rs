@@ -164,6 +164,11 @@ impl Samples<'_> {
     }
 }
 
+/// How far below the horizon a light of a dome may sit: light directions calibrated from
+/// highlights put a dome's lowest ring a little below it (RealRTI item7: −0.07°), and a
+/// capture of the whole sphere has lights far lower.
+pub const DOME_SLACK_DEG: f64 = 5.0;
+
 /// What a family builds a basis from.
 #[derive(Clone, Copy, Debug)]
 pub struct BuildContext<'a> {
@@ -177,9 +182,11 @@ pub struct BuildContext<'a> {
 }
 
 impl BuildContext<'_> {
-    /// Whether every captured light lies in the upper hemisphere (an RTI dome).
+    /// Whether every captured light lies in the upper hemisphere (an RTI dome), up to
+    /// [`DOME_SLACK_DEG`] below the horizon.
     pub fn hemisphere_only(&self) -> bool {
-        !self.directions.is_empty() && self.directions.iter().all(|d| d.z > -1e-9)
+        let lowest = -DOME_SLACK_DEG.to_radians().sin();
+        !self.directions.is_empty() && self.directions.iter().all(|d| d.z > lowest)
     }
 
     /// A family option parsed as `T`, or `default`.
