@@ -21,6 +21,7 @@ ap.add_argument("--relit", default=str(root / "target/release/relit"))
 ap.add_argument("--scenes", default="attic,city")
 ap.add_argument("--json")
 ap.add_argument("--quick", action="store_true")
+ap.add_argument("--basis", default="sh:25", help="basis of the every-light-type table")
 opts = ap.parse_args()
 relit = opts.relit
 results = {}
@@ -77,18 +78,19 @@ with tempfile.TemporaryDirectory() as tmp:
     evals = {}
     for scene in opts.scenes.split(","):
         log(f"eval --scene {scene}")
-        out, wall = run("eval", "--scene", scene, "--json", "-q")
+        out, wall = run("eval", "--scene", scene, "--basis", opts.basis, "--json", "-q")
         evals[scene] = json.loads(out)
         evals[scene]["wall_seconds"] = wall
     results["scene_eval"] = evals
     scenes = list(evals)
-    print("| light | " + " | ".join(f"{s} linear dB | {s} sRGB8 dB" for s in scenes) + " | relight ms (" + scenes[0] + ") |")
-    print("|---|" + "---|---|" * len(scenes) + "---|")
+    print(f"basis {opts.basis}, objective " + ", ".join(f"{s}: {evals[s]['fit']['objective']}" for s in scenes) + "\n")
+    print("| light | " + " | ".join(f"{s} linear dB | {s} sRGB8 dB | {s} relit/truth mean" for s in scenes) + " | relight ms (" + scenes[0] + ") |")
+    print("|---|" + "---|---|---|" * len(scenes) + "---|")
     for i, light in enumerate(evals[scenes[0]]["lights"]):
         cells = []
         for s in scenes:
             l = evals[s]["lights"][i]
-            cells.append(f"{l['psnr_linear']:.2f} | {l['psnr_srgb8']:.2f}")
+            cells.append(f"{l['psnr_linear']:.2f} | {l['psnr_srgb8']:.2f} | {l['relit_mean'] / l['truth_mean']:.3f}")
         print(f"| {light['type']} | " + " | ".join(cells) + f" | {1e3 * light['relight_seconds']:.1f} |")
 
     print("\nOcclusion limitation (seed 004 §VI): pixels whose light is blocked *beyond* the light, linear dB\n")

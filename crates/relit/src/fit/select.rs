@@ -22,6 +22,16 @@ use serde::Serialize;
 /// The λ values each candidate is validated at.
 pub const VALIDATION_LADDER: [f64; 6] = [1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1];
 
+const LADDER: usize = VALIDATION_LADDER.len();
+
+/// Per held-out light: squared display errors per λ, summed linear predictions per λ,
+/// and the summed linear observation.
+const SLOTS: usize = 2 * LADDER + 1;
+
+/// How far the mean prediction may stray from the mean observation before a candidate
+/// counts as biased (see `fit::MAX_MEAN_BIAS`, the same rule for the objective).
+const MAX_MEAN_BIAS: f64 = super::MAX_MEAN_BIAS;
+
 /// Folds of the captured lights (fewer for captures of very few lights).
 const FOLDS: usize = 10;
 
@@ -51,6 +61,25 @@ pub struct CandidateScore {
     /// The mean over the captured lights of each light's display PSNR (peak 1) when
     /// held out: what the choice maximises, comparable to `relit eval`'s figures.
     pub psnr: f64,
+    /// Mean held-out prediction over mean observation (linear radiance, 1: unbiased);
+    /// candidates beyond `MAX_MEAN_BIAS` lose to every unbiased one.
+    pub mean_bias: f64,
+}
+
+impl CandidateScore {
+    /// Whether the candidate keeps the scene's brightness.
+    pub fn unbiased(&self) -> bool {
+        (self.mean_bias - 1.0).abs() <= MAX_MEAN_BIAS
+    }
+
+    /// Whether `self` is the better candidate: unbiased first, then the higher PSNR.
+    pub fn beats(&self, other: &CandidateScore) -> bool {
+        match (self.unbiased(), other.unbiased()) {
+            (true, false) => true,
+            (false, true) => false,
+            _ => self.psnr > other.psnr,
+        }
+    }
 }
 
 /// The sizes `auto` tries where a family offers them: a ladder that roughly doubles the
@@ -127,7 +156,7 @@ pub(super) fn validate(
     let relevance = light_relevance(sub.values, sub.count, n);
     let folds = folds(n);
     // Squared display errors per captured light (each is held out once) and λ.
-    let mut per_light = vec![[0.0f64; VALIDATION_LADDER.len()]; n];
+    let mut per_light = vec![[0.0f64; SLOTS]; n];
     for fold in 0..folds {
         let train: Vec<usize> = (0..n).filter(|j| j % folds != fold).collect();
         let held: Vec<usize> = (0..n).filter(|j| j % folds == fold).collect();
@@ -165,25 +194,39 @@ pub(super) fn validate(
     // not reach the scene do not count.
     let weights: Vec<f64> = (0..n).map(|j| q[j] * relevance[j]).collect();
     let total: f64 = weights.iter().sum::<f64>().max(1e-300);
-    let score = |li: usize| -> (f64, f64) {
-        let (mut psnr, mut pooled) = (0.0, 0.0);
+    let score = |li: usize| -> (f64, f64, f64) {
+        let (mut psnr, mut pooled, mut pred, mut obs) = (0.0, 0.0, 0.0, 0.0);
         for (e, &w) in per_light.iter().zip(&weights) {
             let mse = e[li] / series as f64;
             psnr += w * crate::metrics::psnr(mse, 1.0);
             pooled += w * mse;
+            pred += w * e[LADDER + li];
+            obs += w * e[2 * LADDER];
         }
-        (psnr / total, (pooled / total).sqrt())
+        (
+            psnr / total,
+            (pooled / total).sqrt(),
+            pred / obs.max(1e-300),
+        )
     };
-    let (best, (psnr, rmse)) = (0..VALIDATION_LADDER.len())
+    // The best λ among those that keep the scene's brightness (any, if none does).
+    let scored: Vec<(usize, (f64, f64, f64))> = (0..LADDER)
         .map(|li| (li, score(li)))
-        .filter(|(_, (p, _))| p.is_finite())
+        .filter(|(_, (p, _, _))| p.is_finite())
+        .collect();
+    let unbiased = |b: f64| (b - 1.0).abs() <= MAX_MEAN_BIAS;
+    let any_unbiased = scored.iter().any(|(_, (_, _, b))| unbiased(*b));
+    let (best, (psnr, rmse, bias)) = scored
+        .into_iter()
+        .filter(|(_, (_, _, b))| !any_unbiased || unbiased(*b))
         .max_by(|a, b| a.1 .0.total_cmp(&b.1 .0))
-        .unwrap_or((0, (f64::NEG_INFINITY, f64::INFINITY)));
+        .unwrap_or((0, (f64::NEG_INFINITY, f64::INFINITY, f64::INFINITY)));
     Ok(CandidateScore {
         basis: choice.name(),
         lambda: VALIDATION_LADDER[best],
         display_rmse: rmse,
         psnr,
+        mean_bias: bias,
     })
 }
 
@@ -199,7 +242,7 @@ fn fold_errors(
     train_values: &[f32],
     held: &[usize],
     sub: &Subsample,
-) -> Vec<[f64; VALIDATION_LADDER.len()]> {
+) -> Vec<[f64; SLOTS]> {
     let k = basis.len();
     let nt = train_dirs.len();
     let a_train: Vec<f64> = train_dirs.iter().flat_map(|d| basis.values(*d)).collect();
@@ -251,7 +294,7 @@ fn fold_errors(
     (0..series)
         .into_par_iter()
         .fold(
-            || vec![[0.0f64; VALIDATION_LADDER.len()]; lights],
+            || vec![[0.0f64; SLOTS]; lights],
             |mut acc, s| {
                 let obs = &train_values[s * nt..(s + 1) * nt];
                 let (p, c) = (s / 3, s % 3);
@@ -299,13 +342,17 @@ fn fold_errors(
                         let o = sub.values[(p * sub.n + j) * 3 + c] as f64;
                         let d = srgb_on_screen(pred) - srgb_on_screen(o);
                         acc[h][li] += d * d;
+                        acc[h][LADDER + li] += pred;
+                        if li == 0 {
+                            acc[h][2 * LADDER] += o;
+                        }
                     }
                 }
                 acc
             },
         )
         .reduce(
-            || vec![[0.0; VALIDATION_LADDER.len()]; lights],
+            || vec![[0.0; SLOTS]; lights],
             |mut a, b| {
                 for (x, y) in a.iter_mut().zip(b) {
                     x.iter_mut().zip(y).for_each(|(x, y)| *x += y);
