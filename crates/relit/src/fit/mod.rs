@@ -599,7 +599,7 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
     let per_pixel =
         3.0 * design.n as f64 * (design.k * design.k) as f64 * LAMBDA_LADDER.len() as f64;
     let loo_count = ((PERCEPTUAL_LOO_BUDGET / per_pixel) as usize)
-        .clamp(64, sub_idx.len().max(1))
+        .max(64)
         .min(sub_idx.len());
     let loo_sub: Vec<f32> = (0..loo_count)
         .flat_map(|i| {
