@@ -38,7 +38,7 @@ pub struct Args {
     pub frames: usize,
     /// The basis, `family:K` (`sh:25`, …).
     #[arg(long, default_value = "sh:25", value_parser = crate::shared::parse_basis)]
-    pub basis: relit::basis::BasisChoice,
+    pub basis: relit::fit::BasisRequest,
     /// Print the summary as JSON.
     #[arg(long)]
     pub json: bool,

@@ -47,7 +47,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             capture.width,
             capture.height,
             args.capture.display(),
-            options.basis.name(),
+            match &options.basis {
+                relit::fit::BasisRequest::Auto =>
+                    format!("auto (up to {} coefficients)", options.max_coefficients),
+                relit::fit::BasisRequest::Fixed(choice) => choice.name(),
+            },
             options.objective.name()
         );
     }

@@ -3,8 +3,7 @@
 
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
-use relit::basis::BasisChoice;
-use relit::fit::{FitOptions, Lambda, Objective, Regularizer};
+use relit::fit::{BasisRequest, FitOptions, Lambda, Objective, Regularizer};
 use relit::fsutil::{check_outputs, Output, OutputKind};
 use relit::light::RigFile;
 use relit::maps::MapSpace;
@@ -41,16 +40,21 @@ pub enum RegularizerArg {
 }
 
 /// A `--basis` value, checked while parsing the command line (a bad one is a usage error).
-pub fn parse_basis(s: &str) -> Result<BasisChoice, String> {
-    BasisChoice::parse(s).map_err(|e| e.to_string())
+pub fn parse_basis(s: &str) -> Result<BasisRequest, String> {
+    BasisRequest::parse(s).map_err(|e| e.to_string())
 }
 
 /// Flags that shape a fit.
 #[derive(Args, Debug, Clone)]
 pub struct FitArgs {
-    /// The basis, `family:K` with K coefficients per colour channel (`sh:25`, …).
+    /// The basis: `auto` (chosen per capture by validation on its own lights) or
+    /// `family:K` with K coefficients per colour channel (`sh:25`, `rbf:18`, …).
     #[arg(long, default_value = "sh:25", value_parser = parse_basis)]
-    pub basis: BasisChoice,
+    pub basis: BasisRequest,
+    /// The most coefficients per colour channel `--basis auto` may choose.
+    #[arg(long, default_value_t = relit::fit::DEFAULT_MAX_COEFFICIENTS as u16,
+          value_parser = clap::value_parser!(u16).range(4..=64))]
+    pub max_coefficients: u16,
     /// Fit objective.
     #[arg(long, value_enum, default_value_t = ObjectiveArg::Auto)]
     pub objective: ObjectiveArg,
@@ -85,6 +89,7 @@ impl FitArgs {
         };
         Ok(FitOptions {
             basis: self.basis.clone(),
+            max_coefficients: self.max_coefficients as usize,
             objective: match self.objective {
                 ObjectiveArg::Auto => Objective::Auto,
                 ObjectiveArg::Perceptual => Objective::Perceptual,

@@ -141,6 +141,8 @@ pub struct EvalReport {
     pub height: usize,
     pub basis: String,
     pub coefficients: usize,
+    /// The candidate bases the first fit validated (`--basis auto`), best first.
+    pub candidates: Vec<crate::fit::CandidateScore>,
     pub objective: String,
     pub color_space: String,
     pub storage: String,
@@ -184,11 +186,15 @@ pub fn evaluate(
     let mut chosen: Vec<&'static str> = Vec::new();
     let mut bases: Vec<String> = Vec::new();
     let mut coefficients = 0;
+    let mut candidates = Vec::new();
     for group in &groups {
         let train: Vec<usize> = (0..n).filter(|i| !group.contains(i)).collect();
         let mut fitted = fit::fit(&capture.subset(&train), &options.fit, progress)?;
         fit_seconds.push(fitted.report.seconds);
         coefficients = fitted.report.coefficients;
+        if candidates.is_empty() {
+            candidates = fitted.report.candidates.clone();
+        }
         if !bases.contains(&fitted.report.basis) {
             bases.push(fitted.report.basis.clone());
         }
@@ -234,6 +240,7 @@ pub fn evaluate(
         height: capture.height,
         basis: bases.join(", "),
         coefficients,
+        candidates,
         objective: match options.fit.objective {
             fit::Objective::Auto if options.fit.color_space == crate::maps::MapSpace::Linear => {
                 format!("auto ({})", chosen.join(", "))

@@ -109,9 +109,228 @@ pub fn matmul_bt(m: usize, k: usize, n: usize, a: &[f64], b: &[f64], c: &mut [f6
     }
 }
 
+/// Eigen-decomposition of the symmetric `n×n` row-major matrix `a` by cyclic Jacobi
+/// rotations (n up to a few hundred): eigenvalues in descending order and the matching
+/// unit eigenvectors, vector `i` at `vectors[i·n..(i+1)·n]`.
+pub fn symmetric_eigen(a: &[f64], n: usize) -> (Vec<f64>, Vec<f64>) {
+    let mut m = a.to_vec();
+    let mut v = vec![0.0; n * n];
+    (0..n).for_each(|i| v[i * n + i] = 1.0);
+    let scale: f64 = m.iter().map(|x| x * x).sum::<f64>().sqrt().max(1e-300);
+    for _sweep in 0..60 {
+        let off: f64 = (0..n)
+            .flat_map(|i| (0..n).filter(move |&j| j != i).map(move |j| (i, j)))
+            .map(|(i, j)| m[i * n + j] * m[i * n + j])
+            .sum::<f64>()
+            .sqrt();
+        if off <= 1e-14 * scale {
+            break;
+        }
+        for p in 0..n {
+            for q in p + 1..n {
+                let apq = m[p * n + q];
+                if apq.abs() <= 1e-300 {
+                    continue;
+                }
+                let theta = (m[q * n + q] - m[p * n + p]) / (2.0 * apq);
+                let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
+                let t = if theta == 0.0 { 1.0 } else { t };
+                let c = 1.0 / (t * t + 1.0).sqrt();
+                let s = t * c;
+                for k in 0..n {
+                    let (mkp, mkq) = (m[k * n + p], m[k * n + q]);
+                    m[k * n + p] = c * mkp - s * mkq;
+                    m[k * n + q] = s * mkp + c * mkq;
+                }
+                for k in 0..n {
+                    let (mpk, mqk) = (m[p * n + k], m[q * n + k]);
+                    m[p * n + k] = c * mpk - s * mqk;
+                    m[q * n + k] = s * mpk + c * mqk;
+                }
+                // Columns of v are the eigenvectors while rotating.
+                for k in 0..n {
+                    let (vkp, vkq) = (v[k * n + p], v[k * n + q]);
+                    v[k * n + p] = c * vkp - s * vkq;
+                    v[k * n + q] = s * vkp + c * vkq;
+                }
+            }
+        }
+    }
+    let mut order: Vec<usize> = (0..n).collect();
+    order.sort_by(|&i, &j| m[j * n + j].total_cmp(&m[i * n + i]));
+    let values = order.iter().map(|&i| m[i * n + i]).collect();
+    let mut vectors = vec![0.0; n * n];
+    for (r, &i) in order.iter().enumerate() {
+        for k in 0..n {
+            vectors[r * n + k] = v[k * n + i];
+        }
+    }
+    (values, vectors)
+}
+
+/// The `k` leading principal directions (uncentred: of the second-moment matrix) of
+/// `rows` row vectors of length `n` (row-major `x`), vector `i` at `[i·n..(i+1)·n]`.
+/// Exact (Gram matrix and [`symmetric_eigen`]) up to n = 400; beyond, randomised
+/// subspace iteration with Rayleigh–Ritz, which costs `O(rows·n·k)` per step.
+pub fn principal_directions(x: &[f64], rows: usize, n: usize, k: usize) -> Vec<f64> {
+    use rayon::prelude::*;
+    assert_eq!(x.len(), rows * n, "rows of n values");
+    let k = k.min(n);
+    let gram_times = |q: &[f64], cols: usize| -> Vec<f64> {
+        // (Xᵀ X) Q for Q n×cols stored column-major (column j at q[j·n..]).
+        let partial = x
+            .par_chunks(n * 64)
+            .map(|block| {
+                let mut acc = vec![0.0; n * cols];
+                for row in block.chunks_exact(n) {
+                    for j in 0..cols {
+                        let dot: f64 = row
+                            .iter()
+                            .zip(&q[j * n..(j + 1) * n])
+                            .map(|(a, b)| a * b)
+                            .sum();
+                        for (o, &r) in acc[j * n..(j + 1) * n].iter_mut().zip(row) {
+                            *o += dot * r;
+                        }
+                    }
+                }
+                acc
+            })
+            .reduce(
+                || vec![0.0; n * cols],
+                |mut a, b| {
+                    a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
+                    a
+                },
+            );
+        partial
+    };
+    if n <= 400 {
+        let mut identity = vec![0.0; n * n];
+        (0..n).for_each(|i| identity[i * n + i] = 1.0);
+        let gram = gram_times(&identity, n); // symmetric: column-major = row-major
+        let (_, vectors) = symmetric_eigen(&gram, n);
+        return vectors[..k * n].to_vec();
+    }
+    let cols = (k + 10).min(n);
+    // A fixed pseudo-random start keeps fits deterministic.
+    let mut state = 0x2545_F491_4F6C_DD1Du64;
+    let mut q: Vec<f64> = (0..n * cols)
+        .map(|_| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        })
+        .collect();
+    orthonormalize(&mut q, n, cols);
+    for _ in 0..6 {
+        q = gram_times(&q, cols);
+        orthonormalize(&mut q, n, cols);
+    }
+    // Rayleigh–Ritz in the subspace.
+    let gq = gram_times(&q, cols);
+    let mut small = vec![0.0; cols * cols];
+    for i in 0..cols {
+        for j in 0..cols {
+            small[i * cols + j] = q[i * n..(i + 1) * n]
+                .iter()
+                .zip(&gq[j * n..(j + 1) * n])
+                .map(|(a, b)| a * b)
+                .sum();
+        }
+    }
+    let (_, vectors) = symmetric_eigen(&small, cols);
+    let mut out = vec![0.0; k * n];
+    for r in 0..k {
+        for j in 0..cols {
+            let w = vectors[r * cols + j];
+            for (o, &v) in out[r * n..(r + 1) * n]
+                .iter_mut()
+                .zip(&q[j * n..(j + 1) * n])
+            {
+                *o += w * v;
+            }
+        }
+    }
+    out
+}
+
+/// Orthonormalise the `cols` column vectors (each `n` long, contiguous) in place by
+/// modified Gram–Schmidt, twice (enough for full double precision).
+fn orthonormalize(q: &mut [f64], n: usize, cols: usize) {
+    for _ in 0..2 {
+        for j in 0..cols {
+            for i in 0..j {
+                let (head, tail) = q.split_at_mut(j * n);
+                let qi = &head[i * n..(i + 1) * n];
+                let qj = &mut tail[..n];
+                let d: f64 = qi.iter().zip(qj.iter()).map(|(a, b)| a * b).sum();
+                qj.iter_mut().zip(qi).for_each(|(b, a)| *b -= d * a);
+            }
+            let qj = &mut q[j * n..(j + 1) * n];
+            let norm = qj.iter().map(|v| v * v).sum::<f64>().sqrt().max(1e-300);
+            qj.iter_mut().for_each(|v| *v /= norm);
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn principal_directions_are_the_leading_eigenvectors() {
+        // Rows drawn along three known orthogonal directions with falling energy, plus a
+        // little of everything: both the exact and the randomised path find them.
+        for n in [12usize, 450] {
+            let dir = |d: usize| -> Vec<f64> {
+                (0..n)
+                    .map(|i| ((i * (d + 3) + d) as f64 * 0.7).sin())
+                    .collect()
+            };
+            let mut basis = vec![dir(0), dir(1), dir(2)];
+            let mut flat = basis.concat();
+            orthonormalize(&mut flat, n, 3);
+            for (d, b) in basis.iter_mut().enumerate() {
+                b.copy_from_slice(&flat[d * n..(d + 1) * n]);
+            }
+            let rows = 600;
+            let mut x = vec![0.0; rows * n];
+            for r in 0..rows {
+                for (d, b) in basis.iter().enumerate() {
+                    let a = [9.0, 4.0, 2.0][d] * ((r * (d + 1)) as f64 * 1.3).cos();
+                    for i in 0..n {
+                        x[r * n + i] += a * b[i];
+                    }
+                }
+                x[r * n + r % n] += 0.01;
+            }
+            let u = principal_directions(&x, rows, n, 3);
+            for d in 0..3 {
+                let dot: f64 = u[d * n..(d + 1) * n]
+                    .iter()
+                    .zip(&basis[d])
+                    .map(|(a, b)| a * b)
+                    .sum();
+                assert!(dot.abs() > 0.999, "n {n}: direction {d}: {dot}");
+            }
+        }
+    }
+
+    #[test]
+    fn jacobi_diagonalises() {
+        let a = [4.0, 1.0, 0.5, 1.0, 3.0, 0.2, 0.5, 0.2, 1.0];
+        let (values, vectors) = symmetric_eigen(&a, 3);
+        assert!(values[0] >= values[1] && values[1] >= values[2]);
+        for i in 0..3 {
+            let v = &vectors[i * 3..i * 3 + 3];
+            for r in 0..3 {
+                let av: f64 = (0..3).map(|c| a[r * 3 + c] * v[c]).sum();
+                assert!((av - values[i] * v[r]).abs() < 1e-10);
+            }
+        }
+    }
 
     #[test]
     fn cholesky_solves_an_spd_system() {

@@ -13,13 +13,18 @@
 //!
 //! | name | functions |
 //! |---|---|
-//! | `sh:K` | real spherical harmonics, K = 1, 4, 9, …, 64 ([`sh`]) |
+//! | `sh:K` | real spherical harmonics, K = 1, 4, 9, …, 64 (`sh.rs`) |
+//! | `rbf:K` | Gaussian RBF interpolation over the captured lights, PCA to K (`rbf.rs`) |
+//! | `bilinear:K` | samples on a grid over the hemisphere, bilinear, PCA to K (`bilinear.rs`) |
 //!
 //! A basis is named `family:K` (K coefficients per colour channel), optionally with
 //! family options: `sg:25:centres=hemisphere,sharpness=8`. [`BasisSpec`] is what a file
 //! stores: the family and every parameter needed to rebuild the basis, data-dependent
 //! tables included.
 
+mod bilinear;
+mod pca;
+mod rbf;
 mod rotation;
 mod sh;
 mod table;
@@ -216,7 +221,7 @@ pub trait Family: Sync {
 }
 
 /// Every family relit knows: adding a basis is one file and one line here.
-pub static FAMILIES: &[&dyn Family] = &[&sh::FAMILY];
+pub static FAMILIES: &[&dyn Family] = &[&sh::FAMILY, &rbf::FAMILY, &bilinear::FAMILY];
 
 /// The family called `name`.
 pub fn family(name: &str) -> Result<&'static dyn Family> {

@@ -51,9 +51,12 @@
 //! are the squared sRGB slopes, that error estimates the display-space error on lights
 //! that were not captured — the quantity users see.
 
+mod select;
 mod spill;
 
-use crate::basis::{Basis, BasisChoice};
+pub use select::{candidates, CandidateScore, VALIDATION_LADDER};
+
+use crate::basis::{Basis, BasisChoice, Samples};
 use crate::capture::Capture;
 use crate::color;
 use crate::image::ImageRgb;
@@ -62,6 +65,7 @@ use crate::maps::{CoefficientMaps, FitInfo, MapSpace, Metadata, RelightableImage
 use crate::metrics;
 use crate::progress::Progress;
 use crate::sphere;
+use crate::sphere::Vec3;
 use crate::{Error, ErrorKind, Result};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -128,10 +132,42 @@ pub const LAMBDA_LADDER: [f64; 13] = [
     1e-7, 3e-7, 1e-6, 3e-6, 1e-5, 3e-5, 1e-4, 3e-4, 1e-3, 3e-3, 1e-2, 3e-2, 1e-1,
 ];
 
+/// Which basis to fit.
+#[derive(Clone, Debug, PartialEq)]
+pub enum BasisRequest {
+    /// The basis and size of smallest validation error among every family's sizes up
+    /// to [`FitOptions::max_coefficients`], chosen per capture on its own lights.
+    Auto,
+    /// This one.
+    Fixed(BasisChoice),
+}
+
+impl BasisRequest {
+    /// `auto` or a basis name (`sh:25`).
+    pub fn parse(s: &str) -> Result<BasisRequest> {
+        if s.trim().eq_ignore_ascii_case("auto") {
+            Ok(BasisRequest::Auto)
+        } else {
+            Ok(BasisRequest::Fixed(BasisChoice::parse(s)?))
+        }
+    }
+}
+
+impl Default for BasisRequest {
+    fn default() -> Self {
+        BasisRequest::Fixed(BasisChoice::default())
+    }
+}
+
+/// The default `--max-coefficients` of `auto`.
+pub const DEFAULT_MAX_COEFFICIENTS: usize = 25;
+
 /// Options of [`fit`].
 #[derive(Clone, Debug)]
 pub struct FitOptions {
-    pub basis: BasisChoice,
+    pub basis: BasisRequest,
+    /// The most coefficients per channel `auto` may choose.
+    pub max_coefficients: usize,
     pub objective: Objective,
     pub color_space: MapSpace,
     pub regularizer: Regularizer,
@@ -147,7 +183,8 @@ pub struct FitOptions {
 impl Default for FitOptions {
     fn default() -> Self {
         Self {
-            basis: BasisChoice::default(),
+            basis: BasisRequest::default(),
+            max_coefficients: DEFAULT_MAX_COEFFICIENTS,
             objective: Objective::default(),
             color_space: MapSpace::Linear,
             regularizer: Regularizer::default(),
@@ -164,6 +201,9 @@ impl Default for FitOptions {
 pub struct FitReport {
     /// The basis fitted, `family:K`.
     pub basis: String,
+    /// Every candidate basis `auto` validated (or the one fixed data-driven basis whose
+    /// λ was validated), best first; empty otherwise.
+    pub candidates: Vec<CandidateScore>,
     pub images: usize,
     pub width: usize,
     pub height: usize,
@@ -204,20 +244,15 @@ struct Design {
 }
 
 impl Design {
-    fn new(capture: &Capture, options: &FitOptions) -> Result<Design> {
-        let n = capture.len();
-        if n == 0 {
-            return Err(Error::invalid("the capture has no images"));
-        }
-        let dirs = capture.directions();
-        let basis = options.basis.build(&dirs, None)?;
+    fn new(dirs: &[Vec3], basis: Box<dyn Basis>, regularizer: Regularizer) -> Design {
+        let n = dirs.len();
         let k = basis.len();
         let mut a = vec![0.0; n * k];
         for (j, d) in dirs.iter().enumerate() {
             basis.eval(*d, &mut a[j * k..(j + 1) * k]);
         }
-        let q = sphere::grid_quadrature_weights(&dirs).unwrap_or_else(|| vec![1.0; n]);
-        let penalty = match options.regularizer {
+        let q = quadrature(dirs);
+        let penalty = match regularizer {
             Regularizer::Roughness => basis.penalty(),
             Regularizer::Ridge => {
                 let mut p = vec![0.0; k * k];
@@ -225,14 +260,14 @@ impl Design {
                 p
             }
         };
-        Ok(Design {
+        Design {
             basis,
             k,
             n,
             a,
             q,
             penalty,
-        })
+        }
     }
 
     fn row(&self, j: usize) -> &[f64] {
@@ -250,6 +285,133 @@ impl Design {
             m[i * self.k + i] += total_weight * DEFINITENESS;
         }
     }
+}
+
+/// Quadrature weight per captured direction: the solid angles of a full spherical grid,
+/// 1 otherwise.
+fn quadrature(dirs: &[Vec3]) -> Vec<f64> {
+    sphere::grid_quadrature_weights(dirs).unwrap_or_else(|| vec![1.0; dirs.len()])
+}
+
+/// Read the subsample pixels of every image (`count × n × 3`), before any basis is
+/// known: what `auto` and the data-driven families are chosen and built from.
+fn read_subsample(
+    capture: &Capture,
+    sub_idx: &[usize],
+    space: MapSpace,
+    progress: &dyn Progress,
+) -> Result<Vec<f32>> {
+    let n = capture.len();
+    progress.begin("sampling images", n as u64);
+    let rows: Vec<Vec<f32>> = (0..n)
+        .into_par_iter()
+        .map(|j| {
+            let img = to_target(capture.load(j)?, space);
+            progress.advance(1);
+            Ok(sub_idx
+                .iter()
+                .flat_map(|&p| img.data[3 * p..3 * p + 3].iter().copied())
+                .collect())
+        })
+        .collect::<Result<_>>()?;
+    progress.end();
+    let mut sub = vec![0f32; sub_idx.len() * n * 3];
+    for (j, row) in rows.iter().enumerate() {
+        for s in 0..sub_idx.len() {
+            let o = (s * n + j) * 3;
+            sub[o..o + 3].copy_from_slice(&row[3 * s..3 * s + 3]);
+        }
+    }
+    Ok(sub)
+}
+
+/// Pixels of the subsample the basis choice validates on: enough for stable
+/// principal components and errors, few enough that every candidate costs little.
+const SELECTION_PIXELS: usize = 512;
+
+/// The basis `request` names for `capture`, built (data-driven families from the
+/// subsample `sub`), with the objective and λ its validation chose where it was
+/// validated.
+fn choose_basis(
+    request: &BasisRequest,
+    options: &FitOptions,
+    objective: Objective,
+    dirs: &[Vec3],
+    sub: Option<&[f32]>,
+    sub_count: usize,
+) -> Result<(
+    Box<dyn Basis>,
+    Option<(Objective, f64)>,
+    Vec<CandidateScore>,
+)> {
+    let n = dirs.len();
+    let needs_validation = match request {
+        BasisRequest::Auto => true,
+        BasisRequest::Fixed(choice) => choice.needs_samples(),
+    };
+    let Some(sub) = sub.filter(|_| needs_validation) else {
+        let BasisRequest::Fixed(choice) = request else {
+            unreachable!("auto always has samples")
+        };
+        return Ok((choice.build(dirs, None)?, None, Vec::new()));
+    };
+    // Validate on a thinner, evenly spread part of the subsample.
+    let keep = SELECTION_PIXELS.min(sub_count).max(1);
+    let picked: Vec<f32> = (0..keep)
+        .flat_map(|i| {
+            let s = i * sub_count / keep;
+            sub[s * n * 3..(s + 1) * n * 3].iter().copied()
+        })
+        .collect();
+    let view = select::Subsample {
+        values: &picked,
+        count: keep,
+        n,
+    };
+    let q = quadrature(dirs);
+    let choices = match request {
+        BasisRequest::Auto => candidates(options.max_coefficients, n),
+        BasisRequest::Fixed(choice) => vec![choice.clone()],
+    };
+    if choices.is_empty() {
+        return Err(Error::invalid(format!(
+            "no basis of 4 to {} coefficients can be validated on {n} lights",
+            options.max_coefficients
+        )));
+    }
+    let objectives: &[Objective] = match objective {
+        Objective::Auto => &[Objective::Perceptual, Objective::Linear],
+        Objective::Perceptual => &[Objective::Perceptual],
+        Objective::Linear => &[Objective::Linear],
+    };
+    let mut scores = Vec::new();
+    let mut best: Option<(usize, Objective, CandidateScore)> = None;
+    for (i, choice) in choices.iter().enumerate() {
+        let mut own: Option<CandidateScore> = None;
+        for &o in objectives {
+            let score = select::validate(choice, o, options.regularizer, dirs, &q, &view)?;
+            if !matches!(&best, Some((_, _, b)) if b.display_rmse <= score.display_rmse) {
+                best = Some((i, o, score.clone()));
+            }
+            if !matches!(&own, Some(b) if b.display_rmse <= score.display_rmse) {
+                own = Some(score);
+            }
+        }
+        scores.extend(own);
+    }
+    scores.sort_by(|a, b| a.display_rmse.total_cmp(&b.display_rmse));
+    let (i, chosen_objective, score) = best.expect("at least one candidate");
+    let samples: Vec<f32> = (0..sub_count * 3)
+        .flat_map(|s| (0..n).map(move |j| sub[((s / 3) * n + j) * 3 + s % 3]))
+        .collect();
+    let basis = choices[i].build(
+        dirs,
+        Some(Samples {
+            values: &samples,
+            n,
+        }),
+    )?;
+    Ok((basis, Some((chosen_objective, score.lambda)), scores))
 }
 
 /// Per-sample weight of the objective for a (linear) radiance `v`.
@@ -329,19 +491,54 @@ fn to_target(mut img: ImageRgb, space: MapSpace) -> ImageRgb {
 /// Fit `capture` with `options`.
 pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> Result<FitOutput> {
     let start = Instant::now();
-    let design = Design::new(capture, options)?;
+    if capture.is_empty() {
+        return Err(Error::invalid("the capture has no images"));
+    }
     let (w, h) = (capture.width, capture.height);
     let pixels = w * h;
     if pixels == 0 {
         return Err(Error::invalid("the capture's images are empty"));
     }
     // Display-referred maps are fitted to display values, so only the plain objective applies.
-    let objective = match options.color_space {
+    let mut objective = match options.color_space {
         MapSpace::Srgb => Objective::Linear,
         MapSpace::Linear => options.objective,
     };
+    let mut lambda_option = options.lambda;
+    let dirs = capture.directions();
     let sub_idx = subsample_indices(pixels, options.subsample);
-    let mut sub = vec![0f32; sub_idx.len() * design.n * 3];
+    // `auto` and data-driven families see the subsample before the basis exists.
+    let early = match &options.basis {
+        BasisRequest::Auto => true,
+        BasisRequest::Fixed(choice) => choice.needs_samples(),
+    };
+    let early_sub = if early {
+        Some(read_subsample(
+            capture,
+            &sub_idx,
+            options.color_space,
+            progress,
+        )?)
+    } else {
+        None
+    };
+    let (basis, validated, basis_scores) = choose_basis(
+        &options.basis,
+        options,
+        objective,
+        &dirs,
+        early_sub.as_deref(),
+        sub_idx.len(),
+    )?;
+    if let Some((chosen, lambda)) = validated {
+        objective = chosen;
+        if matches!(lambda_option, Lambda::Auto) {
+            lambda_option = Lambda::Fixed(lambda);
+        }
+    }
+    let design = Design::new(&dirs, basis, options.regularizer);
+    let have_sub = early_sub.is_some();
+    let mut sub = early_sub.unwrap_or_else(|| vec![0f32; sub_idx.len() * design.n * 3]);
 
     // The automatic objective keeps both kinds of pass-1 state until it has chosen.
     let mut accum = None;
@@ -369,7 +566,7 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
                 Ok(img)
             })
             .collect::<Result<_>>()?;
-        for (&j, img) in indices.iter().zip(&images) {
+        for (&j, img) in indices.iter().zip(&images).filter(|_| !have_sub) {
             for (s, &p) in sub_idx.iter().enumerate() {
                 let o = (s * design.n + j) * 3;
                 sub[o..o + 3].copy_from_slice(&img.data[3 * p..3 * p + 3]);
@@ -398,7 +595,7 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
             Objective::Perceptual => LooObjective::Perceptual { reweights: 0 },
             _ => LooObjective::Linear,
         };
-        let mut scored = match options.lambda {
+        let mut scored = match lambda_option {
             Lambda::Fixed(l) if l >= 0.0 && l.is_finite() => {
                 if candidates.len() == 1 {
                     Choice::fixed(candidate, l)
@@ -466,7 +663,9 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
         objective: objective.name().into(),
         regularizer: options.regularizer.name().into(),
         lambda,
-        lambda_choice: if matches!(options.lambda, Lambda::Auto) {
+        lambda_choice: if !basis_scores.is_empty() && matches!(options.lambda, Lambda::Auto) {
+            "validated".into()
+        } else if matches!(options.lambda, Lambda::Auto) {
             "auto".into()
         } else {
             "fixed".into()
@@ -478,6 +677,7 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
     });
     let report = FitReport {
         basis: design.basis.name(),
+        candidates: basis_scores,
         images: design.n,
         width: w,
         height: h,

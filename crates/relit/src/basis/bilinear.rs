@@ -1,0 +1,266 @@
+//! `bilinear:K` — each pixel's samples resampled to a regular grid over the projected
+//! hemisphere of light directions and interpolated bilinearly between its nodes,
+//! compressed across pixels to `K` grids by principal components ([`super::pca`]), as
+//! the RTI tool relight's bilinear basis does.
+//!
+//! The grid has `G × G` nodes over `(x, y) ∈ [−1, 1]²`, the light vector's first two
+//! components (an RTI dome seen from above). A pixel's node values are the smoothest
+//! grid whose bilinear interpolation meets its samples in the least-squares sense:
+//! `min Σ_j (bilerp(g, L_j) − I_j)² + ν Σ_neighbours (g_a − g_b)²`, the second term
+//! filling the nodes no light reaches (the corners outside the unit disc). `G` defaults
+//! to about `√N + 2` for `N` lights (a node per light spacing; option `grid`), `ν` to
+//! `smooth · N / G²` (option `smooth`, default 0.05: a tenth of the data weight a node
+//! gets on average, so measured nodes keep their values). Light vectors below the
+//! horizon are taken at the horizon (`(x, y)` normalised).
+//!
+//! Stored: `G` and the `K` grids of node values.
+
+use super::pca::{self, PcaSpace};
+use super::{Basis, BasisSpec, BuildContext, Domain, Family};
+use crate::sphere::Vec3;
+use crate::{Error, Result};
+
+/// The sizes `bilinear:K` offers.
+const SIZES: [usize; 11] = [4, 6, 9, 12, 16, 18, 25, 27, 36, 49, 64];
+
+/// Grid sizes accepted (nodes per side).
+const GRIDS: std::ops::RangeInclusive<usize> = 3..=64;
+
+pub(super) struct BilinearFamily;
+
+pub(super) static FAMILY: BilinearFamily = BilinearFamily;
+
+impl Family for BilinearFamily {
+    fn name(&self) -> &'static str {
+        "bilinear"
+    }
+
+    fn summary(&self) -> &'static str {
+        "light-space samples on a regular grid, interpolated bilinearly, PCA-compressed to K"
+    }
+
+    fn sizes(&self, max: usize) -> Vec<usize> {
+        SIZES.iter().copied().filter(|&k| k <= max).collect()
+    }
+
+    fn needs_samples(&self) -> bool {
+        true
+    }
+
+    fn option_keys(&self) -> &'static [&'static str] {
+        &["grid", "smooth", "pca"]
+    }
+
+    fn build(&self, k: usize, context: &BuildContext) -> Result<Box<dyn Basis>> {
+        let samples = context
+            .samples
+            .ok_or_else(|| Error::invalid("a bilinear basis is built from samples"))?;
+        let dirs = context.directions;
+        let n = dirs.len();
+        if samples.n != n {
+            return Err(Error::invalid("samples and directions disagree"));
+        }
+        let default_grid = ((n as f64).sqrt().round() as usize + 2).clamp(4, 32);
+        let g: usize = context.option("grid", default_grid)?;
+        if !GRIDS.contains(&g) {
+            return Err(Error::invalid(format!(
+                "a bilinear grid has {} to {} nodes per side, not {g}",
+                GRIDS.start(),
+                GRIDS.end()
+            )));
+        }
+        let smooth: f64 = context.option("smooth", 0.05)?;
+        if !(smooth.is_finite() && smooth > 0.0) {
+            return Err(Error::invalid("bilinear smooth must be positive"));
+        }
+        let space = PcaSpace::parse(&context.option("pca", "srgb".to_string())?)?;
+        let c = g * g;
+        let mut a = vec![0.0; n * c];
+        for (j, d) in dirs.iter().enumerate() {
+            let (nodes, w) = corners(g, *d);
+            for (&node, &wt) in nodes.iter().zip(&w) {
+                a[j * c + node] += wt;
+            }
+        }
+        let nu = smooth * n as f64 / c as f64;
+        let mut laplacian = vec![0.0; c * c];
+        for y in 0..g {
+            for x in 0..g {
+                let i = y * g + x;
+                for (dx, dy) in [(1, 0), (0, 1)] {
+                    let (nx, ny) = (x + dx, y + dy);
+                    if nx < g && ny < g {
+                        let j = ny * g + nx;
+                        laplacian[i * c + i] += nu;
+                        laplacian[j * c + j] += nu;
+                        laplacian[i * c + j] -= nu;
+                        laplacian[j * c + i] -= nu;
+                    }
+                }
+            }
+        }
+        // The Laplacian leaves a constant free; a whisper of ridge pins it down when no
+        // light reaches the grid at all.
+        (0..c).for_each(|i| laplacian[i * c + i] += 1e-9 * n as f64);
+        let t = pca::least_squares_operator(&a, n, c, &laplacian)?;
+        let u = pca::principal_directions(&samples, k, space)?;
+        let values = pca::component_parameters(&t, c, &u, n);
+        Ok(Box::new(Bilinear { grid: g, values }))
+    }
+
+    fn rebuild(
+        &self,
+        params: &serde_json::Map<String, serde_json::Value>,
+    ) -> Result<Box<dyn Basis>> {
+        let bad = |what: &str| Error::parse(format!("bilinear basis: {what}"));
+        let g = params
+            .get("grid")
+            .and_then(|v| v.as_u64())
+            .map(|g| g as usize)
+            .filter(|g| GRIDS.contains(g))
+            .ok_or_else(|| bad("needs `grid`, 3 to 64 nodes per side"))?;
+        let values = pca::stored_table(params, "values", "bilinear")?;
+        let c = g * g;
+        if values.is_empty() || values.len() % c != 0 || values.len() / c > 64 {
+            return Err(bad("`values` must hold K × grid² numbers, K ≤ 64"));
+        }
+        if params.len() != 2 {
+            return Err(bad("has only `grid` and `values`"));
+        }
+        Ok(Box::new(Bilinear { grid: g, values }))
+    }
+}
+
+/// The four grid nodes around `dir`'s projection and their bilinear weights.
+fn corners(g: usize, dir: Vec3) -> ([usize; 4], [f64; 4]) {
+    let (mut x, mut y) = (dir.x, dir.y);
+    if dir.z < 0.0 {
+        let r = (x * x + y * y).sqrt();
+        if r > 0.0 {
+            x /= r;
+            y /= r;
+        }
+    }
+    let scale = (g - 1) as f64 / 2.0;
+    let (fx, fy) = (
+        ((x + 1.0) * scale).clamp(0.0, (g - 1) as f64),
+        ((y + 1.0) * scale).clamp(0.0, (g - 1) as f64),
+    );
+    let (i, j) = (
+        (fx.floor() as usize).min(g - 2),
+        (fy.floor() as usize).min(g - 2),
+    );
+    let (tx, ty) = (fx - i as f64, fy - j as f64);
+    let n00 = j * g + i;
+    (
+        [n00, n00 + 1, n00 + g, n00 + g + 1],
+        [
+            (1.0 - tx) * (1.0 - ty),
+            tx * (1.0 - ty),
+            (1.0 - tx) * ty,
+            tx * ty,
+        ],
+    )
+}
+
+/// `K` grids of node values, interpolated bilinearly.
+#[derive(Clone, Debug)]
+pub struct Bilinear {
+    grid: usize,
+    /// `K × G²`, row-major; node `(x, y)` at `y·G + x`.
+    values: Vec<f64>,
+}
+
+impl Basis for Bilinear {
+    fn spec(&self) -> BasisSpec {
+        BasisSpec::new(
+            "bilinear",
+            serde_json::json!({ "grid": self.grid, "values": self.values }),
+        )
+    }
+
+    fn family(&self) -> &'static str {
+        "bilinear"
+    }
+
+    fn len(&self) -> usize {
+        self.values.len() / (self.grid * self.grid)
+    }
+
+    fn domain(&self) -> Domain {
+        Domain::UpperHemisphere
+    }
+
+    fn eval(&self, dir: Vec3, out: &mut [f64]) {
+        let c = self.grid * self.grid;
+        let (nodes, w) = corners(self.grid, dir);
+        for (o, grid) in out[..self.len()]
+            .iter_mut()
+            .zip(self.values.chunks_exact(c))
+        {
+            *o = nodes.iter().zip(&w).map(|(&n, &wt)| grid[n] * wt).sum();
+        }
+    }
+
+    fn as_any(&self) -> &dyn std::any::Any {
+        self
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::basis::{BasisChoice, Samples};
+
+    #[test]
+    fn a_grid_interpolates_bilinearly_and_round_trips() {
+        let dirs = crate::sphere::hemisphere_fibonacci(60);
+        // Series that are exactly bilinear in (x, y) over the whole square are
+        // reproduced by any grid (bilinear interpolation of a bilinear function).
+        let mut values = Vec::new();
+        for s in 0..200 {
+            let t = s as f64;
+            let (a, b, c, d) = (
+                0.3 + 0.001 * t,
+                0.1 * t.sin(),
+                0.05 * (1.3 * t).cos(),
+                0.02 * (0.7 * t).sin(),
+            );
+            for dir in &dirs {
+                values.push((a + b * dir.x + c * dir.y + d * dir.x * dir.y) as f32);
+            }
+        }
+        let samples = Samples {
+            values: &values,
+            n: dirs.len(),
+        };
+        let basis = BasisChoice::parse("bilinear:4:grid=5,pca=linear,smooth=1e-7")
+            .unwrap()
+            .build(&dirs, Some(samples))
+            .unwrap();
+        assert_eq!(basis.len(), 4);
+        // The four components span {1, x, y, xy}: a least-squares fit of a new such
+        // series at a new direction is exact.
+        let probe = |d: Vec3| basis.values(d);
+        let k = 4;
+        let target = |d: Vec3| 0.5 - 0.2 * d.x + 0.3 * d.y + 0.1 * d.x * d.y;
+        let mut m = vec![0.0; k * k];
+        let mut rhs = vec![0.0; k];
+        for d in &dirs {
+            let row = probe(*d);
+            for p in 0..k {
+                rhs[p] += row[p] * target(*d);
+                for q in 0..k {
+                    m[p * k + q] += row[p] * row[q];
+                }
+            }
+        }
+        assert!(crate::linalg::cholesky(&mut m, k));
+        crate::linalg::cholesky_solve(&m, k, &mut rhs);
+        let d = Vec3::new(0.3, -0.2, 0.9).normalized().unwrap();
+        let got: f64 = probe(d).iter().zip(&rhs).map(|(a, b)| a * b).sum();
+        assert!((got - target(d)).abs() < 2e-3, "{got} vs {}", target(d));
+        let again = basis.spec().build().unwrap();
+        assert_eq!(again.values(d), basis.values(d));
+    }
+}

@@ -1,0 +1,132 @@
+//! What the data-driven families share: an interpolation of each pixel's samples over
+//! the captured light directions, compressed across pixels by principal components.
+//!
+//! An interpolation scheme is a linear operator `T` (`C × N`) from a pixel's `N` samples
+//! (one per captured light) to the scheme's `C` parameters (RBF weights, grid values),
+//! which the scheme then evaluates at any direction. Its functions span `N` dimensions;
+//! the `K` principal directions `U_k` of the samples (over a pixel subsample, uncentred)
+//! pick the `K` combinations that matter for this capture, and the basis function `k` is
+//! the interpolant of `U_k`: parameters `T · U_k`. A pixel whose samples lie in the span
+//! of the `U_k` is reproduced at every captured light, and between them the scheme
+//! interpolates — which is what lets these bases follow the sharp features (shadows,
+//! highlights) that a band-limited basis blurs.
+
+use super::Samples;
+use crate::{Error, Result};
+
+/// The space the principal components are found in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum PcaSpace {
+    /// Linear radiance: the brightest pixels dominate.
+    Linear,
+    /// sRGB-encoded values: dark and bright pixels weigh as a person sees them.
+    Srgb,
+}
+
+impl PcaSpace {
+    pub(super) fn parse(s: &str) -> Result<PcaSpace> {
+        match s {
+            "linear" => Ok(PcaSpace::Linear),
+            "srgb" => Ok(PcaSpace::Srgb),
+            _ => Err(Error::parse(format!("bad PCA space `{s}`: linear or srgb"))),
+        }
+    }
+}
+
+/// The `K` principal directions of `samples` (uncentred, so the mean response is the
+/// first), each `N` long, found in `space`.
+pub(super) fn principal_directions(
+    samples: &Samples,
+    k: usize,
+    space: PcaSpace,
+) -> Result<Vec<f64>> {
+    let n = samples.n;
+    let rows = samples.series();
+    if rows == 0 || n == 0 {
+        return Err(Error::invalid("no samples to find principal components in"));
+    }
+    if k > n {
+        return Err(Error::invalid(format!(
+            "{k} components need at least {k} captured lights, the capture has {n}"
+        )));
+    }
+    let x: Vec<f64> = samples
+        .values
+        .iter()
+        .map(|&v| match space {
+            PcaSpace::Linear => v as f64,
+            PcaSpace::Srgb => crate::color::linear_to_srgb(v.max(0.0)) as f64,
+        })
+        .collect();
+    Ok(crate::linalg::principal_directions(&x, rows, n, k))
+}
+
+/// The parameters of the `K` basis functions, `K × C` row-major: `T · U_k` for the
+/// operator `t` (`C × N` row-major) and the principal directions `u` (`K × N`).
+pub(super) fn component_parameters(t: &[f64], c: usize, u: &[f64], n: usize) -> Vec<f64> {
+    let k = u.len() / n;
+    let mut out = vec![0.0; k * c];
+    for comp in 0..k {
+        let uk = &u[comp * n..(comp + 1) * n];
+        for p in 0..c {
+            out[comp * c + p] = t[p * n..(p + 1) * n]
+                .iter()
+                .zip(uk)
+                .map(|(a, b)| a * b)
+                .sum();
+        }
+    }
+    out
+}
+
+/// Solve the regularised least squares `(AᵀA + R) T = Aᵀ` for the operator `T`
+/// (`C × N`), `a` being `N × C` (row-major) and `r` a `C × C` regulariser.
+pub(super) fn least_squares_operator(a: &[f64], n: usize, c: usize, r: &[f64]) -> Result<Vec<f64>> {
+    let mut m = r.to_vec();
+    for j in 0..n {
+        let row = &a[j * c..(j + 1) * c];
+        for p in 0..c {
+            if row[p] == 0.0 {
+                continue;
+            }
+            for q in 0..c {
+                m[p * c + q] += row[p] * row[q];
+            }
+        }
+    }
+    if !crate::linalg::cholesky(&mut m, c) {
+        return Err(Error::new(
+            crate::ErrorKind::Numerical,
+            "the interpolation's normal equations are singular",
+        ));
+    }
+    let mut t = vec![0.0; c * n];
+    let mut col = vec![0.0; c];
+    for j in 0..n {
+        col.copy_from_slice(&a[j * c..(j + 1) * c]);
+        crate::linalg::cholesky_solve(&m, c, &mut col);
+        for p in 0..c {
+            t[p * n + j] = col[p];
+        }
+    }
+    Ok(t)
+}
+
+/// Parse a stored `K × C` parameter table.
+pub(super) fn stored_table(
+    params: &serde_json::Map<String, serde_json::Value>,
+    key: &str,
+    family: &str,
+) -> Result<Vec<f64>> {
+    params
+        .get(key)
+        .and_then(|v| v.as_array())
+        .ok_or_else(|| Error::parse(format!("a `{family}` basis needs `{key}`")))?
+        .iter()
+        .map(|v| {
+            v.as_f64()
+                .filter(|x| x.is_finite())
+                .ok_or_else(|| Error::parse(format!("`{family}` `{key}`: a non-number")))
+        })
+        .collect()
+}

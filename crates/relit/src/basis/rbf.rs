@@ -1,0 +1,326 @@
+//! `rbf:K` — Gaussian radial basis functions centred on the captured light directions,
+//! interpolating each pixel's samples, compressed across pixels to `K` functions by
+//! principal components ([`super::pca`]), as the RTI tool relight does.
+//!
+//! Kernel: `φ(ω, μ) = exp(−(1 − ω·μ) / σ²)`, a Gaussian of the chord distance
+//! (`|ω − μ|² = 2(1 − ω·μ)`) of width `σ` radians. The default `σ` is the mean angular
+//! distance from a centre to its nearest neighbour times `width` (option, default 1):
+//! neighbouring kernels overlap at `e^{−1/2}`, enough to interpolate smoothly without
+//! flattening a shadow edge across several lights. Captures with more than
+//! [`MAX_CENTRES`] lights use that many centres spread over them (farthest-point
+//! order), fitted by least squares rather than interpolation. Far from every captured
+//! light (below the horizon of a dome) the functions fall to zero.
+//!
+//! Stored: the centres, `σ`, and the `K × C` kernel weights of each function.
+
+use super::pca::{self, PcaSpace};
+use super::{Basis, BasisSpec, BuildContext, Domain, Family};
+use crate::sphere::Vec3;
+use crate::{Error, Result};
+
+/// The most kernel centres: beyond, interpolation gains nothing a person sees and the
+/// `C × C` solve grows as `C³`.
+pub const MAX_CENTRES: usize = 256;
+
+/// The sizes `rbf:K` offers.
+const SIZES: [usize; 11] = [4, 6, 9, 12, 16, 18, 25, 27, 36, 49, 64];
+
+pub(super) struct RbfFamily;
+
+pub(super) static FAMILY: RbfFamily = RbfFamily;
+
+impl Family for RbfFamily {
+    fn name(&self) -> &'static str {
+        "rbf"
+    }
+
+    fn summary(&self) -> &'static str {
+        "Gaussian RBF interpolation over the captured lights, PCA-compressed to K"
+    }
+
+    fn sizes(&self, max: usize) -> Vec<usize> {
+        SIZES.iter().copied().filter(|&k| k <= max).collect()
+    }
+
+    fn needs_samples(&self) -> bool {
+        true
+    }
+
+    fn option_keys(&self) -> &'static [&'static str] {
+        &["width", "pca", "ridge"]
+    }
+
+    fn build(&self, k: usize, context: &BuildContext) -> Result<Box<dyn Basis>> {
+        let samples = context
+            .samples
+            .ok_or_else(|| Error::invalid("an rbf basis is built from samples"))?;
+        let dirs = context.directions;
+        let n = dirs.len();
+        if samples.n != n {
+            return Err(Error::invalid("samples and directions disagree"));
+        }
+        let width: f64 = context.option("width", 2.0)?;
+        if !(width.is_finite() && width > 0.0) {
+            return Err(Error::invalid("rbf width must be positive"));
+        }
+        let space = PcaSpace::parse(&context.option("pca", "srgb".to_string())?)?;
+        let centres = spread(dirs, MAX_CENTRES);
+        let sigma = width * mean_nearest_angle(&centres);
+        let c = centres.len();
+        let mut phi = vec![0.0; n * c];
+        for (j, d) in dirs.iter().enumerate() {
+            for (i, m) in centres.iter().enumerate() {
+                phi[j * c + i] = kernel(*d, *m, sigma);
+            }
+        }
+        let ridge_scale: f64 = context.option("ridge", 1e-3)?;
+        // A whisper of ridge keeps the solve definite when kernels nearly coincide.
+        let mut ridge = vec![0.0; c * c];
+        (0..c).for_each(|i| ridge[i * c + i] = ridge_scale * n as f64);
+        let t = pca::least_squares_operator(&phi, n, c, &ridge)?;
+        let u = pca::principal_directions(&samples, k, space)?;
+        let weights = pca::component_parameters(&t, c, &u, n);
+        Ok(Box::new(Rbf {
+            centres,
+            sigma,
+            weights,
+        }))
+    }
+
+    fn rebuild(
+        &self,
+        params: &serde_json::Map<String, serde_json::Value>,
+    ) -> Result<Box<dyn Basis>> {
+        let bad = |what: &str| Error::parse(format!("rbf basis: {what}"));
+        let centres: Vec<Vec3> = params
+            .get("centres")
+            .and_then(|v| v.as_array())
+            .ok_or_else(|| bad("needs `centres`"))?
+            .iter()
+            .map(|v| {
+                let a: [f64; 3] =
+                    serde_json::from_value(v.clone()).map_err(|_| bad("a bad centre"))?;
+                let c = Vec3::from(a);
+                if (c.length() - 1.0).abs() > 1e-9 {
+                    return Err(bad("a centre that is not a unit vector"));
+                }
+                Ok(c)
+            })
+            .collect::<Result<_>>()?;
+        let sigma = params
+            .get("sigma")
+            .and_then(|v| v.as_f64())
+            .filter(|s| s.is_finite() && *s > 0.0)
+            .ok_or_else(|| bad("needs a positive `sigma`"))?;
+        let weights = pca::stored_table(params, "weights", "rbf")?;
+        let c = centres.len();
+        if c == 0 || weights.is_empty() || weights.len() % c != 0 || weights.len() / c > 64 {
+            return Err(bad("`weights` must hold K × centres values, K ≤ 64"));
+        }
+        if params.len() != 3 {
+            return Err(bad("has only `centres`, `sigma` and `weights`"));
+        }
+        Ok(Box::new(Rbf {
+            centres,
+            sigma,
+            weights,
+        }))
+    }
+}
+
+#[inline]
+fn kernel(d: Vec3, centre: Vec3, sigma: f64) -> f64 {
+    (-(1.0 - d.dot(centre)) / (sigma * sigma)).exp()
+}
+
+/// Up to `max` of `dirs` spread over them: all of them when there are few enough,
+/// otherwise farthest-point order from the first (deterministic).
+pub(super) fn spread(dirs: &[Vec3], max: usize) -> Vec<Vec3> {
+    if dirs.len() <= max {
+        return dirs.to_vec();
+    }
+    let mut chosen = vec![dirs[0]];
+    let mut nearest: Vec<f64> = dirs.iter().map(|d| d.dot(dirs[0])).collect();
+    while chosen.len() < max {
+        let (far, _) = nearest
+            .iter()
+            .enumerate()
+            .min_by(|a, b| a.1.total_cmp(b.1))
+            .expect("directions");
+        let pick = dirs[far];
+        chosen.push(pick);
+        for (n, d) in nearest.iter_mut().zip(dirs) {
+            *n = n.max(d.dot(pick));
+        }
+    }
+    chosen
+}
+
+/// The mean angle (radians) from each direction to its nearest neighbour.
+pub(super) fn mean_nearest_angle(dirs: &[Vec3]) -> f64 {
+    if dirs.len() < 2 {
+        return 1.0;
+    }
+    let total: f64 = dirs
+        .iter()
+        .enumerate()
+        .map(|(i, d)| {
+            let best = dirs
+                .iter()
+                .enumerate()
+                .filter(|&(j, _)| j != i)
+                .map(|(_, e)| d.dot(*e))
+                .fold(-1.0f64, f64::max);
+            best.clamp(-1.0, 1.0).acos()
+        })
+        .sum();
+    (total / dirs.len() as f64).max(1e-3)
+}
+
+/// Gaussian RBF functions: `b_k(ω) = Σ_c weights[k][c] φ(ω, centre_c)`.
+#[derive(Clone, Debug)]
+pub struct Rbf {
+    centres: Vec<Vec3>,
+    sigma: f64,
+    /// `K × C`, row-major.
+    weights: Vec<f64>,
+}
+
+impl Basis for Rbf {
+    fn spec(&self) -> BasisSpec {
+        BasisSpec::new(
+            "rbf",
+            serde_json::json!({
+                "centres": self.centres.iter().map(|c| [c.x, c.y, c.z]).collect::<Vec<_>>(),
+                "sigma": self.sigma,
+                "weights": self.weights,
+            }),
+        )
+    }
+
+    fn family(&self) -> &'static str {
+        "rbf"
+    }
+
+    fn len(&self) -> usize {
+        self.weights.len() / self.centres.len()
+    }
+
+    fn domain(&self) -> Domain {
+        if self.centres.iter().all(|c| c.z > -1e-9) {
+            Domain::UpperHemisphere
+        } else {
+            Domain::Sphere
+        }
+    }
+
+    fn eval(&self, dir: Vec3, out: &mut [f64]) {
+        let c = self.centres.len();
+        let k = self.len();
+        out[..k].fill(0.0);
+        for (i, centre) in self.centres.iter().enumerate() {
+            let v = kernel(dir, *centre, self.sigma);
+            if v < 1e-12 {
+                continue;
+            }
+            for (o, row) in out[..k].iter_mut().zip(self.weights.chunks_exact(c)) {
+                *o += row[i] * v;
+            }
+        }
+    }
+
+    fn as_any(&self) -> &dyn std::any::Any {
+        self
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::basis::{BasisChoice, Samples};
+
+    /// Samples of `series` mixtures of four fixed lobes (a rank-4 family) at `dirs`.
+    fn samples_of(dirs: &[Vec3], series: usize) -> Vec<f32> {
+        let lobes = [
+            Vec3::new(0.0, 0.0, 1.0),
+            Vec3::new(0.8, 0.0, 0.6),
+            Vec3::new(-0.5, 0.6, 0.62),
+            Vec3::new(0.1, -0.9, 0.42),
+        ];
+        let mut v = Vec::new();
+        for s in 0..series {
+            for d in dirs {
+                let value: f64 = lobes
+                    .iter()
+                    .enumerate()
+                    .map(|(i, l)| {
+                        (1.0 + ((s * (i + 2)) as f64 * 0.7).sin()) * d.dot(*l).max(0.0).powi(3)
+                    })
+                    .sum();
+                v.push(value as f32);
+            }
+        }
+        v
+    }
+
+    #[test]
+    fn interpolates_what_its_components_span_and_round_trips() {
+        let dirs = crate::sphere::hemisphere_fibonacci(40);
+        let values = samples_of(&dirs, 300);
+        let samples = Samples {
+            values: &values,
+            n: dirs.len(),
+        };
+        let choice = BasisChoice::parse("rbf:4:pca=linear").unwrap();
+        let basis = choice.build(&dirs, Some(samples)).unwrap();
+        assert_eq!(basis.len(), 4);
+        // The span reproduces a series at the captured lights (least squares on the
+        // design the fit would build).
+        let k = basis.len();
+        let a: Vec<Vec<f64>> = dirs.iter().map(|d| basis.values(*d)).collect();
+        let target = &values[..dirs.len()];
+        let mut m = vec![0.0; k * k];
+        let mut b = vec![0.0; k];
+        for (row, &t) in a.iter().zip(target) {
+            for p in 0..k {
+                b[p] += row[p] * t as f64;
+                for q in 0..k {
+                    m[p * k + q] += row[p] * row[q];
+                }
+            }
+        }
+        (0..k).for_each(|i| m[i * k + i] += 1e-12);
+        assert!(crate::linalg::cholesky(&mut m, k));
+        crate::linalg::cholesky_solve(&m, k, &mut b);
+        let worst = a
+            .iter()
+            .zip(target)
+            .map(|(row, &t)| (row.iter().zip(&b).map(|(x, y)| x * y).sum::<f64>() - t as f64).abs())
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-4, "worst residual {worst}");
+        // Far below the dome the functions fade out.
+        let top = basis.values(Vec3::new(0.0, 0.0, 1.0));
+        let scale = top.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let below = basis.values(Vec3::new(0.0, 0.0, -1.0));
+        assert!(below.iter().all(|v| v.abs() < 1e-2 * scale), "{below:?}");
+        // The spec rebuilds the same functions.
+        let again = basis.spec().build().unwrap();
+        for d in crate::sphere::fibonacci(9) {
+            assert_eq!(again.values(d), basis.values(d));
+        }
+    }
+
+    #[test]
+    fn dense_captures_use_spread_centres() {
+        let dirs = crate::sphere::fibonacci(600);
+        let picked = spread(&dirs, 100);
+        assert_eq!(picked.len(), 100);
+        // Farthest-point order leaves no direction far from a centre.
+        let angle = mean_nearest_angle(&picked);
+        let worst = dirs
+            .iter()
+            .map(|d| picked.iter().map(|c| d.dot(*c)).fold(-1.0, f64::max).acos())
+            .fold(0.0, f64::max);
+        assert!(worst < 1.2 * angle, "{worst} vs spacing {angle}");
+    }
+}
