@@ -20,13 +20,13 @@ export function environmentWeights(table, lights, R) {
   return out;
 }
 
-/** Per-coefficient factors of an environment window on a file that has them (SH files:
- *  `info.basis.windows`), or null when the window changes nothing; throws for a window
- *  on a basis without bands, which relit relight refuses too. */
+/** Per-coefficient factors of an environment window on a file whose basis has bands
+ *  (`info.basis.windows`), or null when the window changes nothing; throws for a
+ *  window on a basis without bands, which relit relight refuses too. */
 export function windowFactors(windows, win, basisName) {
   const type = (win && win.type) || 'none';
   if (type === 'none') return null;
-  if (!windows) throw new Error(`the ${type} window scales SH bands and ${basisName} has none: use the window “none” with this file`);
+  if (!windows) throw new Error(`the ${type} window scales a basis' bands and ${basisName} has none: use the window “none” with this file`);
   if (type === 'laplacian' && win.lambda != null) return windows.laplacian_eigenvalues.map(e => 1 / (1 + win.lambda * e * e));
   const f = windows.factors[type];
   if (!f) throw new Error(`unknown window “${type}”`);

@@ -100,13 +100,13 @@ export class Panel {
         range.addEventListener('input', () => { light[key] = Number(range.value); out.value = range.value; app.changed(false); });
         card.append(h('label', {}, key.replace('_deg', '') + ' ', range, ' ', out));
       }
-      // Windows attenuate the bands of spherical harmonics; files of other bases have
-      // none (info.basis.windows is absent), and the control says so.
+      // Windows scale a basis' bands; a file whose basis has none carries no factors
+      // (info.basis.windows), and the control says why it is off.
       const basis = app.info.basis;
       const win = h('select', { 'data-field': 'window', disabled: !basis.windows }, ['none', 'hann', 'lanczos', 'laplacian'].map(t => h('option', { value: t, selected: ((light.window || {}).type || 'none') === t }, t)));
       win.addEventListener('change', () => { light.window = { type: win.value }; app.changed(false); });
       card.append(h('label', {}, 'window ', win));
-      if (!basis.windows) card.append(h('p', { class: 'hint', 'data-hint': 'window' }, `Windows attenuate SH bands against ringing; ${basis.name} has no bands, so none applies.`));
+      if (!basis.windows) card.append(h('p', { class: 'hint', 'data-hint': 'window' }, `Windows scale a basis' bands against ringing; ${basis.name} has none, so no window applies.`));
     }
     return card;
   }

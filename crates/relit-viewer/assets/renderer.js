@@ -340,10 +340,6 @@ export class Renderer {
     bmp.close();
   }
 
-  environment(name) {
-    return (this.info.environments || []).find(e => e.map === name);
-  }
-
   /** An environment light's weights (colour aside): its quadrature turned by
    *  yaw/pitch/roll, times the window's factors (`window`: those of environment.js
    *  `windowFactors`, or null). */
