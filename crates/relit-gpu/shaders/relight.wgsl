@@ -97,10 +97,10 @@ struct Frame {
 @group(0) @binding(5) var<storage, read_write> out: array<f32>;
 // The projectors' slides: linear RGB, row-major from the top, three floats a texel.
 @group(0) @binding(6) var<storage, read> slides: array<f32>;
-// The basis' weight table (WeightTable::values), four weights a vec4 so that one load
-// fetches four: weights 4g … 4g+3 of vertex (i, j) of the (N+1)×(N+1) grid at
-// (j·(N+1) + i)·⌈k/4⌉ + g, zero past k.
-@group(0) @binding(7) var<storage, read> table: array<vec4<f32>>;
+// The basis' weight table (WeightTable::values in half floats, as the CPU engine and
+// the viewer hold it), four weights a 64-bit load: weights 4g … 4g+3 of vertex (i, j)
+// of the (N+1)×(N+1) grid at (j·(N+1) + i)·⌈k/4⌉ + g, zero past k.
+@group(0) @binding(7) var<storage, read> table: array<vec2<u32>>;
 
 // The raw stored values of coefficient i (three planes) at pixel p.
 fn raw(i: u32, p: u32) -> vec3<f32> {
@@ -153,7 +153,13 @@ fn corners(d: vec3<f32>) -> Corners {
 // Weights 4g … 4g+3 of the basis at the corners c: WeightTable::sample's blend, in its
 // order.
 fn weights(c: Corners, g: u32) -> vec4<f32> {
-    return c.w.x * table[c.at.x + g] + c.w.y * table[c.at.y + g] + c.w.z * table[c.at.z + g] + c.w.w * table[c.at.w + g];
+    return c.w.x * vertex(c.at.x + g) + c.w.y * vertex(c.at.y + g) + c.w.z * vertex(c.at.z + g) + c.w.w * vertex(c.at.w + g);
+}
+
+// Four weights of the table at `at`.
+fn vertex(at: u32) -> vec4<f32> {
+    let h = table[at];
+    return vec4<f32>(unpack2x16float(h.x), unpack2x16float(h.y));
 }
 
 // Σ_i w_i c_i(p) for weights 4g … 4g+3 of `w` (those below k).

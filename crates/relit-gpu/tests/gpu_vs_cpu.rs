@@ -8,9 +8,9 @@
 //! * the CPU engine (`relit::engine::relight`), for registered families;
 //! * a per-pixel evaluation here, `P = O + d·V` from camera and depth, each light's own
 //!   `PreparedLight::illuminate` at `P`, weighted by the basis' weights at each light
-//!   vector, in f64: with the weights from the same `WeightTable` the GPU reads
-//!   ([`Weights::Table`]: what the GPU computes, to f32 rounding), and from the basis
-//!   itself ([`Weights::Exact`]: what the table costs);
+//!   vector, in f64: with the weights from the same `WeightTable` the GPU reads (in half
+//!   floats; [`Weights::Table`]: what the GPU computes, to f32 rounding), and from the
+//!   basis itself ([`Weights::Exact`]: what the table costs);
 //! * for uniform lights (directional, environment), whose weights the CPU computes per
 //!   frame, the CPU engine or the exact evaluation alone.
 
@@ -487,6 +487,15 @@ fn direct(
     out
 }
 
+/// `table` in half floats, as every back end holds it.
+fn half_rounded(table: &WeightTable) -> WeightTable {
+    let mut rounded = table.clone();
+    for v in &mut rounded.values {
+        *v = half::f16::from_f32(*v).to_f32();
+    }
+    rounded
+}
+
 /// The largest error of `table` against `basis` over 4096 Fibonacci directions.
 fn table_error(basis: &dyn Basis, table: &WeightTable) -> f64 {
     let k = basis.len();
@@ -592,6 +601,7 @@ fn check(
 ) {
     let got = relight_in(gpu, rig, exposure, dir);
     let (table, _) = WeightTable::for_basis(basis);
+    let table = half_rounded(&table);
     let eps = table_error(basis, &table);
     let uniform = rig.lights.iter().all(Light::is_uniform);
     let exact = direct(img, basis, Weights::Exact, eps, rig, exposure, dir);

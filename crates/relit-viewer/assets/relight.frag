@@ -15,8 +15,9 @@ precision highp sampler2DArray;
 #define MAX_AREA_SAMPLES 64
 
 uniform highp sampler2DArray uPlanes;
-// The weight table: texel (i, j) of layer l holds weights 4l … 4l+3 of vertex (i, j)
-// of the (N+1)×(N+1) octahedral grid (crates/relit/src/basis/table.rs).
+// The weight table (half floats, the values table.js reads): texel (i, j) of layer l
+// holds weights 4l … 4l+3 of vertex (i, j) of the (N+1)×(N+1) octahedral grid
+// (crates/relit/src/basis/table.rs).
 uniform highp sampler2DArray uTable;
 uniform int uTableN;            // cells per side N
 uniform highp sampler2D uDepth;

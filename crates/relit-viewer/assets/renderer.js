@@ -2,7 +2,7 @@
 // relight.frag. Also the CPU-side geometry (screen -> source pixel -> surface point)
 // used to place lights by clicking.
 import { normalize, cross, rotationYawPitchRoll } from './vec.js';
-import { weightTable, sample } from './table.js';
+import { weightTable, halvesToFloats, sample } from './table.js';
 import { environmentWeights, windowFactors } from './environment.js';
 import { lightRgb, attenuationOf } from './lights.js';
 
@@ -152,22 +152,24 @@ export class Renderer {
     return info;
   }
 
-  /** The basis' weight table: kept for directional and environment lights, and
-   *  uploaded for the shader as an RGBA32F array, four weights a texel, one layer per
-   *  four coefficients (the layout of the coefficient layers). */
+  /** The basis' weight table (half floats): decoded for directional and environment
+   *  lights, and uploaded as it is for the shader, an RGBA16F array of four weights a
+   *  texel, one layer per four coefficients (the layout of the coefficient layers), so
+   *  that both read the same values. */
   async loadTable(base) {
     const gl = this.gl, info = this.info, wt = info.weights, k = info.k, n = info.layers_per_channel;
-    if (wt.format !== 'f32le') throw new Error(`weight table format ${wt.format}`);
-    this.table = weightTable(wt.resolution, k, new Float32Array(await fetchOk(base + wt.file, 'buffer')));
-    const side = wt.resolution + 1, values = this.table.values;
-    const texels = new Float32Array(4 * side * side * n);
+    if (wt.format !== 'f16le') throw new Error(`weight table format ${wt.format}`);
+    const bits = new Uint16Array(await fetchOk(base + wt.file, 'buffer'));
+    this.table = weightTable(wt.resolution, k, halvesToFloats(bits));
+    const side = wt.resolution + 1;
+    const texels = new Uint16Array(4 * side * side * n);
     for (let v = 0; v < side * side; v++) {
-      for (let i = 0; i < k; i++) texels[4 * ((i >> 2) * side * side + v) + (i & 3)] = values[v * k + i];
+      for (let i = 0; i < k; i++) texels[4 * ((i >> 2) * side * side + v) + (i & 3)] = bits[v * k + i];
     }
     this.tableTex = gl.createTexture();
     gl.activeTexture(gl.TEXTURE0 + TABLE_UNIT);
     gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.tableTex);
-    gl.texImage3D(gl.TEXTURE_2D_ARRAY, 0, gl.RGBA32F, side, side, n, 0, gl.RGBA, gl.FLOAT, texels);
+    gl.texImage3D(gl.TEXTURE_2D_ARRAY, 0, gl.RGBA16F, side, side, n, 0, gl.RGBA, gl.HALF_FLOAT, texels);
     this.setNearest(gl.TEXTURE_2D_ARRAY);
   }
 

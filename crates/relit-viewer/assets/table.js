@@ -1,4 +1,4 @@
-// The basis' weight table (crates/relit/src/basis/table.rs, shipped as data/weights.f32):
+// The basis' weight table (crates/relit/src/basis/table.rs, shipped as data/weights.f16):
 // the k weights of any basis at the (N+1)² vertices of an octahedral map of the sphere.
 // The viewer knows no basis; every light's weights come from here. This is the one
 // JavaScript definition of the lookup, a transcription of WeightTable::corners and
@@ -10,6 +10,16 @@
 export function weightTable(n, k, values) {
   if (values.length !== (n + 1) * (n + 1) * k) throw new Error(`a weight table of ${n} cells a side and ${k} weights needs ${(n + 1) * (n + 1) * k} values, got ${values.length}`);
   return { n, k, values };
+}
+
+/** The values of little-endian IEEE half floats (the table ships as data/weights.f16). */
+export function halvesToFloats(bits) {
+  const out = new Float32Array(bits.length);
+  for (let i = 0; i < bits.length; i++) {
+    const h = bits[i], s = h & 0x8000 ? -1 : 1, e = (h >> 10) & 31, m = h & 1023;
+    out[i] = e === 0 ? s * m * 2 ** -24 : e === 31 ? (m ? NaN : s * Infinity) : s * (1 + m / 1024) * 2 ** (e - 15);
+  }
+  return out;
 }
 
 const sign = (v) => (v < 0 ? -1 : 1);

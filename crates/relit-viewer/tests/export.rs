@@ -6,7 +6,7 @@ mod common;
 use relit::basis::{Basis, WeightTable};
 use relit::envmap::{latlong_direction, texel_solid_angle, Window};
 use relit::image::ImageRgb;
-use relit_viewer::bundle::environment_quadrature;
+use relit_viewer::bundle::{environment_quadrature, shipped_table};
 use relit_viewer::{export_web, BundleOptions, PlaneStorage, WebBundle};
 use serde_json::Value;
 
@@ -24,6 +24,14 @@ fn export(storage: PlaneStorage) -> (tempfile::TempDir, relit::maps::Relightable
     let info: Value =
         serde_json::from_slice(&std::fs::read(site.join("data/info.json")).unwrap()).unwrap();
     (dir, image, info)
+}
+
+/// The values of little-endian half floats.
+fn halves(bytes: &[u8]) -> Vec<f32> {
+    bytes
+        .chunks_exact(2)
+        .map(|c| half::f16::from_le_bytes([c[0], c[1]]).to_f32())
+        .collect()
 }
 
 /// Decode layer `l` into its four planes of values: `offset + scale · q`.
@@ -116,19 +124,18 @@ fn check(storage: PlaneStorage) {
         .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
         .collect();
     assert_eq!(&depth, image.depth.as_ref().unwrap());
-    // The weight table: WeightTable::for_basis of the file's basis, values as they are.
+    // The weight table: WeightTable::for_basis of the file's basis, as half floats.
     let basis = image.meta.basis.build().unwrap();
     let (table, _) = WeightTable::for_basis(basis.as_ref());
     assert_eq!(info["weights"]["resolution"], table.resolution);
+    assert_eq!(info["weights"]["format"], "f16le");
     let bytes = std::fs::read(
         site.join("data")
             .join(info["weights"]["file"].as_str().unwrap()),
     )
     .unwrap();
-    let values: Vec<f32> = bytes
-        .chunks_exact(4)
-        .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
-        .collect();
+    let values = halves(&bytes);
+    let table = shipped_table(&table);
     assert_eq!(values, table.values);
 }
 
@@ -271,11 +278,16 @@ fn sh_files_carry_their_band_windows_and_other_bases_none() {
     assert_eq!(info["basis"]["name"], "test-lobes:7");
     assert!(info["basis"].get("windows").is_none());
     let (table, _) = WeightTable::for_basis(&lobes);
-    let values: Vec<f32> = bundle.files["data/weights.f32"]
-        .chunks_exact(4)
-        .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
-        .collect();
-    assert_eq!(values, table.values);
+    assert_eq!(
+        halves(&bundle.files["data/weights.f16"]),
+        shipped_table(&table).values
+    );
+    // The shipped table's accuracy is its own, measured after rounding.
+    let shipped = shipped_table(&table).accuracy(&lobes);
+    assert_eq!(
+        info["weights"]["relative_rms_error"].as_f64(),
+        Some(shipped.relative_rms)
+    );
     // A basis of another size than the maps is refused.
     assert!(WebBundle::build_in(
         &image,

@@ -1,5 +1,5 @@
-//! The viewer's JavaScript against the library: `assets/table.js` samples a weight table
-//! exactly as `WeightTable::sample`, `assets/vec.js` turns environments as
+//! The viewer's JavaScript against the library: `assets/table.js` decodes the shipped
+//! half-float table and samples it exactly as `WeightTable::sample`, `assets/vec.js` turns environments as
 //! `EnvironmentMapLight::rotation`, and `assets/environment.js` sums a shipped
 //! environment's quadrature as the documented formula says and close to the weights
 //! the library gives (for SH, which the library projects and rotates exactly). Runs the
@@ -13,7 +13,9 @@ use relit::envmap::EnvironmentLight;
 use relit::image::ImageRgb;
 use relit::light::EnvironmentMapLight;
 use relit::sphere::{fibonacci, Vec3};
-use relit_viewer::bundle::{environment_quadrature, QUADRATURE_HEIGHT, QUADRATURE_WIDTH};
+use relit_viewer::bundle::{
+    environment_quadrature, shipped_table, QUADRATURE_HEIGHT, QUADRATURE_WIDTH,
+};
 use serde_json::{json, Value};
 use std::path::Path;
 use std::process::Command;
@@ -31,7 +33,7 @@ const QUADRATURE_TOLERANCE: f64 = 1e-6;
 /// Measured on the 512×256 sky below (a sun of 40 times the sky's radiance), 4 bands,
 /// three rotations, through the shipped 128×64 quadrature: at most 9.1e-4 with the
 /// basis itself (what the library's quadrature gives other bases), 5.4e-4 with the
-/// table's weights as the viewer takes them.
+/// table's weights as the viewer takes them (half floats).
 const ENVIRONMENT_TOLERANCE: f64 = 2e-3;
 
 /// Run `script` (an ES module; `ASSETS` is the URL of the viewer's assets, `INPUT` the
@@ -81,8 +83,15 @@ fn sh(k: usize) -> Box<dyn Basis> {
         .unwrap()
 }
 
+/// The table as the viewer receives it: its half-float bits, which the JavaScript
+/// decodes itself.
 fn table_json(table: &WeightTable) -> Value {
-    json!({ "n": table.resolution, "k": table.k, "values": table.values })
+    let bits: Vec<u16> = table
+        .values
+        .iter()
+        .map(|&v| half::f16::from_f32(v).to_bits())
+        .collect();
+    json!({ "n": table.resolution, "k": table.k, "bits": bits })
 }
 
 #[test]
@@ -107,13 +116,14 @@ fn table_js_samples_as_the_rust_table() {
     let bases: Vec<Box<dyn Basis>> = vec![sh(16), sh(25), Box::new(common::Lobes::new(7))];
     for basis in bases {
         let (table, _) = WeightTable::for_basis(basis.as_ref());
+        let table = shipped_table(&table);
         let input = json!({
             "table": table_json(&table),
             "dirs": dirs.iter().map(|d| [d.x, d.y, d.z]).collect::<Vec<_>>(),
         });
         let Some(out) = node(
-            "const { weightTable, sample } = await import(ASSETS + 'table.js');\n\
-             const t = weightTable(INPUT.table.n, INPUT.table.k, Float32Array.from(INPUT.table.values));\n\
+            "const { weightTable, halvesToFloats, sample } = await import(ASSETS + 'table.js');\n\
+             const t = weightTable(INPUT.table.n, INPUT.table.k, halvesToFloats(Uint16Array.from(INPUT.table.bits)));\n\
              console.log(JSON.stringify(INPUT.dirs.map(d => Array.from(sample(t, d)))));",
             &input,
         ) else {
@@ -165,6 +175,7 @@ fn environment_js_gives_the_library_weights() {
     let angles = [[0.0, 0.0, 0.0], [70.0, 25.0, -15.0], [-130.0, -40.0, 60.0]];
     let basis = sh(16);
     let (table, _) = WeightTable::for_basis(basis.as_ref());
+    let table = shipped_table(&table);
     let flat: Vec<f32> = lights
         .iter()
         .flat_map(|(d, i)| [d.x, d.y, d.z, i[0], i[1], i[2]])
@@ -172,10 +183,10 @@ fn environment_js_gives_the_library_weights() {
         .collect();
     let input = json!({ "table": table_json(&table), "lights": flat, "angles": angles });
     let Some(out) = node(
-        "const { weightTable } = await import(ASSETS + 'table.js');\n\
+        "const { weightTable, halvesToFloats } = await import(ASSETS + 'table.js');\n\
          const { environmentWeights } = await import(ASSETS + 'environment.js');\n\
          const { rotationYawPitchRoll } = await import(ASSETS + 'vec.js');\n\
-         const t = weightTable(INPUT.table.n, INPUT.table.k, Float32Array.from(INPUT.table.values));\n\
+         const t = weightTable(INPUT.table.n, INPUT.table.k, halvesToFloats(Uint16Array.from(INPUT.table.bits)));\n\
          const lights = Float32Array.from(INPUT.lights);\n\
          console.log(JSON.stringify(INPUT.angles.map(([y, p, r]) => {\n\
            const R = rotationYawPitchRoll(y, p, r);\n\
