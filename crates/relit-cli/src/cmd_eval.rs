@@ -5,7 +5,7 @@ use crate::cmd_fit::StorageArg;
 use crate::shared::{mib, refuse_overwriting_inputs, rig_inputs, scene_inputs, Bars, FitArgs};
 use relit::capture::Capture;
 use relit::codec::Storage;
-use relit::eval::{evaluate, EvalOptions, Holdout};
+use relit::eval::{evaluate_with, EvalOptions, Holdout};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
@@ -32,9 +32,10 @@ pub struct Args {
     /// With --scene: samples per pixel of an environment light's ray-traced truth.
     #[arg(long, default_value_t = relit_studio::emitter::DEFAULT_ENVIRONMENT_SAMPLES, requires = "scene")]
     pub env_samples: usize,
-    /// With --scene: write each light's truth (top) and relit image (bottom) as one 8-bit
-    /// sRGB PNG, never scaled, and `mask.png` (the pixels scored) into this folder.
-    #[arg(long, requires = "scene")]
+    /// Write each held-out (or, with --scene, each light's) captured or true image above
+    /// its relit image as one 8-bit sRGB PNG, never scaled, into this folder; with
+    /// --scene also `mask.png`, the pixels scored.
+    #[arg(long)]
     pub save: Option<PathBuf>,
     /// Images to hold out: `every:N`, `spread:N` (N evenly spread; `spread:5` is the
     /// RTI peer-baseline protocol) or indices in capture order like `0,12,24,35,47`.
@@ -63,7 +64,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.scene.is_some() {
         return run_scene(args);
     }
-    let capture = Capture::open(args.capture.as_deref().expect("clap requires a capture"))?;
+    use relit::fsutil::{Output, StagedFolder};
+    let capture_path = args.capture.as_deref().expect("clap requires a capture");
+    let outputs: Vec<Output> = args.save.iter().map(Output::folder).collect();
+    refuse_overwriting_inputs(&[capture_path.to_path_buf()], &outputs)?;
+    let capture = Capture::open(capture_path)?;
+    refuse_overwriting_inputs(&capture.input_files(), &outputs)?;
     let holdout: Holdout = args.holdout.parse()?;
     let mask = match &args.mask {
         Some(path) => {
@@ -90,7 +96,26 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         mask,
     };
     let bars = Bars::new(args.quiet || args.json);
-    let report = evaluate(&capture, &options, &bars)?;
+    let staged = args.save.as_deref().map(StagedFolder::new).transpose()?;
+    let mut save = |h: &relit::eval::HoldoutResult,
+                    captured: &relit::image::ImageRgb,
+                    relit: &relit::image::ImageRgb|
+     -> relit::Result<()> {
+        if let Some(staged) = &staged {
+            let pair =
+                relit::image::contact_sheet(&[captured.clone(), relit.clone()], 1, usize::MAX);
+            let stem = std::path::Path::new(&h.image)
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            relit::image::save(&staged.file(format!("{}_{stem}.png", h.index))?, &pair, 0.0)?;
+        }
+        Ok(())
+    };
+    let report = evaluate_with(&capture, &options, &bars, Some(&mut save))?;
+    if let Some(staged) = staged {
+        staged.commit()?;
+    }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());

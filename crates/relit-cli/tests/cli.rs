@@ -393,3 +393,54 @@ fn scene_eval_figures_match_the_saved_images() {
         );
     }
 }
+
+/// `relit eval CAPTURE --save`: each hold-out's captured image above its relit one, from
+/// which the reported 8-bit sRGB PSNR (whole frame, the peer protocol) is recomputed.
+#[test]
+fn capture_eval_figures_match_the_saved_images() {
+    let f = Fixture::new();
+    let save = f.path("saved");
+    let out = ok(&[
+        "eval",
+        Fixture::s(&f.lp),
+        "--holdout",
+        "3,20",
+        "--basis",
+        "sh:9",
+        "--save",
+        Fixture::s(&save),
+        "--json",
+        "-q",
+    ]);
+    let report: serde_json::Value = serde_json::from_str(&out).unwrap();
+    for h in report["holdouts"].as_array().unwrap() {
+        let index = h["index"].as_u64().unwrap();
+        let stem = Path::new(h["image"].as_str().unwrap())
+            .file_stem()
+            .unwrap()
+            .to_string_lossy()
+            .into_owned();
+        let pair =
+            relit::image::load_linear(&save.join(format!("{index}_{stem}.png")), None).unwrap();
+        let (w, h_px) = (f.plane.width, f.plane.height);
+        assert_eq!((pair.width, pair.height), (w + 4, 2 * (h_px + 2) + 2));
+        let codes = pair.to_srgb8();
+        let (mut sq, mut n) = (0.0f64, 0usize);
+        for y in 0..h_px {
+            for x in 0..w {
+                for c in 0..3 {
+                    let t = codes[3 * ((y + 2) * pair.width + x + 2) + c] as f64;
+                    let r = codes[3 * ((y + 4 + h_px) * pair.width + x + 2) + c] as f64;
+                    sq += (t - r) * (t - r);
+                    n += 1;
+                }
+            }
+        }
+        let recomputed = 10.0 * (255.0f64 * 255.0 / (sq / n as f64)).log10();
+        let reported = h["psnr_srgb8"].as_f64().unwrap();
+        assert!(
+            (recomputed - reported).abs() < 0.05,
+            "hold-out {index}: reported {reported:.3}, recomputed {recomputed:.3}"
+        );
+    }
+}

@@ -147,7 +147,7 @@ impl Fixture {
         let dirs = hemisphere_fibonacci(12);
         plane.write_lp_capture(&d.join("cap"), &dirs).unwrap();
         let options = relit::fit::FitOptions {
-            basis: relit::basis::BasisChoice::parse("sh:4").unwrap(),
+            basis: relit::fit::BasisRequest::parse("sh:4").unwrap(),
             lambda: relit::fit::Lambda::Fixed(1e-3),
             ..Default::default()
         };

@@ -30,7 +30,7 @@ fn options() -> SceneEvalOptions {
     SceneEvalOptions {
         plan: LightPlan::parse("fibonacci:160").unwrap(),
         fit: FitOptions {
-            basis: relit::basis::BasisChoice::parse("sh:25").unwrap(),
+            basis: relit::fit::BasisRequest::parse("sh:25").unwrap(),
             ..FitOptions::default()
         },
         ..SceneEvalOptions::default()

@@ -522,7 +522,7 @@ fn capture_fit_relight_beats_the_psnr_floor_at_a_held_out_light() {
     // λ = 1e-3 is what the automatic leave-one-out choice picks here; fixing it keeps
     // the test at a tenth of a second instead of seconds.
     let options = FitOptions {
-        basis: relit::basis::BasisChoice::parse("sh:36").unwrap(),
+        basis: relit::fit::BasisRequest::parse("sh:36").unwrap(),
         objective: Objective::Linear,
         lambda: Lambda::Fixed(1e-3),
         ..Default::default()

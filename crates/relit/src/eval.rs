@@ -157,11 +157,25 @@ pub struct EvalReport {
     pub holdouts: Vec<HoldoutResult>,
 }
 
+/// Receives each held-out image's result, the captured image and the relit one.
+pub type HoldoutSink<'a> =
+    dyn FnMut(&HoldoutResult, &crate::image::ImageRgb, &crate::image::ImageRgb) -> Result<()> + 'a;
+
 /// Hold out, fit, relight and compare.
 pub fn evaluate(
     capture: &Capture,
     options: &EvalOptions,
     progress: &dyn Progress,
+) -> Result<EvalReport> {
+    evaluate_with(capture, options, progress, None)
+}
+
+/// [`evaluate`], showing `sink` every held-out pair of images.
+pub fn evaluate_with(
+    capture: &Capture,
+    options: &EvalOptions,
+    progress: &dyn Progress,
+    mut sink: Option<&mut HoldoutSink>,
 ) -> Result<EvalReport> {
     let n = capture.len();
     let held = options.holdout.indices(n)?;
@@ -219,7 +233,7 @@ pub fn evaluate(
             let reference = capture.load_raw(index)?;
             let (psnr_srgb8, psnr_linear) =
                 protocol_scores(&relit.data, &reference.data, mask.as_deref());
-            results.push(HoldoutResult {
+            let result = HoldoutResult {
                 index,
                 image: capture.image_name(index),
                 direction: light.direction.into(),
@@ -227,7 +241,11 @@ pub fn evaluate(
                 psnr_linear,
                 fit_seconds: fitted.report.seconds,
                 lambda: fitted.report.lambda,
-            });
+            };
+            if let Some(sink) = sink.as_mut() {
+                sink(&result, &reference, &relit)?;
+            }
+            results.push(result);
         }
     }
     let mean = |f: &dyn Fn(&HoldoutResult) -> f64| {

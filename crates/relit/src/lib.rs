@@ -16,14 +16,14 @@
 //!   definition of PSNR).
 //!
 //! ```
-//! use relit::{basis::BasisChoice, capture::Capture, engine, fit, light::{Light, LightRig}, sphere};
+//! use relit::{capture::Capture, engine, fit, light::{Light, LightRig}, sphere};
 //!
 //! // A tiny synthetic capture: 64 lights over the upper hemisphere.
 //! let dirs = sphere::hemisphere_fibonacci(64);
 //! let capture: Capture = relit::synth::bumpy_plane(32, 24, &dirs);
 //!
 //! // Fit 3-band spherical harmonics (9 coefficients) and relight from the upper left.
-//! let options = fit::FitOptions { basis: BasisChoice::parse("sh:9").unwrap(), ..Default::default() };
+//! let options = fit::FitOptions { basis: fit::BasisRequest::parse("sh:9").unwrap(), ..Default::default() };
 //! let fitted = fit::fit(&capture, &options, &relit::progress::Silent).unwrap();
 //! let rig = LightRig::new(vec![Light::directional([-1.0, 1.0, 1.0], [1.0, 0.9, 0.8])]);
 //! let frame = engine::relight(&fitted.image, &rig, &engine::RelightOptions::default()).unwrap();

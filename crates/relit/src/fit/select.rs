@@ -11,7 +11,7 @@
 //! left out — is summed over folds. The evaluation hold-outs of `relit eval` never take
 //! part: they are not in the capture the fit sees.
 
-use super::{light_relevance, perceptual_weight, srgb_shown, Objective, Regularizer};
+use super::{light_relevance, perceptual_weight, Objective, Regularizer};
 use crate::basis::{Basis, BasisChoice, Samples, FAMILIES};
 use crate::linalg;
 use crate::sphere::Vec3;
@@ -23,7 +23,21 @@ use serde::Serialize;
 pub const VALIDATION_LADDER: [f64; 6] = [1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1];
 
 /// Folds of the captured lights (fewer for captures of very few lights).
-const FOLDS: usize = 5;
+const FOLDS: usize = 10;
+
+/// Multiply-adds one candidate's perceptual validation may spend per fold on normal
+/// matrices (each series has its own, `n·k²`): a dense capture validates on fewer
+/// pixels rather than for minutes (a 60-light RTI capture keeps all of them).
+const PERCEPTUAL_BUDGET: f64 = 3e8;
+
+/// Pixels of the subsample a perceptual validation of `k` coefficients on `n` lights
+/// uses, out of `count`.
+fn perceptual_pixels(count: usize, n: usize, k: usize) -> usize {
+    let per_pixel = 3.0 * n as f64 * (k * k) as f64;
+    ((PERCEPTUAL_BUDGET / per_pixel) as usize)
+        .clamp(32, count.max(1))
+        .min(count)
+}
 
 /// One candidate's validation score.
 #[derive(Clone, Debug, Serialize, PartialEq)]
@@ -32,15 +46,21 @@ pub struct CandidateScore {
     pub basis: String,
     /// The λ of smallest validation error.
     pub lambda: f64,
-    /// Root-mean-square display error at that λ (sRGB values, 0–1).
+    /// Root-mean-square display error at that λ over every light (sRGB values, 0–1).
     pub display_rmse: f64,
-    /// The same as a PSNR (peak 1), the figure to read.
+    /// The mean over the captured lights of each light's display PSNR (peak 1) when
+    /// held out: what the choice maximises, comparable to `relit eval`'s figures.
     pub psnr: f64,
 }
 
-/// The candidates `auto` considers within `max_coefficients`: every size of every
-/// family from 4 coefficients up (fewer cannot follow a light at all), none with more
-/// coefficients than the folds leave lights to fit.
+/// The sizes `auto` tries where a family offers them: a ladder that roughly doubles the
+/// coefficients at each step (finer steps cost time and, with more candidates, make the
+/// winner's validation score more flattering).
+const AUTO_SIZES: [usize; 8] = [4, 6, 9, 16, 25, 36, 49, 64];
+
+/// The candidates `auto` considers within `max_coefficients`: every family at the sizes
+/// of [`AUTO_SIZES`] it offers, from 4 coefficients up (fewer cannot follow a light at
+/// all), none with more coefficients than the folds leave lights to fit.
 pub fn candidates(max_coefficients: usize, lights: usize) -> Vec<BasisChoice> {
     let train = lights - lights.div_ceil(folds(lights));
     FAMILIES
@@ -48,14 +68,18 @@ pub fn candidates(max_coefficients: usize, lights: usize) -> Vec<BasisChoice> {
         .flat_map(|f| {
             f.sizes(max_coefficients)
                 .into_iter()
-                .filter(move |&k| k >= 4 && k < train)
+                .filter(move |&k| AUTO_SIZES.contains(&k) && k < train)
                 .map(|k| BasisChoice::parse(&format!("{}:{k}", f.name())).expect("a listed size"))
         })
         .collect()
 }
 
+/// Folds for `n` lights: [`FOLDS`], fewer when there are few lights (each fold keeps
+/// four or more) and half as many for dense captures, whose folds hold plenty of lights
+/// (and each fold costs a basis and a fit).
 fn folds(n: usize) -> usize {
-    FOLDS.min(n / 4).max(2)
+    let f = if n > 200 { FOLDS / 2 } else { FOLDS };
+    f.min(n / 4).max(2)
 }
 
 /// The pixel subsample the fit reads, as the validation sees it.
@@ -77,11 +101,33 @@ pub(super) fn validate(
     sub: &Subsample,
 ) -> Result<CandidateScore> {
     let n = sub.n;
+    let keep = match objective {
+        Objective::Perceptual => perceptual_pixels(sub.count, n, choice.k),
+        _ => sub.count,
+    };
+    let thinned: Vec<f32>;
+    let thin;
+    let sub = if keep < sub.count {
+        thinned = (0..keep)
+            .flat_map(|i| {
+                let p = i * sub.count / keep;
+                sub.values[p * n * 3..(p + 1) * n * 3].iter().copied()
+            })
+            .collect();
+        thin = Subsample {
+            values: &thinned,
+            count: keep,
+            n,
+        };
+        &thin
+    } else {
+        sub
+    };
     let series = sub.count * 3;
     let relevance = light_relevance(sub.values, sub.count, n);
     let folds = folds(n);
-    let mut err = [0.0f64; VALIDATION_LADDER.len()];
-    let mut weight = 0.0f64;
+    // Squared display errors per captured light (each is held out once) and λ.
+    let mut per_light = vec![[0.0f64; VALIDATION_LADDER.len()]; n];
     for fold in 0..folds {
         let train: Vec<usize> = (0..n).filter(|j| j % folds != fold).collect();
         let held: Vec<usize> = (0..n).filter(|j| j % folds == fold).collect();
@@ -99,42 +145,49 @@ pub(super) fn validate(
                 n: train.len(),
             }),
         )?;
-        let fold_err = fold_errors(
+        let errors = fold_errors(
             basis.as_ref(),
             objective,
             regularizer,
             &train_dirs,
             &held.iter().map(|&j| dirs[j]).collect::<Vec<_>>(),
             &train.iter().map(|&j| q[j]).collect::<Vec<_>>(),
-            &held
-                .iter()
-                .map(|&j| q[j] * relevance[j])
-                .collect::<Vec<_>>(),
             &values,
             &held,
             sub,
         );
-        for (e, f) in err.iter_mut().zip(fold_err) {
-            *e += f;
+        for (&j, e) in held.iter().zip(errors) {
+            per_light[j] = e;
         }
-        weight += held.iter().map(|&j| q[j] * relevance[j]).sum::<f64>() * series as f64;
     }
-    let (best, &e) = err
-        .iter()
-        .enumerate()
-        .filter(|(_, e)| e.is_finite())
-        .min_by(|a, b| a.1.total_cmp(b.1))
-        .unwrap_or((0, &f64::INFINITY));
-    let rmse = (e / weight.max(1e-300)).sqrt();
+    // The mean over lights of each light's PSNR, as the peer protocol averages its
+    // hold-outs (a pooled error would let the few worst lights decide); lights that do
+    // not reach the scene do not count.
+    let weights: Vec<f64> = (0..n).map(|j| q[j] * relevance[j]).collect();
+    let total: f64 = weights.iter().sum::<f64>().max(1e-300);
+    let score = |li: usize| -> (f64, f64) {
+        let (mut psnr, mut pooled) = (0.0, 0.0);
+        for (e, &w) in per_light.iter().zip(&weights) {
+            let mse = e[li] / series as f64;
+            psnr += w * crate::metrics::psnr(mse, 1.0);
+            pooled += w * mse;
+        }
+        (psnr / total, (pooled / total).sqrt())
+    };
+    let (best, (psnr, rmse)) = (0..VALIDATION_LADDER.len())
+        .map(|li| (li, score(li)))
+        .filter(|(_, (p, _))| p.is_finite())
+        .max_by(|a, b| a.1 .0.total_cmp(&b.1 .0))
+        .unwrap_or((0, (f64::NEG_INFINITY, f64::INFINITY)));
     Ok(CandidateScore {
         basis: choice.name(),
         lambda: VALIDATION_LADDER[best],
         display_rmse: rmse,
-        psnr: crate::metrics::psnr(rmse * rmse, 1.0),
+        psnr,
     })
 }
 
-/// Summed weighted squared display errors at the held-out lights, one per λ.
+/// Summed squared display errors over the subsample at each held-out light, per λ.
 #[allow(clippy::too_many_arguments)]
 fn fold_errors(
     basis: &dyn Basis,
@@ -143,11 +196,10 @@ fn fold_errors(
     train_dirs: &[Vec3],
     held_dirs: &[Vec3],
     q_train: &[f64],
-    seen: &[f64],
     train_values: &[f32],
     held: &[usize],
     sub: &Subsample,
-) -> [f64; VALIDATION_LADDER.len()] {
+) -> Vec<[f64; VALIDATION_LADDER.len()]> {
     let k = basis.len();
     let nt = train_dirs.len();
     let a_train: Vec<f64> = train_dirs.iter().flat_map(|d| basis.values(*d)).collect();
@@ -195,10 +247,11 @@ fn fold_errors(
             .collect()
     });
     let series = sub.count * 3;
+    let lights = held.len();
     (0..series)
         .into_par_iter()
         .fold(
-            || [0.0f64; VALIDATION_LADDER.len()],
+            || vec![[0.0f64; VALIDATION_LADDER.len()]; lights],
             |mut acc, s| {
                 let obs = &train_values[s * nt..(s + 1) * nt];
                 let (p, c) = (s / 3, s % 3);
@@ -232,7 +285,7 @@ fn fold_errors(
                 }
                 for (li, f) in factors.iter().enumerate() {
                     let Some(f) = f else {
-                        acc[li] = f64::INFINITY;
+                        acc.iter_mut().for_each(|a| a[li] = f64::INFINITY);
                         continue;
                     };
                     let mut coef = rhs0.clone();
@@ -244,18 +297,27 @@ fn fold_errors(
                             .map(|(a, b)| a * b)
                             .sum();
                         let o = sub.values[(p * sub.n + j) * 3 + c] as f64;
-                        let d = srgb_shown(pred) - srgb_shown(o);
-                        acc[li] += seen[h] * d * d;
+                        let d = srgb_on_screen(pred) - srgb_on_screen(o);
+                        acc[h][li] += d * d;
                     }
                 }
                 acc
             },
         )
         .reduce(
-            || [0.0; VALIDATION_LADDER.len()],
+            || vec![[0.0; VALIDATION_LADDER.len()]; lights],
             |mut a, b| {
-                a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
+                for (x, y) in a.iter_mut().zip(b) {
+                    x.iter_mut().zip(y).for_each(|(x, y)| *x += y);
+                }
                 a
             },
         )
+}
+
+/// The sRGB value a screen shows for radiance `v` at exposure 0: clipped to `[0, 1]`,
+/// as in an 8-bit image (a prediction above white in a highlight shows as white).
+#[inline]
+fn srgb_on_screen(v: f64) -> f64 {
+    crate::color::linear_to_srgb(v as f32) as f64
 }

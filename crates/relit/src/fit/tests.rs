@@ -65,7 +65,7 @@ fn max_coefficient_error(maps: &CoefficientMaps, coef: &[f64]) -> f64 {
 
 fn options(bands: usize, objective: Objective, lambda: f64) -> FitOptions {
     FitOptions {
-        basis: crate::basis::BasisChoice::parse(&format!("sh:{}", bands * bands)).unwrap(),
+        basis: crate::fit::BasisRequest::parse(&format!("sh:{}", bands * bands)).unwrap(),
         objective,
         lambda: Lambda::Fixed(lambda),
         ..Default::default()
@@ -225,7 +225,7 @@ fn the_automatic_objective_is_the_better_of_the_two_and_fits_exactly_as_it() {
         fit(
             &capture,
             &FitOptions {
-                basis: crate::basis::BasisChoice::parse("sh:9").unwrap(),
+                basis: crate::fit::BasisRequest::parse("sh:9").unwrap(),
                 objective,
                 ..Default::default()
             },
@@ -247,10 +247,15 @@ fn the_automatic_objective_is_the_better_of_the_two_and_fits_exactly_as_it() {
 
     // The choice is the one of smaller leave-one-out display error.
     let options = FitOptions {
-        basis: crate::basis::BasisChoice::parse("sh:9").unwrap(),
+        basis: crate::fit::BasisRequest::parse("sh:9").unwrap(),
         ..Default::default()
     };
-    let design = Design::new(&capture, &options).unwrap();
+    let sh9 = crate::basis::BasisChoice::parse("sh:9").unwrap();
+    let design = Design::new(
+        &capture.directions(),
+        sh9.build(&[], None).unwrap(),
+        options.regularizer,
+    );
     let sub_idx = subsample_indices(capture.width * capture.height, options.subsample);
     let mut sub = vec![0f32; sub_idx.len() * design.n * 3];
     for j in 0..design.n {
@@ -387,7 +392,7 @@ fn the_automatic_objective_is_never_worse_than_either_on_validation_lights() {
         let training = capture.subset(&train);
         let error = |objective| {
             let options = FitOptions {
-                basis: crate::basis::BasisChoice::parse(&format!("sh:{}", bands * bands)).unwrap(),
+                basis: crate::fit::BasisRequest::parse(&format!("sh:{}", bands * bands)).unwrap(),
                 objective,
                 ..Default::default()
             };
@@ -405,6 +410,50 @@ fn the_automatic_objective_is_never_worse_than_either_on_validation_lights() {
         assert!(
             auto <= best * 10f64.powf(0.01),
             "{name}: auto ({chosen:?}) {auto:.3} against linear {linear:.3}, perceptual {perceptual:.3}"
+        );
+    }
+}
+
+/// The linear objective's leave-one-out shares one factorisation across pixels; on
+/// observations so dim that the perceptual weights are one constant (the sRGB curve's
+/// linear toe), the per-pixel perceptual path solves the same weighted problem, so the
+/// two must agree.
+#[test]
+fn shared_leave_one_out_equals_the_per_pixel_one() {
+    let dirs = hemisphere_fibonacci(30);
+    let sh = crate::basis::BasisChoice::parse("sh:9").unwrap();
+    let design = Design::new(&dirs, sh.build(&[], None).unwrap(), Regularizer::Roughness);
+    let count = 7;
+    let sub: Vec<f32> = (0..count * dirs.len() * 3)
+        .map(|i| 0.0005 + 0.002 * ((i * 37 % 101) as f32 / 101.0))
+        .collect();
+    let relevance = vec![1.0; dirs.len()];
+    let ladder = [1e-5, 1e-3, 1e-1];
+    let shared = loo_scores(
+        &design,
+        &sub,
+        count,
+        LooObjective::Linear,
+        &ladder,
+        &relevance,
+    );
+    let general = loo_scores(
+        &design,
+        &sub,
+        count,
+        LooObjective::Perceptual { reweights: 0 },
+        &ladder,
+        &relevance,
+    );
+    for (a, b) in shared.iter().zip(&general) {
+        assert!(
+            (a.display - b.display).abs() <= 1e-9 * b.display,
+            "{a:?} {b:?}"
+        );
+        // Weighted errors are normalised by the total weight: the constant cancels.
+        assert!(
+            (a.weighted - b.weighted).abs() <= 1e-9 * b.weighted,
+            "{a:?} {b:?}"
         );
     }
 }
