@@ -6,9 +6,10 @@
 //! `relit::engine::Relighter::environment_weights`), over the whole image or a region
 //! of interest. Directional and environment frames equal the CPU engine's
 //! ([`relit::engine::relight`]) to f32 rounding; lights with a position read the
-//! basis' `relit::basis::WeightTable`, and equal a per-pixel evaluation with that
-//! table to f32 rounding (and the basis itself within the table's measured error). The
-//! tests state the bounds.
+//! basis' `relit::basis::WeightTable` in half floats (as the CPU engine's table path
+//! and the browser viewer do), and equal a per-pixel evaluation with that table to f32
+//! rounding (and the basis itself within the table's measured error). The tests state
+//! the bounds.
 //!
 //! ```no_run
 //! # fn main() -> Result<(), relit_gpu::GpuError> {
