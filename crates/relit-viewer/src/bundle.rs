@@ -56,7 +56,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 /// The format version of `info.json` (2: any basis, its weight table, environments as
-/// radiance maps).
+/// quadratures).
 pub const WEB_FORMAT_VERSION: u32 = 2;
 
 /// The most coefficients per channel the viewer relights (its shader holds 16 layers a
