@@ -13,9 +13,12 @@
 //!
 //! | name | functions |
 //! |---|---|
-//! | `sh:K` | real spherical harmonics, K = 1, 4, 9, …, 64 (`sh.rs`) |
-//! | `rbf:K` | Gaussian RBF interpolation over the captured lights, PCA to K (`rbf.rs`) |
-//! | `bilinear:K` | samples on a grid over the hemisphere, bilinear, PCA to K (`bilinear.rs`) |
+//! | `sh:K` | real spherical harmonics, K = 1, 4, 9, …, 64 ([`sh`]) |
+//! | `hsh:K` | hemispherical harmonics, orthonormal over `z ≥ 0`, K = 4, 9, 16, 25 ([`hsh`]) |
+//! | `ptm:6` | polynomial texture map, biquadratic in the light's `(x, y)` ([`ptm`]) |
+//! | `sg:K` | spherical Gaussian lobes of one sharpness plus a constant, K = 4, 9, …, 64 ([`sg`]) |
+//! | `rbf:K` | Gaussian RBF interpolation over the captured lights, PCA to K ([`rbf`]) |
+//! | `bilinear:K` | samples on a grid over the hemisphere, bilinear, PCA to K ([`bilinear`]) |
 //!
 //! A basis is named `family:K` (K coefficients per colour channel), optionally with
 //! family options: `sg:25:centres=hemisphere,sharpness=8`. [`BasisSpec`] is what a file
@@ -23,16 +26,22 @@
 //! tables included.
 
 mod bilinear;
+mod hsh;
 mod pca;
+mod ptm;
 mod rbf;
 mod rotation;
+mod sg;
 mod sh;
 mod table;
 
+pub use hsh::HemisphericalHarmonics;
+pub use ptm::PolynomialTextureMap;
 pub use rotation::{
     check_rotation, compose, mat3_apply, rotation_about_axis, rotation_from_yaw_pitch_roll,
     transpose, Mat3, ShRotation, MAT3_IDENTITY,
 };
+pub use sg::{mean_nearest_angle, sharpness_for_width, SphericalGaussians};
 pub use sh::{sh_index, SphericalHarmonics, MAX_BANDS};
 pub use table::{octahedral_direction, octahedral_uv, TableAccuracy, WeightTable};
 
@@ -160,6 +169,11 @@ impl Samples<'_> {
     }
 }
 
+/// How far below the horizon a light of a dome may sit: light directions calibrated from
+/// highlights put a dome's lowest ring a little below it (RealRTI item7: −0.07°), and a
+/// capture of the whole sphere has lights far lower.
+pub const DOME_SLACK_DEG: f64 = 5.0;
+
 /// What a family builds a basis from.
 #[derive(Clone, Copy, Debug)]
 pub struct BuildContext<'a> {
@@ -173,9 +187,11 @@ pub struct BuildContext<'a> {
 }
 
 impl BuildContext<'_> {
-    /// Whether every captured light lies in the upper hemisphere (an RTI dome).
+    /// Whether every captured light lies in the upper hemisphere (an RTI dome), up to
+    /// [`DOME_SLACK_DEG`] below the horizon.
     pub fn hemisphere_only(&self) -> bool {
-        !self.directions.is_empty() && self.directions.iter().all(|d| d.z > -1e-9)
+        let lowest = -DOME_SLACK_DEG.to_radians().sin();
+        !self.directions.is_empty() && self.directions.iter().all(|d| d.z > lowest)
     }
 
     /// A family option parsed as `T`, or `default`.
@@ -221,7 +237,14 @@ pub trait Family: Sync {
 }
 
 /// Every family relit knows: adding a basis is one file and one line here.
-pub static FAMILIES: &[&dyn Family] = &[&sh::FAMILY, &rbf::FAMILY, &bilinear::FAMILY];
+pub static FAMILIES: &[&dyn Family] = &[
+    &sh::FAMILY,
+    &hsh::FAMILY,
+    &ptm::FAMILY,
+    &sg::FAMILY,
+    &rbf::FAMILY,
+    &bilinear::FAMILY,
+];
 
 /// The family called `name`.
 pub fn family(name: &str) -> Result<&'static dyn Family> {

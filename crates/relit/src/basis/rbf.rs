@@ -271,7 +271,7 @@ mod tests {
             values: &values,
             n: dirs.len(),
         };
-        let choice = BasisChoice::parse("rbf:4:pca=linear").unwrap();
+        let choice = BasisChoice::parse("rbf:4:pca=linear,width=1,ridge=1e-8").unwrap();
         let basis = choice.build(&dirs, Some(samples)).unwrap();
         assert_eq!(basis.len(), 4);
         // The span reproduces a series at the captured lights (least squares on the
