@@ -82,6 +82,12 @@ fn lobes(k: usize) -> Box<dyn Basis> {
     })
 }
 
+/// Whether the CPU engine relights lights with a position on bases other than SH. Not
+/// yet on this branch: its positional kernels evaluate SH only, until the library's
+/// engine works through the weight table (then this is true and every registered
+/// family meets the CPU engine for every light).
+const CPU_ENGINE_RELIGHTS_ANY_BASIS: bool = false;
+
 /// A basis to test with; `registered` ones are compared with the CPU engine too.
 struct Case {
     basis: Box<dyn Basis>,
@@ -613,7 +619,7 @@ fn check(
         assert_close(&format!("{label} vs its table"), &got, &tabled.image);
         assert_within_table_error(&format!("{label} vs basis"), &got, &exact);
     }
-    if registered {
+    if registered && (uniform || basis.family() == "sh" || CPU_ENGINE_RELIGHTS_ANY_BASIS) {
         let want = cpu_in(img, rig, exposure, dir);
         if uniform {
             assert_close(&format!("{label} vs CPU engine"), &got, &want);
