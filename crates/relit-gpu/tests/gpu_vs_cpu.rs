@@ -552,11 +552,11 @@ fn assert_within_table_error(label: &str, gpu: &ImageRgb, want: &Direct) {
         worst = worst.max(err / allowed);
         assert!(
             err <= allowed,
-            "{label}: |GPU - basis| = {err:e} > {allowed:e} (GPU {g}, basis {r})"
+            "{label}: |GPU - reference| = {err:e} > {allowed:e} (GPU {g}, reference {r})"
         );
     }
     eprintln!(
-        "{label}: max |GPU - basis| = {largest:.3e} (peak {peak:.3}), at most {:.0} % of the table's bound",
+        "{label}: max |GPU - reference| = {largest:.3e} (peak {peak:.3}), at most {:.0} % of the table's bound",
         100.0 * worst
     );
 }
