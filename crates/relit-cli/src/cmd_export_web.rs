@@ -11,7 +11,7 @@ pub struct Args {
     pub file: PathBuf,
     /// Output folder (created; an earlier export there is replaced).
     pub dir: PathBuf,
-    /// Plane storage: u8 (8-bit PNG, scale/bias per plane) or f16 (half floats).
+    /// Plane storage: u8 (8-bit PNG, scale/offset per plane) or f16 (half floats).
     #[arg(long, default_value = "u8")]
     pub storage: PlaneStorage,
     /// Lat-long environment maps (.hdr/.exr) offered as environment lights. Repeatable.

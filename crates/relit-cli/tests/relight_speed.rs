@@ -18,6 +18,15 @@ fn relit(args: &[&str]) -> Output {
     out
 }
 
+/// |GPU − CPU| allowed for lights with a position, relative to the frame's peak. The
+/// GPU reads the basis' weight table (`WeightTable::for_basis`, in half floats) where
+/// the CPU's SH kernel evaluates the basis itself, so frames differ by the table's
+/// error (relative RMS error ≤ 1e-3 of the weights; crates/relit-gpu/tests holds the
+/// GPU to the table itself at 1e-5), and the output is written in half floats
+/// (2⁻¹¹ relative). Measured here: 7.5e-4 of the peak for the point light, 7.8e-4 for
+/// the point + projector + area rig.
+const TABLE_BOUND: f32 = 2e-3;
+
 fn load(path: &Path) -> ImageRgb {
     load_linear(path, None).expect("read the output")
 }
@@ -99,11 +108,16 @@ fn region_storage_and_gpu_frames_agree_with_the_full_cpu_frame() {
         ]);
         assert!(String::from_utf8_lossy(&out.stdout).contains("largest absolute difference"));
         let gpu = load(Path::new(&p("gpu.exr")));
-        // f32 rounding of two summation orders: the GPU tests' bound (1e-5 of the
-        // peak, here at least 1e-5 absolute).
         let diff = max_abs(&gpu, &crop);
         eprintln!("{light}: relit relight --gpu vs CPU: {diff:.2e} (peak {peak:.3})");
-        assert!(diff <= 1e-5 * peak.max(1.0), "{light}: GPU vs CPU {diff}");
+        let bound = if light.starts_with("dir:") {
+            // f32 rounding of two summation orders: the GPU tests' bound (1e-5 of the
+            // peak, here at least 1e-5 absolute).
+            1e-5 * peak.max(1.0)
+        } else {
+            TABLE_BOUND * peak
+        };
+        assert!(diff <= bound, "{light}: GPU vs CPU {diff}");
     }
 }
 
@@ -177,9 +191,7 @@ fn gpu_frames_with_projector_and_area_lights_match_the_cpu() {
         added > 0.05 * peak,
         "the rig's projector and area add light: {added}"
     );
-    // The frames are written as half floats: two frames that differ in the last f32 bits
-    // can round to neighbouring halves (2⁻¹¹ relative), far below what the two lights add.
     let diff = max_abs(&gpu, &cpu);
     eprintln!("rig of point + projector + area: relit relight --gpu vs CPU: {diff:.2e} (peak {peak:.3}, projector + area add up to {added:.3})");
-    assert!(diff <= peak / 2048.0, "GPU vs CPU {diff}");
+    assert!(diff <= TABLE_BOUND * peak, "GPU vs CPU {diff}");
 }

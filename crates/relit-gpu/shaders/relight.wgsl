@@ -1,16 +1,18 @@
 // relit's relighting kernel: one invocation per output pixel of a region of interest.
 //
 // A storage-specific file (fetch_*.wgsl) is prepended; it declares binding 3 (the
-// planes of one slab of rows) and `fetch(plane, p)`, the stored value of plane
+// planes of one slab of rows) and `fetch(plane, p)`, the stored number of plane
 // `plane` (= 3i + c, docs/conventions.md) at slab-local pixel `p`.
 //
 // Directional and environment lights arrive as passes: one weight per plane, already
-// folded with exposure, colours and the per-plane scale of quantised storage (its bias
-// enters `offset`). Linear maps need one pass whatever the number of such lights;
-// display-referred maps need one per light, decoded from sRGB before adding.
-// Positional lights evaluate the SH basis per pixel with the trig-free recurrence of
-// crates/relit/src/basis/sh.rs, fused with the dot product so no per-pixel array of
-// basis values is kept.
+// folded with exposure, colours and the per-plane scale of quantised storage (its
+// offset enters `Pass.offset`). Linear maps need one pass whatever the number of such
+// lights; display-referred maps need one per light, decoded from sRGB before adding.
+// Lights with a position need the basis at every pixel's own light vector. The shader
+// knows no basis: it reads the weights from the basis' weight table (binding 7,
+// relit::basis::WeightTable), the bilinear blend of the four vertices of an octahedral
+// map around the light vector, fused with the dot product so that no per-pixel array
+// of weights is kept.
 // Projectors and area lights follow crates/relit/src/engine/kernels/lights.rs (the f32
 // form of relit::light::{projector, area}): a projector weights its light vector with
 // its slide, sampled bilinearly where the surface point projects; an area light sums
@@ -18,13 +20,11 @@
 // of AreaLight::shift, done exactly in 32-bit halves.
 
 struct Setup {
-    // width, k, bands, display (1 = maps are sRGB-encoded)
+    // width, k, cells per side N of the weight table, display (1 = maps are sRGB-encoded)
     dims: vec4<u32>,
-    // K_lm (m = 0) and √2·K_lm (m > 0) at index l * 8 + m
-    norm: array<vec4<f32>, 16>,
-    // value = scale * stored + bias, per coefficient i (xyz = channels)
+    // value = offset + scale · q for the stored number q, per coefficient i (xyz = channels)
     scale: array<vec4<f32>, 64>,
-    bias: array<vec4<f32>, 64>,
+    offset: array<vec4<f32>, 64>,
 }
 
 struct Span {
@@ -97,6 +97,10 @@ struct Frame {
 @group(0) @binding(5) var<storage, read_write> out: array<f32>;
 // The projectors' slides: linear RGB, row-major from the top, three floats a texel.
 @group(0) @binding(6) var<storage, read> slides: array<f32>;
+// The basis' weight table (WeightTable::values in half floats, as the CPU engine and
+// the viewer hold it), four weights a 64-bit load: weights 4g … 4g+3 of vertex (i, j)
+// of the (N+1)×(N+1) grid at (j·(N+1) + i)·⌈k/4⌉ + g, zero past k.
+@group(0) @binding(7) var<storage, read> table: array<vec2<u32>>;
 
 // The raw stored values of coefficient i (three planes) at pixel p.
 fn raw(i: u32, p: u32) -> vec3<f32> {
@@ -105,7 +109,7 @@ fn raw(i: u32, p: u32) -> vec3<f32> {
 
 // The coefficient values of coefficient i at pixel p (quantisation undone).
 fn coef(i: u32, p: u32) -> vec3<f32> {
-    return fma(raw(i, p), setup.scale[i].xyz, setup.bias[i].xyz);
+    return fma(raw(i, p), setup.scale[i].xyz, setup.offset[i].xyz);
 }
 
 fn srgb_to_linear(v: vec3<f32>) -> vec3<f32> {
@@ -113,45 +117,75 @@ fn srgb_to_linear(v: vec3<f32>) -> vec3<f32> {
     return select(c / 12.92, pow((c + 0.055) / 1.055, vec3<f32>(2.4)), c > vec3<f32>(0.04045));
 }
 
-fn norm(l: u32, m: u32) -> f32 {
-    let j = l * 8u + m;
-    return setup.norm[j / 4u][j % 4u];
+// -1 for negative values, 1 otherwise (zero included): the fold's sign in
+// octahedral_uv, which WGSL's sign() (0 at 0) is not.
+fn fold_sign(v: vec2<f32>) -> vec2<f32> {
+    return select(vec2<f32>(1.0), vec2<f32>(-1.0), v < vec2<f32>(0.0));
 }
 
-// Σ_i c_i(p) Y_i(d) for a unit light vector d: the recurrence of basis/sh.rs.
+// The table offsets of the four vertices around unit vector d and their bilinear
+// weights, in the order of WeightTable::corners (which defines the lookup; this is
+// its f32 transcription).
+struct Corners {
+    at: vec4<u32>,
+    w: vec4<f32>,
+}
+
+fn corners(d: vec3<f32>) -> Corners {
+    let n = setup.dims.z;
+    let groups = (setup.dims.y + 3u) / 4u;
+    var p = d.xy / (abs(d.x) + abs(d.y) + abs(d.z));
+    if d.z < 0.0 {
+        p = (vec2<f32>(1.0) - abs(p.yx)) * fold_sign(p);
+    }
+    let x = (0.5 * p + 0.5) * f32(n);
+    let ij = min(vec2<u32>(max(floor(x), vec2<f32>(0.0))), vec2<u32>(n - 1u));
+    let f = x - vec2<f32>(ij);
+    let side = n + 1u;
+    let v00 = ij.y * side + ij.x;
+    let g = vec2<f32>(1.0) - f;
+    return Corners(
+        vec4<u32>(v00, v00 + 1u, v00 + side, v00 + side + 1u) * groups,
+        vec4<f32>(g.x * g.y, f.x * g.y, g.x * f.y, f.x * f.y),
+    );
+}
+
+// Weights 4g … 4g+3 of the basis at the corners c: WeightTable::sample's blend, in its
+// order.
+fn weights(c: Corners, g: u32) -> vec4<f32> {
+    return c.w.x * vertex(c.at.x + g) + c.w.y * vertex(c.at.y + g) + c.w.z * vertex(c.at.z + g) + c.w.w * vertex(c.at.w + g);
+}
+
+// Four weights of the table at `at`.
+fn vertex(at: u32) -> vec4<f32> {
+    let h = table[at];
+    return vec4<f32>(unpack2x16float(h.x), unpack2x16float(h.y));
+}
+
+// Σ_i w_i c_i(p) for weights 4g … 4g+3 of `w` (those below k).
+fn dot_group(w: vec4<f32>, g: u32, p: u32) -> vec3<f32> {
+    let k = setup.dims.y;
+    let i = 4u * g;
+    var acc = vec3<f32>(w.x) * coef(i, p);
+    if i + 1u < k {
+        acc = fma(vec3<f32>(w.y), coef(i + 1u, p), acc);
+    }
+    if i + 2u < k {
+        acc = fma(vec3<f32>(w.z), coef(i + 2u, p), acc);
+    }
+    if i + 3u < k {
+        acc = fma(vec3<f32>(w.w), coef(i + 3u, p), acc);
+    }
+    return acc;
+}
+
+// Σ_i c_i(p) b_i(d) for a unit light vector d.
 fn shade(p: u32, d: vec3<f32>) -> vec3<f32> {
-    let bands = setup.dims.z;
-    var cm = 1.0;
-    var sm = 0.0;
-    var pmm = 1.0;
+    let c = corners(d);
+    let groups = (setup.dims.y + 3u) / 4u;
     var acc = vec3<f32>(0.0);
-    for (var m = 0u; m < bands; m++) {
-        if m > 0u {
-            let c = d.x * cm - d.y * sm;
-            let s = d.x * sm + d.y * cm;
-            cm = c;
-            sm = s;
-            pmm *= -f32(2u * m - 1u);
-        }
-        var p_prev = 0.0;
-        var p_cur = pmm;
-        for (var l = m; l < bands; l++) {
-            if l == m + 1u {
-                p_prev = p_cur;
-                p_cur = f32(2u * m + 1u) * d.z * pmm;
-            } else if l > m + 1u {
-                let next = (f32(2u * l - 1u) * d.z * p_cur - f32(l + m - 1u) * p_prev) / f32(l - m);
-                p_prev = p_cur;
-                p_cur = next;
-            }
-            let base = l * (l + 1u);
-            let kp = norm(l, m) * p_cur;
-            if m == 0u {
-                acc += kp * coef(base, p);
-            } else {
-                acc += (kp * cm) * coef(base + m, p) + (kp * sm) * coef(base - m, p);
-            }
-        }
+    for (var g = 0u; g < groups; g++) {
+        acc += dot_group(weights(c, g), g, p);
     }
     return acc;
 }
@@ -186,43 +220,13 @@ fn light_factor(j: u32, l: vec3<f32>, dist: f32) -> vec3<f32> {
     return light.rgb.xyz * a;
 }
 
-// proj[i] += g · Y_i(d) for a unit vector d: the recurrence of `shade`, projecting
-// an area light's sample into SH instead of dotting it with the coefficients. WGSL has
-// no closures or generics to share the recurrence, and routing `shade` through this
-// array would put 64 floats of function memory on every point light's path.
-fn project(d: vec3<f32>, g: f32, proj: ptr<function, array<f32, 64>>) {
-    let bands = setup.dims.z;
-    var cm = 1.0;
-    var sm = 0.0;
-    var pmm = 1.0;
-    for (var m = 0u; m < bands; m++) {
-        if m > 0u {
-            let c = d.x * cm - d.y * sm;
-            let s = d.x * sm + d.y * cm;
-            cm = c;
-            sm = s;
-            pmm *= -f32(2u * m - 1u);
-        }
-        var p_prev = 0.0;
-        var p_cur = pmm;
-        for (var l = m; l < bands; l++) {
-            if l == m + 1u {
-                p_prev = p_cur;
-                p_cur = f32(2u * m + 1u) * d.z * pmm;
-            } else if l > m + 1u {
-                let next = (f32(2u * l - 1u) * d.z * p_cur - f32(l + m - 1u) * p_prev) / f32(l - m);
-                p_prev = p_cur;
-                p_cur = next;
-            }
-            let base = l * (l + 1u);
-            let kp = g * (norm(l, m) * p_cur);
-            if m == 0u {
-                (*proj)[base] += kp;
-            } else {
-                (*proj)[base + m] += kp * cm;
-                (*proj)[base - m] += kp * sm;
-            }
-        }
+// proj[i] += w · b_i(d) for a unit vector d, four weights a vec4: an area light's
+// samples summed in the basis, dotted with the coefficients once.
+fn project(d: vec3<f32>, w: f32, proj: ptr<function, array<vec4<f32>, 16>>) {
+    let c = corners(d);
+    let groups = (setup.dims.y + 3u) / 4u;
+    for (var g = 0u; g < groups; g++) {
+        (*proj)[g] = fma(vec4<f32>(w), weights(c, g), (*proj)[g]);
     }
 }
 
@@ -328,8 +332,8 @@ fn cranley_patterson(pixel: u32) -> vec2<f32> {
 }
 
 // Area light j at surface point `at` of pixel p, image pixel `pixel`
-// (AreaLight::illuminate). Linear maps: the samples summed in SH, one dot with the
-// coefficients; display-referred maps: every sample's value decoded.
+// (AreaLight::illuminate). Linear maps: the samples summed in the basis, one dot with
+// the coefficients; display-referred maps: every sample's value decoded.
 fn area(j: u32, at: vec3<f32>, p: u32, pixel: u32, display: bool) -> vec3<f32> {
     let light = frame.areas[j];
     let n = light.strata.x;
@@ -342,7 +346,7 @@ fn area(j: u32, at: vec3<f32>, p: u32, pixel: u32, display: bool) -> vec3<f32> {
     let sv = 2.0 / f32(rows);
     let inv_columns = 1.0 / f32(columns);
     let tau = 6.283185307179586;
-    var proj: array<f32, 64>;
+    var proj: array<vec4<f32>, 16>;
     var total = 0.0;
     var acc = vec3<f32>(0.0);
     for (var k = 0u; k < n; k++) {
@@ -384,9 +388,9 @@ fn area(j: u32, at: vec3<f32>, p: u32, pixel: u32, display: bool) -> vec3<f32> {
         return acc;
     }
     var v = vec3<f32>(0.0);
-    let k = setup.dims.y;
-    for (var i = 0u; i < k; i++) {
-        v = fma(vec3<f32>(proj[i]), coef(i, p), v);
+    let groups = (setup.dims.y + 3u) / 4u;
+    for (var g = 0u; g < groups; g++) {
+        v += dot_group(proj[g], g, p);
     }
     return select(light.rgb.xyz * v, vec3<f32>(0.0), light.rgb.xyz == vec3<f32>(0.0));
 }

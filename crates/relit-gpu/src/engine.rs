@@ -8,13 +8,20 @@
 //! region into its own output buffer; a readback copies them, in order, into one
 //! staging buffer, which is the region's interleaved RGB image. Projector slides live
 //! in one more buffer, rewritten only when a frame's slides change.
+//!
+//! The shader knows no basis. Uniform lights arrive as weights computed here per frame
+//! ([`Basis::values`] for a directional light; an environment's weights from the
+//! library); lights with a position read the basis' [`WeightTable`] in half floats (as
+//! the CPU engine and the viewer hold it), uploaded once with the maps as a storage
+//! buffer (four weights a 64-bit load) and blended by hand: float textures are not
+//! filterable everywhere, and a hand blend is exactly `WeightTable::sample`'s.
 
 use crate::error::{invalid, GpuError, Result};
 use crate::lighting::{Lighting, MAX_K};
 use crate::roi::Roi;
 use crate::storage::{PlaneCoding, Storage, STRIDE_ALIGN};
 use bytemuck::{Pod, Zeroable};
-use relit::basis::{Basis, SphericalHarmonics, MAX_BANDS};
+use relit::basis::{Basis, TableAccuracy, WeightTable};
 use relit::camera::Camera;
 use relit::image::ImageRgb;
 use relit::light::{Light, LightRig, PreparedLight};
@@ -85,9 +92,8 @@ impl From<&wgpu::AdapterInfo> for AdapterSummary {
 #[derive(Clone, Copy, Pod, Zeroable)]
 struct SetupGpu {
     dims: [u32; 4],
-    norm: [[f32; 4]; 16],
     scale: [[f32; 4]; MAX_K],
-    bias: [[f32; 4]; MAX_K],
+    offset: [[f32; 4]; MAX_K],
 }
 
 /// Whole rows of the maps on the GPU.
@@ -141,9 +147,12 @@ pub struct GpuRelighter {
     frame: wgpu::Buffer,
     no_positions: wgpu::Buffer,
     slabs: Vec<Slab>,
+    /// The basis' weight table in half floats, for lights with a position.
+    table: wgpu::Buffer,
+    table_accuracy: TableAccuracy,
     width: usize,
     height: usize,
-    basis: SphericalHarmonics,
+    basis: Box<dyn Basis>,
     display: bool,
     storage: Storage,
     coding: PlaneCoding,
@@ -182,42 +191,36 @@ fn request_adapter(instance: &wgpu::Instance) -> Result<wgpu::Adapter> {
     })
 }
 
-/// `K_lm` (m = 0) and `√2·K_lm` (m > 0) at `l · 8 + m`, the normalisation of
-/// crates/relit/src/basis/sh.rs, in the layout of `Setup.norm`.
-fn sh_norms(bands: usize) -> [[f32; 4]; 16] {
-    let mut out = [[0f32; 4]; 16];
-    for l in 0..bands {
-        for m in 0..=l {
-            let ratio: f64 = ((l - m + 1)..=(l + m)).map(|f| 1.0 / f as f64).product();
-            let k = ((2 * l + 1) as f64 / (4.0 * std::f64::consts::PI) * ratio).sqrt();
-            let k = if m == 0 {
-                k
-            } else {
-                std::f64::consts::SQRT_2 * k
-            };
-            let j = l * MAX_BANDS + m;
-            out[j / 4][j % 4] = k as f32;
-        }
-    }
-    out
-}
-
 impl GpuRelighter {
     /// Upload `image` in `f32` storage.
     pub fn new(image: &RelightableImage) -> Result<Self> {
         Self::with_options(image, GpuOptions::default())
     }
 
-    /// Upload `image` with `options`.
+    /// Upload `image` with `options`, in the basis its metadata names.
     pub fn with_options(image: &RelightableImage, options: GpuOptions) -> Result<Self> {
+        let basis = image.meta.basis.build()?;
+        Self::with_basis(image, basis, options)
+    }
+
+    /// Upload `image` with `options`, relighting it in `basis` instead of the one its
+    /// metadata names: maps of a basis no family rebuilds (tests, experiments).
+    pub fn with_basis(
+        image: &RelightableImage,
+        basis: Box<dyn Basis>,
+        options: GpuOptions,
+    ) -> Result<Self> {
         let (width, height, k) = (image.maps.width, image.maps.height, image.maps.k);
-        let bands = SphericalHarmonics::bands_of(&image.meta.basis)
-            .ok_or_else(|| invalid("the GPU engine does not yet relight bases other than SH"))?;
-        let basis = SphericalHarmonics::new(bands)?;
-        if basis.len() != k || k > MAX_K {
+        if basis.len() != k {
             return Err(invalid(format!(
-                "the maps hold {k} coefficients but the basis has {}",
+                "the maps hold {k} coefficients but the basis {} has {}",
+                basis.name(),
                 basis.len()
+            )));
+        }
+        if k > MAX_K {
+            return Err(GpuError::Unsupported(format!(
+                "{k} coefficients per channel (the GPU engine relights at most {MAX_K})"
             )));
         }
         if width == 0 || height == 0 || image.maps.data.len() != 3 * k * width * height {
@@ -295,7 +298,7 @@ impl GpuRelighter {
                     .map_err(|e| GpuError::Device(e.to_string()))?;
                 for j in 0..3 * k {
                     let src = &image.maps.data[j * n + row0 * width..j * n + (row0 + rows) * width];
-                    storage.encode(src, coding.scale[j], coding.bias[j], &mut scratch);
+                    storage.encode(src, coding.scale[j], coding.offset[j], &mut scratch);
                     let at = j * stride * bpv as usize;
                     view.slice(at..at + scratch.len()).copy_from_slice(&scratch);
                 }
@@ -333,14 +336,39 @@ impl GpuRelighter {
             });
         }
 
+        let (table, _) = WeightTable::for_basis(basis.as_ref());
+        let table = half_rounded(&table);
+        let table_accuracy = table.accuracy(basis.as_ref());
+        let table_bytes = (table.values.len() / k.max(1) * k.div_ceil(4) * 8) as u64;
+        let binding_limit = limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size);
+        if table_bytes > binding_limit {
+            return Err(GpuError::TooLarge(format!(
+                "the weight table of {} ({} cells a side, {table_bytes} bytes) exceeds the {binding_limit}-byte buffer limit of {summary}",
+                basis.name(),
+                table.resolution
+            )));
+        }
+        let table_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("relit weight table"),
+            contents: bytemuck::cast_slice(&table_groups(&table)),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+        resident_bytes += table_buffer.size();
+
         let mut setup = SetupGpu::zeroed();
         let display = image.meta.color_space == MapSpace::Srgb;
-        setup.dims = [width as u32, k as u32, bands as u32, display as u32];
-        setup.norm = sh_norms(bands);
+        setup.dims = [
+            width as u32,
+            k as u32,
+            table.resolution as u32,
+            display as u32,
+        ];
         for i in 0..k {
             for c in 0..3 {
                 setup.scale[i][c] = coding.scale[3 * i + c];
-                setup.bias[i][c] = coding.bias[3 * i + c];
+                setup.offset[i][c] = coding.offset[3 * i + c];
             }
         }
         let setup = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -394,6 +422,7 @@ impl GpuRelighter {
                 entry(4, read),
                 entry(5, wgpu::BufferBindingType::Storage { read_only: false }),
                 entry(6, read),
+                entry(7, read),
             ],
         });
         let shared = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -435,6 +464,8 @@ impl GpuRelighter {
             frame,
             no_positions,
             slabs,
+            table: table_buffer,
+            table_accuracy,
             width,
             height,
             basis,
@@ -467,7 +498,7 @@ impl GpuRelighter {
         self.storage
     }
 
-    /// Bytes resident on the GPU for the maps and surface points.
+    /// Bytes resident on the GPU for the maps, the surface points and the weight table.
     pub fn resident_bytes(&self) -> u64 {
         self.resident_bytes
     }
@@ -475,6 +506,18 @@ impl GpuRelighter {
     /// Slabs the maps were cut into.
     pub fn slab_count(&self) -> usize {
         self.slabs.len()
+    }
+
+    /// The basis the maps are relit in.
+    pub fn basis(&self) -> &dyn Basis {
+        self.basis.as_ref()
+    }
+
+    /// How closely the weight table that lights with a position read reproduces the
+    /// basis (`WeightTable::for_basis`, in half floats: its resolution and measured
+    /// error).
+    pub fn table_accuracy(&self) -> TableAccuracy {
+        self.table_accuracy
     }
 
     /// An empty lighting for this engine, to which uniform lights (environment
@@ -735,6 +778,7 @@ impl GpuRelighter {
                 positions,
                 &out,
                 &slides,
+                &self.table,
             ];
             let entries: Vec<wgpu::BindGroupEntry> = buffers
                 .iter()
@@ -806,6 +850,42 @@ impl GpuRelighter {
     }
 }
 
+/// `table` with every weight rounded to a half float: what the shader reads, as the CPU
+/// engine's table kernel and the browser viewer do, so that every back end relights
+/// with the same weights (the rounding is within the table's measured accuracy, which
+/// is taken after it). Half the bytes are also faster: on lavapipe at 1024×256, k = 25,
+/// 95 ms of CPU per point-light frame and 560 per 16-sample area light, against 106 and
+/// 627 with the table in f32 (`examples/frame_cpu.rs`).
+fn half_rounded(table: &WeightTable) -> WeightTable {
+    WeightTable {
+        values: table
+            .values
+            .iter()
+            .map(|&v| half::f16::from_f32(v).to_f32())
+            .collect(),
+        ..table.clone()
+    }
+}
+
+/// The table as relight.wgsl reads it: each vertex's weights in groups of four half
+/// floats (two `u32`, the lower half first), zero past `k`, so that one load fetches
+/// four weights.
+fn table_groups(table: &WeightTable) -> Vec<[u32; 2]> {
+    let k = table.k;
+    let half = |w: &[f32], q: usize| {
+        half::f16::from_f32(w.get(q).copied().unwrap_or(0.0)).to_bits() as u32
+    };
+    let mut out = Vec::with_capacity(table.values.len() / k.max(1) * k.div_ceil(4));
+    for vertex in table.values.chunks_exact(k) {
+        out.extend(
+            vertex
+                .chunks(4)
+                .map(|w| [half(w, 0) | half(w, 1) << 16, half(w, 2) | half(w, 3) << 16]),
+        );
+    }
+    out
+}
+
 /// A buffer for `bytes` of projector slides.
 fn slide_buffer(device: &wgpu::Device, bytes: u64) -> wgpu::Buffer {
     device.create_buffer(&wgpu::BufferDescriptor {
@@ -821,8 +901,20 @@ fn positions_source(image: &RelightableImage) -> std::result::Result<Camera, Str
     let depth = image.depth.as_ref().ok_or_else(|| {
         "lights with a position need a depth map: fit a capture that has one (a manifest `depth`, or `relit capture`)".to_string()
     })?;
-    let camera = relit::engine::Relighter::new(image)
-        .and_then(|r| r.camera())
+    // The stored camera, or the projection at the default pose (Relighter::camera); not
+    // through a Relighter, which would rebuild the basis from the metadata.
+    let meta = &image.meta;
+    let camera = meta
+        .camera
+        .clone()
+        .unwrap_or(relit::camera::CameraSpec {
+            projection: meta.projection.clone(),
+            width: image.width(),
+            height: image.height(),
+            pose: Default::default(),
+            orthographic_height: None,
+        })
+        .build()
         .map_err(|e| e.to_string())?;
     if depth.len() != camera.width() * camera.height()
         || camera.width() != image.width()
@@ -838,69 +930,4 @@ fn positions_source(image: &RelightableImage) -> std::result::Result<Camera, Str
         ));
     }
     Ok(camera)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use relit::sphere::{fibonacci, Vec3};
-
-    /// The recurrence of relight.wgsl's `shade`, transcribed in f32 with the same norm
-    /// table, returning the basis values instead of their dot product.
-    fn shader_basis(bands: usize, norm: &[[f32; 4]; 16], d: [f32; 3]) -> Vec<f32> {
-        let [x, y, z] = d;
-        let mut out = vec![0f32; bands * bands];
-        let (mut cm, mut sm, mut pmm) = (1f32, 0f32, 1f32);
-        for m in 0..bands {
-            if m > 0 {
-                let (c, s) = (x * cm - y * sm, x * sm + y * cm);
-                cm = c;
-                sm = s;
-                pmm *= -((2 * m - 1) as f32);
-            }
-            let (mut p_prev, mut p_cur) = (0f32, pmm);
-            for l in m..bands {
-                if l == m + 1 {
-                    p_prev = p_cur;
-                    p_cur = (2 * m + 1) as f32 * z * pmm;
-                } else if l > m + 1 {
-                    let next = ((2 * l - 1) as f32 * z * p_cur - (l + m - 1) as f32 * p_prev)
-                        / (l - m) as f32;
-                    p_prev = p_cur;
-                    p_cur = next;
-                }
-                let j = l * MAX_BANDS + m;
-                let kp = norm[j / 4][j % 4] * p_cur;
-                let base = l * (l + 1);
-                if m == 0 {
-                    out[base] = kp;
-                } else {
-                    out[base + m] = kp * cm;
-                    out[base - m] = kp * sm;
-                }
-            }
-        }
-        out
-    }
-
-    /// |Y| ≤ 1.2 for 8 bands; f32 recurrences keep ~1e-6 relative accuracy.
-    const SHADER_BASIS_TOLERANCE: f64 = 2e-5;
-
-    #[test]
-    fn the_shader_recurrence_equals_the_cpu_basis_for_every_band() {
-        for bands in 1..=MAX_BANDS {
-            let sh = SphericalHarmonics::new(bands).unwrap();
-            let norm = sh_norms(bands);
-            for d in fibonacci(50).into_iter().chain([Vec3::new(0.0, 0.0, -1.0)]) {
-                let want = sh.values(d);
-                let got = shader_basis(bands, &norm, [d.x as f32, d.y as f32, d.z as f32]);
-                for (i, (g, w)) in got.iter().zip(&want).enumerate() {
-                    assert!(
-                        (*g as f64 - w).abs() < SHADER_BASIS_TOLERANCE,
-                        "bands {bands}, Y{i}: {g} vs {w}"
-                    );
-                }
-            }
-        }
-    }
 }

@@ -1,11 +1,15 @@
 //! # relit-gpu — relighting on a GPU with wgpu compute shaders
 //!
-//! [`GpuRelighter`] uploads a [`relit::maps::RelightableImage`] once and relights it
-//! with directional, point, spot, projector and area lights, or with any folded
-//! weight vector (an environment light's
-//! `relit::envmap::EnvironmentLight::light_weights`), over the whole image or a region
-//! of interest. Results equal the CPU engine's
-//! ([`relit::engine::relight`]) to f32 rounding; the tests state the bound.
+//! [`GpuRelighter`] uploads a [`relit::maps::RelightableImage`] of any basis once and
+//! relights it with directional, point, spot, projector and area lights, or with any
+//! folded weight vector (an environment light's, from
+//! `relit::engine::Relighter::environment_weights`), over the whole image or a region
+//! of interest. Directional and environment frames equal the CPU engine's
+//! ([`relit::engine::relight`]) to f32 rounding; lights with a position read the
+//! basis' `relit::basis::WeightTable` in half floats (as the CPU engine's table path
+//! and the browser viewer do), and equal a per-pixel evaluation with that table to f32
+//! rounding (and the basis itself within the table's measured error). The tests state
+//! the bounds.
 //!
 //! ```no_run
 //! # fn main() -> Result<(), relit_gpu::GpuError> {
@@ -20,10 +24,11 @@
 //! The kernel is `shaders/relight.wgsl`; one `shaders/fetch_*.wgsl` per [`Storage`]
 //! type supplies how a stored value is read. Frames of linear maps cost one pass over
 //! the planes whatever the number of uniform lights (they fold into one weight per
-//! plane, as on the CPU); positional lights evaluate the SH basis per pixel with the
-//! trig-free recurrence of `relit::basis::SphericalHarmonics`, in f32; projectors
-//! sample their slide as the CPU engine does, area lights take the CPU engine's
-//! stratified samples with the same per-pixel shift (its 64-bit hash, exactly).
+//! plane, as on the CPU); positional lights take the basis' weights at each pixel's
+//! light vector from its weight table (the bilinear lookup of
+//! `relit::basis::WeightTable::sample`, in f32); projectors sample their slide as the
+//! CPU engine does, area lights take the CPU engine's stratified samples with the same
+//! per-pixel shift (its 64-bit hash, exactly).
 
 mod engine;
 mod error;

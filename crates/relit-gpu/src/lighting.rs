@@ -16,7 +16,7 @@ use relit::light::{AreaLight, AreaShape, Attenuation, PreparedLight, ProjectorLi
 use relit::sphere::Vec3;
 use std::sync::Arc;
 
-/// The most SH coefficients a pass holds (8 bands).
+/// The most coefficients per colour channel (the shader's arrays hold 64).
 pub const MAX_K: usize = 64;
 /// The most uniform passes per frame (only display-referred maps need more than one).
 pub const MAX_PASSES: usize = 16;
@@ -285,7 +285,8 @@ impl Lighting {
         out
     }
 
-    /// The shader's `Frame`, with the storage's per-plane coding folded into the passes.
+    /// The shader's `Frame`, with the storage's per-plane coding folded into the passes:
+    /// `Σ_i w_i (offset_i + scale_i q_i) = Σ_i (w_i scale_i) q_i + Σ_i w_i offset_i`.
     pub(crate) fn to_gpu(&self, coding: &PlaneCoding) -> Result<Box<FrameGpu>> {
         let uniform: Vec<(&[Vec<f64>; 3], [f64; 3])> = match &self.folded {
             Some(w) => vec![(w, [1.0; 3])],
@@ -328,7 +329,7 @@ impl Lighting {
                 for i in 0..self.k {
                     let j = 3 * i + c;
                     dst.w[i][c] = (weights[c][i] * coding.scale[j] as f64) as f32;
-                    offset[c] += weights[c][i] * coding.bias[j] as f64;
+                    offset[c] += weights[c][i] * coding.offset[j] as f64;
                 }
                 dst.offset[c] = offset[c] as f32;
                 dst.tint[c] = tint[c] as f32;
@@ -425,7 +426,7 @@ mod tests {
     fn linear_maps_fold_uniform_lights_into_one_pass() {
         let coding = PlaneCoding {
             scale: vec![2.0; 3],
-            bias: vec![0.5; 3],
+            offset: vec![0.5; 3],
         };
         let mut l = Lighting::new(1, false);
         l.add_uniform([vec![1.0], vec![2.0], vec![3.0]], [1.0, 1.0, 0.5])
@@ -434,7 +435,7 @@ mod tests {
             .unwrap();
         let f = l.to_gpu(&coding).unwrap();
         assert_eq!(f.counts[0], 1);
-        // weights (2, 2, 2.5), times scale 2; offsets weights × bias.
+        // weights (2, 2, 2.5), times scale 2; offsets weights × offset.
         assert_eq!(&f.passes[0].w[0][..3], &[4.0, 4.0, 5.0]);
         assert_eq!(&f.passes[0].offset[..3], &[1.0, 1.0, 1.25]);
         assert!(l
@@ -446,7 +447,7 @@ mod tests {
     fn display_maps_keep_one_pass_per_light_up_to_the_limit() {
         let coding = PlaneCoding {
             scale: vec![1.0; 3],
-            bias: vec![0.0; 3],
+            offset: vec![0.0; 3],
         };
         let mut l = Lighting::new(1, true);
         for _ in 0..MAX_PASSES {

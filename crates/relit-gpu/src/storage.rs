@@ -1,10 +1,15 @@
 //! How coefficient values are stored on the GPU, and the per-plane affine coding that
-//! turns stored values back into coefficients: `value = scale · stored + bias`.
+//! turns a stored number `q` back into a coefficient: `value = offset + scale · q`, the
+//! meaning the CPU engine's planes (`relit::engine::PlaneStorage`) and the browser
+//! viewer's layers give it too.
 //!
 //! `f32` stores the maps exactly; `f16` halves the bytes streamed per frame (about
-//! 3 significant digits, relative error ≤ 2⁻¹¹); `unorm8` quarters them with a per-plane
-//! scale and bias (the plane's range in 255 steps). Planes are padded to a stride of
-//! [`STRIDE_ALIGN`] pixels so that packed words never straddle two planes.
+//! 3 significant digits, relative error ≤ 2⁻¹¹); in both `q` is the value itself (scale
+//! 1, offset 0). `unorm8` quarters the bytes: `q` is an integer code 0–255, `offset` the
+//! plane's least finite value and `scale` one step of its range in 255 steps, exactly
+//! as the CPU engine quantises (so both engines relight the same 8-bit planes). Planes
+//! are padded to a stride of [`STRIDE_ALIGN`] pixels so that packed words never
+//! straddle two planes.
 
 use half::slice::HalfFloatSliceExt;
 use relit::maps::CoefficientMaps;
@@ -21,7 +26,7 @@ pub enum Storage {
     F32,
     /// IEEE half floats, two pixels per 32-bit word.
     F16,
-    /// 8-bit unsigned normalised with a per-plane scale and bias, four pixels per word.
+    /// 8-bit integer codes with a per-plane scale and offset, four pixels per word.
     Unorm8,
 }
 
@@ -69,11 +74,11 @@ impl Storage {
         match self {
             Storage::F32 | Storage::F16 => PlaneCoding {
                 scale: vec![1.0; planes],
-                bias: vec![0.0; planes],
+                offset: vec![0.0; planes],
             },
             Storage::Unorm8 => {
                 let n = maps.pixels();
-                let (scale, bias) = (0..planes)
+                let (scale, offset) = (0..planes)
                     .map(|j| {
                         let plane = &maps.data[j * n..(j + 1) * n];
                         let (lo, hi) = plane
@@ -82,20 +87,16 @@ impl Storage {
                             .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
                                 (lo.min(v), hi.max(v))
                             });
-                        if lo <= hi {
-                            (hi - lo, lo)
-                        } else {
-                            (0.0, 0.0)
-                        }
+                        u8_coding(lo, hi)
                     })
                     .unzip();
-                PlaneCoding { scale, bias }
+                PlaneCoding { scale, offset }
             }
         }
     }
 
     /// Encode `values` (one plane's run of pixels) into little-endian stored bytes.
-    pub(crate) fn encode(self, values: &[f32], scale: f32, bias: f32, out: &mut Vec<u8>) {
+    pub(crate) fn encode(self, values: &[f32], scale: f32, offset: f32, out: &mut Vec<u8>) {
         out.clear();
         match self {
             Storage::F32 => out.extend_from_slice(bytemuck::cast_slice(values)),
@@ -105,12 +106,12 @@ impl Storage {
                 out.extend(halves.iter().flat_map(|h| h.to_le_bytes()));
             }
             Storage::Unorm8 => {
-                let inv = if scale > 0.0 { 255.0 / scale } else { 0.0 };
+                let inv = if scale > 0.0 { 1.0 / scale } else { 0.0 };
                 // Float-to-int casts saturate (NaN gives 0).
                 out.extend(
                     values
                         .iter()
-                        .map(|&v| ((v - bias) * inv).round().clamp(0.0, 255.0) as u8),
+                        .map(|&v| ((v - offset) * inv).round().clamp(0.0, 255.0) as u8),
                 );
             }
         }
@@ -123,8 +124,8 @@ impl Storage {
         let mut out = maps.clone();
         let mut bytes = Vec::new();
         for (j, plane) in out.data.chunks_mut(n.max(1)).enumerate() {
-            let (scale, bias) = (coding.scale[j], coding.bias[j]);
-            self.encode(plane, scale, bias, &mut bytes);
+            let (scale, offset) = (coding.scale[j], coding.offset[j]);
+            self.encode(plane, scale, offset, &mut bytes);
             match self {
                 Storage::F32 => {}
                 Storage::F16 => {
@@ -134,7 +135,7 @@ impl Storage {
                 }
                 Storage::Unorm8 => {
                     for (v, &q) in plane.iter_mut().zip(&bytes) {
-                        *v = (q as f32 / 255.0).mul_add(scale, bias);
+                        *v = (q as f32).mul_add(scale, offset);
                     }
                 }
             }
@@ -143,11 +144,26 @@ impl Storage {
     }
 }
 
-/// Stored-to-coefficient coding of every plane (`3k` entries, plane `3i + c`).
+/// The 8-bit coding `(scale, offset)` of a plane whose finite values span `[lo, hi]`
+/// (`lo > hi` when it has none): the range in 255 steps from its least value. The same
+/// rule as the CPU engine's `u8_coding` (crates/relit/src/engine/planes.rs), which the
+/// tests hold the GPU's 8-bit frames to.
+fn u8_coding(lo: f32, hi: f32) -> (f32, f32) {
+    if lo < hi {
+        ((hi - lo) / 255.0, lo)
+    } else if lo == hi {
+        (0.0, lo)
+    } else {
+        (0.0, 0.0)
+    }
+}
+
+/// Stored-to-coefficient coding of every plane (`3k` entries, plane `3i + c`):
+/// `value = offset + scale · q` for the stored number `q`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PlaneCoding {
     pub scale: Vec<f32>,
-    pub bias: Vec<f32>,
+    pub offset: Vec<f32>,
 }
 
 #[cfg(test)]
@@ -187,7 +203,7 @@ mod tests {
         let q = Storage::Unorm8.round_trip(&maps);
         let n = maps.pixels();
         for (i, (a, b)) in q.data.iter().zip(&maps.data).enumerate() {
-            let step = coding.scale[i / n] / 255.0;
+            let step = coding.scale[i / n];
             assert!((a - b).abs() <= 0.5 * step + 1e-6, "{a} vs {b}");
         }
     }

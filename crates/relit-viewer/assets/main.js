@@ -4,7 +4,7 @@
 import { Renderer } from './renderer.js';
 import { Panel } from './panel.js';
 import { newLight, checkRig, rigOfFile, rigToJson, areaCenter } from './lights.js';
-import { normalize, sub } from './sh.js';
+import { normalize, sub } from './vec.js';
 
 const $ = (id) => document.getElementById(id);
 const params = new URLSearchParams(location.search);
@@ -239,7 +239,7 @@ async function start() {
   try {
     renderer = new Renderer(canvasEl);
     const info = await renderer.load(app.base);
-    $('source').textContent = `${info.source} · ${info.width}×${info.height} · k=${info.k} · ${info.projection.type} · ${info.storage}`;
+    $('source').textContent = `${info.source} · ${info.width}×${info.height} · ${info.basis.name} · ${info.projection.type} · ${info.storage}`;
     panel = new Panel(app, $('lights'));
     app.renderer = renderer;
     app.info = info;

@@ -1,7 +1,7 @@
 // The light panel: one card per light of the rig, bound to the rig's JSON objects.
 import { TYPES, newLight, convertArea } from './lights.js';
 import { diskFrame, MAX_AREA_SAMPLES } from './renderer.js';
-import { normalize } from './sh.js';
+import { normalize } from './vec.js';
 
 const h = (tag, attrs = {}, ...children) => {
   const el = document.createElement(tag);
@@ -100,9 +100,13 @@ export class Panel {
         range.addEventListener('input', () => { light[key] = Number(range.value); out.value = range.value; app.changed(false); });
         card.append(h('label', {}, key.replace('_deg', '') + ' ', range, ' ', out));
       }
-      const win = h('select', { 'data-field': 'window' }, ['none', 'hann', 'lanczos', 'laplacian'].map(t => h('option', { value: t, selected: (light.window || {}).type === t }, t)));
+      // Windows scale a basis' bands; a file whose basis has none carries no factors
+      // (info.basis.windows), and the control says why it is off.
+      const basis = app.info.basis;
+      const win = h('select', { 'data-field': 'window', disabled: !basis.windows }, ['none', 'hann', 'lanczos', 'laplacian'].map(t => h('option', { value: t, selected: ((light.window || {}).type || 'none') === t }, t)));
       win.addEventListener('change', () => { light.window = { type: win.value }; app.changed(false); });
       card.append(h('label', {}, 'window ', win));
+      if (!basis.windows) card.append(h('p', { class: 'hint', 'data-hint': 'window' }, `Windows scale a basis' bands against ringing; ${basis.name} has none, so no window applies.`));
     }
     return card;
   }

@@ -2,8 +2,10 @@
 // Lazy relighting: every frame, each pixel on screen finds the source pixel it shows and
 // relights it from the coefficient layers (crates/relit-viewer/src/bundle.rs): one
 // weight vec4 per layer for every light with one light vector (directional and
-// environment lights folded on the CPU), and per-pixel SH for lights with a position,
-// L = S − P with P = O + d·V from the file's camera and depth, as the CPU engine does.
+// environment lights folded on the CPU), and for lights with a position the basis'
+// weights at each pixel's own light vector, L = S − P with P = O + d·V from the file's
+// camera and depth, as the CPU engine does. The shader knows no basis: it reads the
+// weights from the basis' weight table (uTable), as table.js does.
 precision highp float;
 precision highp int;
 precision highp sampler2DArray;
@@ -13,17 +15,21 @@ precision highp sampler2DArray;
 #define MAX_AREA_SAMPLES 64
 
 uniform highp sampler2DArray uPlanes;
+// The weight table (half floats, the values table.js reads): texel (i, j) of layer l
+// holds weights 4l … 4l+3 of vertex (i, j) of the (N+1)×(N+1) octahedral grid
+// (crates/relit/src/basis/table.rs).
+uniform highp sampler2DArray uTable;
+uniform int uTableN;            // cells per side N
 uniform highp sampler2D uDepth;
 uniform sampler2D uSlide0;
 uniform sampler2D uSlide1;
 uniform sampler2D uSlide2;
 uniform sampler2D uSlide3;
 
-// N_LAYERS (layers per colour channel) and BANDS are defined by renderer.js when it
-// compiles the shader for a file, so that every loop has constant bounds.
-uniform float uNorm[64];        // SH normalisation, index l*8+m
-uniform vec4 uScale[MAX_LAYERS];
-uniform vec4 uBias[MAX_LAYERS];
+// N_LAYERS (layers per colour channel) is defined by renderer.js when it compiles the
+// shader for a file, so that every loop has constant bounds.
+uniform vec4 uScale[MAX_LAYERS];// value = uOffset + uScale · texel, per layer component
+uniform vec4 uOffset[MAX_LAYERS];
 uniform vec4 uW[MAX_LAYERS];    // folded uniform lights, per layer
 uniform bool uHasUniform;
 uniform bool uDisplay;          // display-referred (sRGB) maps
@@ -124,31 +130,21 @@ vec3 surfacePoint(vec2 at, float d) {
   return uEye + uPose * (o + d * v);
 }
 
-// Y_i(L) packed four per vec4 (crates/relit/src/basis/sh.rs).
-void evalSh(vec3 L, out vec4 Y[N_LAYERS]) {
-  float y[4 * N_LAYERS];
-  for (int i = 0; i < 4 * N_LAYERS; i++) y[i] = 0.0;
-  float cm = 1.0, sm = 0.0, pmm = 1.0;
-  for (int m = 0; m < BANDS; m++) {
-    if (m > 0) {
-      float c = L.x * cm - L.y * sm, s = L.x * sm + L.y * cm;
-      cm = c; sm = s;
-      pmm *= -float(2 * m - 1);
-    }
-    float pPrev = 0.0, pCur = pmm;
-    for (int l = m; l < BANDS; l++) {
-      if (l == m + 1) { pPrev = pCur; pCur = float(2 * m + 1) * L.z * pmm; }
-      else if (l > m + 1) {
-        float next = (float(2 * l - 1) * L.z * pCur - float(l + m - 1) * pPrev) / float(l - m);
-        pPrev = pCur; pCur = next;
-      }
-      int base = l * (l + 1);
-      float k = uNorm[l * 8 + m];
-      if (m == 0) y[base] = k * pCur;
-      else { y[base + m] = k * pCur * cm; y[base - m] = k * pCur * sm; }
-    }
+float foldSign(float v) { return v < 0.0 ? -1.0 : 1.0; }
+
+// The basis' weights at unit light vector L, four per vec4: the bilinear blend of the
+// table's four vertices around L (table.js `corners` and `sample`, WeightTable in
+// crates/relit/src/basis/table.rs).
+void basisWeights(vec3 L, out vec4 Y[N_LAYERS]) {
+  vec2 p = L.xy / (abs(L.x) + abs(L.y) + abs(L.z));
+  if (L.z < 0.0) p = (1.0 - abs(p.yx)) * vec2(foldSign(p.x), foldSign(p.y));
+  vec2 x = (0.5 * p + 0.5) * float(uTableN);
+  ivec2 i = min(ivec2(max(floor(x), 0.0)), ivec2(uTableN - 1));
+  vec2 f = x - vec2(i), g = 1.0 - f;
+  for (int l = 0; l < N_LAYERS; l++) {
+    Y[l] = g.x * g.y * texelFetch(uTable, ivec3(i, l), 0) + f.x * g.y * texelFetch(uTable, ivec3(i.x + 1, i.y, l), 0)
+         + g.x * f.y * texelFetch(uTable, ivec3(i.x, i.y + 1, l), 0) + f.x * f.y * texelFetch(uTable, ivec3(i + 1, l), 0);
   }
-  for (int j = 0; j < N_LAYERS; j++) Y[j] = vec4(y[4 * j], y[4 * j + 1], y[4 * j + 2], y[4 * j + 3]);
 }
 
 float attenuation(int i, float d) {
@@ -250,9 +246,9 @@ void main() {
     // covers a screen pixel or more. The planes texture repeats horizontally on
     // panoramas and clamps otherwise.
     vec2 uv = pos / uImage;
-    for (int l = 0; l < 3 * N_LAYERS; l++) C[l] = uBias[l] + uScale[l] * textureLod(uPlanes, vec3(uv, float(l)), lod);
+    for (int l = 0; l < 3 * N_LAYERS; l++) C[l] = uOffset[l] + uScale[l] * textureLod(uPlanes, vec3(uv, float(l)), lod);
   } else {
-    for (int l = 0; l < 3 * N_LAYERS; l++) C[l] = uBias[l] + uScale[l] * texelFetch(uPlanes, ivec3(t, l), 0);
+    for (int l = 0; l < 3 * N_LAYERS; l++) C[l] = uOffset[l] + uScale[l] * texelFetch(uPlanes, ivec3(t, l), 0);
   }
 
   vec3 col = vec3(0.0);
@@ -278,7 +274,7 @@ void main() {
       if (type >= 4) {
         // An area light (AreaLight::illuminate): n stratified samples of the emitter,
         // the strata shifted per source pixel; each sample a light vector of weight
-        // area/n · cos θ_e / r². Linear maps: the samples summed in SH, one dot;
+        // area/n · cos θ_e / r². Linear maps: the samples' weights summed, one dot;
         // display-referred maps: every sample's value decoded, as the CPU engine does.
         if (!hasPoint) continue;
         int columns = int(uLCone[i].x + 0.5), rows = int(uLCone[i].y + 0.5), n = int(uLCone[i].z + 0.5);
@@ -307,7 +303,7 @@ void main() {
           if (twoSided) cosE = abs(cosE);
           if (cosE <= 0.0) continue;
           float g = uLAtt[i].x * cosE / r2;
-          evalSh(l, Y);
+          basisWeights(l, Y);
           if (uDisplay) {
             vec3 e = vec3(0.0);
             for (int q = 0; q < N_LAYERS; q++) {
@@ -358,7 +354,7 @@ void main() {
         }
         rgb *= attenuation(i, dist);
       }
-      evalSh(L, Y);
+      basisWeights(L, Y);
       vec3 v = vec3(0.0);
       for (int j = 0; j < N_LAYERS; j++) {
         v.r += dot(C[j], Y[j]);

@@ -1,10 +1,14 @@
 // WebGL2 renderer: coefficient layers in a texture array, relit per screen pixel by
 // relight.frag. Also the CPU-side geometry (screen -> source pixel -> surface point)
 // used to place lights by clicking.
-import { shNorm, shEval, normalize, cross, dot, sub, environmentWeights, rotationYawPitchRoll } from './sh.js';
+import { normalize, cross, rotationYawPitchRoll } from './vec.js';
+import { weightTable, halvesToFloats, sample } from './table.js';
+import { environmentWeights, windowFactors } from './environment.js';
 import { lightRgb, attenuationOf } from './lights.js';
 
 const MAX_LIGHTS = 8, MAX_SLIDES = 4;
+/** Texture units: planes, depth, the slides, the weight table. */
+const TABLE_UNIT = 2 + MAX_SLIDES;
 /** Samples per area light the shader takes at most (relight.frag MAX_AREA_SAMPLES). */
 export const MAX_AREA_SAMPLES = 64;
 
@@ -68,8 +72,9 @@ export class Renderer {
     const gl = this.gl;
     const [vs, fs, info] = await Promise.all([fetchOk('quad.vert', 'text'), fetchOk('relight.frag', 'text'), fetchOk(base + 'info.json', 'json')]);
     if (info.format !== 'relit-web') throw new Error('info.json is not a relit-web bundle');
+    if (info.version !== 2) throw new Error(`info.json is version ${info.version} of the relit-web format; this viewer reads version 2`);
     this.info = info;
-    const defines = `#version 300 es\n#define N_LAYERS ${info.layers_per_channel}\n#define BANDS ${info.bands}\n`;
+    const defines = `#version 300 es\n#define N_LAYERS ${info.layers_per_channel}\n`;
     this.program = this.compile(vs, fs.replace('#version 300 es\n', defines));
     this.uniforms = {};
     const n = gl.getProgramParameter(this.program, gl.ACTIVE_UNIFORMS);
@@ -136,10 +141,36 @@ export class Renderer {
     gl.bindTexture(gl.TEXTURE_2D, this.dummySlide);
     gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA8, 1, 1, 0, gl.RGBA, gl.UNSIGNED_BYTE, new Uint8Array([255, 255, 255, 255]));
     this.setNearest(gl.TEXTURE_2D);
+    await this.loadTable(base);
+    this.environments = new Map(await Promise.all((info.environments || []).map(async (e) => {
+      const lights = new Float32Array(await fetchOk(base + e.file, 'buffer'));
+      if (lights.length !== 6 * e.lights) throw new Error(`${e.file}: ${lights.length} values, expected ${6 * e.lights}`);
+      return [e.map, lights];
+    })));
     this.setupCamera();
-    this.norm = shNorm(info.bands);
     this.vao = gl.createVertexArray();
     return info;
+  }
+
+  /** The basis' weight table (half floats): decoded for directional and environment
+   *  lights, and uploaded as it is for the shader, an RGBA16F array of four weights a
+   *  texel, one layer per four coefficients (the layout of the coefficient layers), so
+   *  that both read the same values. */
+  async loadTable(base) {
+    const gl = this.gl, info = this.info, wt = info.weights, k = info.k, n = info.layers_per_channel;
+    if (wt.format !== 'f16le') throw new Error(`weight table format ${wt.format}`);
+    const bits = new Uint16Array(await fetchOk(base + wt.file, 'buffer'));
+    this.table = weightTable(wt.resolution, k, halvesToFloats(bits));
+    const side = wt.resolution + 1;
+    const texels = new Uint16Array(4 * side * side * n);
+    for (let v = 0; v < side * side; v++) {
+      for (let i = 0; i < k; i++) texels[4 * ((i >> 2) * side * side + v) + (i & 3)] = bits[v * k + i];
+    }
+    this.tableTex = gl.createTexture();
+    gl.activeTexture(gl.TEXTURE0 + TABLE_UNIT);
+    gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.tableTex);
+    gl.texImage3D(gl.TEXTURE_2D_ARRAY, 0, gl.RGBA16F, side, side, n, 0, gl.RGBA, gl.HALF_FLOAT, texels);
+    this.setNearest(gl.TEXTURE_2D_ARRAY);
   }
 
   wrapsColumns(info) {
@@ -311,18 +342,19 @@ export class Renderer {
     bmp.close();
   }
 
-  environment(name) {
-    return (this.info.environments || []).find(e => e.map === name);
-  }
-
-  envWeights(light) {
-    const env = this.environment(light.map);
+  /** An environment light's weights (colour aside): its quadrature turned by
+   *  yaw/pitch/roll, times the window's factors (`window`: those of environment.js
+   *  `windowFactors`, or null). */
+  envWeights(light, window) {
+    const env = this.environments.get(light.map);
     if (!env) return null;
-    const key = JSON.stringify([light.map, light.yaw_deg || 0, light.pitch_deg || 0, light.roll_deg || 0, light.window || null]);
+    const key = JSON.stringify([light.map, light.yaw_deg || 0, light.pitch_deg || 0, light.roll_deg || 0, window]);
     if (!this.envCache.has(key)) {
       if (this.envCache.size > 64) this.envCache.clear();
       const R = rotationYawPitchRoll(light.yaw_deg || 0, light.pitch_deg || 0, light.roll_deg || 0);
-      this.envCache.set(key, environmentWeights(env.coefficients, this.info.bands, R, light.window));
+      const e = environmentWeights(this.table, env, R);
+      if (window) for (const w of e) for (let i = 0; i < w.length; i++) w[i] *= window[i];
+      this.envCache.set(key, e);
     }
     return this.envCache.get(key);
   }
@@ -330,7 +362,7 @@ export class Renderer {
   /** Turn a rig into shader uniforms: uniform lights folded into one weight per plane,
    *  lights with a position passed one by one. */
   prepare(rig) {
-    const info = this.info, k = info.k, n = info.layers_per_channel, bands = info.bands;
+    const info = this.info, k = info.k, n = info.layers_per_channel;
     const display = info.color_space === 'srgb';
     const w = [new Float64Array(k), new Float64Array(k), new Float64Array(k)];
     let hasUniform = false;
@@ -342,11 +374,13 @@ export class Renderer {
         const L = normalize(light.direction);
         if (!L) { warnings.push(`light ${idx + 1}: zero direction`); return; }
         if (display) { pos.push({ type: 0, dir: L, rgb }); return; }
-        const y = shEval(bands, L, this.norm);
+        const y = sample(this.table, L);
         for (let c = 0; c < 3; c++) for (let i = 0; i < k; i++) w[c][i] += rgb[c] * y[i];
         hasUniform = true;
       } else if (light.type === 'environment') {
-        const e = this.envWeights(light);
+        let window;
+        try { window = windowFactors(info.basis.windows, light.window, info.basis.name); } catch (err) { warnings.push(`light ${idx + 1}: ${err.message}`); return; }
+        const e = this.envWeights(light, window);
         if (!e) { warnings.push(`light ${idx + 1}: environment map “${light.map}” is not in this bundle`); return; }
         for (let c = 0; c < 3; c++) for (let i = 0; i < k; i++) w[c][i] += rgb[c] * e[c][i];
         hasUniform = true;
@@ -438,11 +472,15 @@ export class Renderer {
       gl.bindTexture(gl.TEXTURE_2D, slideTex[s] ? slideTex[s].tex : this.dummySlide);
       set('uSlide' + s, 'uniform1i', 2 + s);
     }
-    set('uNorm', 'uniform1fv', new Float32Array(this.norm));
-    const scale = new Float32Array(4 * 3 * n), bias = new Float32Array(4 * 3 * n);
-    info.layers.forEach((l, i) => { scale.set(l.scale, 4 * i); bias.set(l.bias, 4 * i); });
+    gl.activeTexture(gl.TEXTURE0 + TABLE_UNIT); gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.tableTex);
+    set('uTable', 'uniform1i', TABLE_UNIT);
+    set('uTableN', 'uniform1i', this.table.n);
+    // value = offset + scale · q; an 8-bit layer's sampler returns q / 255.
+    const perTexel = info.storage === 'u8' ? 255 : 1;
+    const scale = new Float32Array(4 * 3 * n), offset = new Float32Array(4 * 3 * n);
+    info.layers.forEach((l, i) => { scale.set(l.scale.map(s => s * perTexel), 4 * i); offset.set(l.offset, 4 * i); });
     set('uScale', 'uniform4fv', scale);
-    set('uBias', 'uniform4fv', bias);
+    set('uOffset', 'uniform4fv', offset);
     set('uW', 'uniform4fv', p.uw);
     set('uHasUniform', 'uniform1i', p.hasUniform ? 1 : 0);
     set('uDisplay', 'uniform1i', p.display ? 1 : 0);

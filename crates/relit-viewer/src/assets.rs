@@ -24,9 +24,19 @@ pub const ASSETS: &[(&str, &str, &str)] = &[
         include_str!("../assets/renderer.js"),
     ),
     (
-        "sh.js",
+        "vec.js",
         "text/javascript; charset=utf-8",
-        include_str!("../assets/sh.js"),
+        include_str!("../assets/vec.js"),
+    ),
+    (
+        "table.js",
+        "text/javascript; charset=utf-8",
+        include_str!("../assets/table.js"),
+    ),
+    (
+        "environment.js",
+        "text/javascript; charset=utf-8",
+        include_str!("../assets/environment.js"),
     ),
     (
         "lights.js",

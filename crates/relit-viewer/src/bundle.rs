@@ -1,31 +1,73 @@
-//! What the browser loads: `info.json` plus coefficient layers, depth and environments.
+//! What the browser loads: `info.json` plus coefficient layers, the basis' weight
+//! table, depth and environments.
 //!
 //! Layers are *channel-major*: with `n = ⌈k/4⌉` layers per colour channel, layer
 //! `c·n + j` holds coefficients `4j … 4j+3` of channel `c` in its R, G, B, A components
 //! (components past `k` are zero). So the shader relights a channel with `n` dot
 //! products of a texel and a weight `vec4`.
 //!
-//! * `u8` storage: each layer is an RGBA 8-bit PNG; component `q` of a plane decodes
-//!   to `bias + scale · q / 255`, with the plane's own `scale` and `bias` in `info.json`
-//!   (the plane's range, so the quantisation step is `(max − min)/255`).
+//! Every layer component holds a stored number `q` whose value is
+//! `offset + scale · q`, with the component's own `scale` and `offset` in `info.json`
+//! (the meaning of the CPU and GPU engines' planes too):
+//!
+//! * `u8` storage: each layer is an RGBA 8-bit PNG; `q` is the byte, 0–255, `offset`
+//!   the plane's least finite value and `scale` one step of its range in 255 steps,
+//!   quantised exactly as the CPU engine's 8-bit planes.
 //! * `f16` storage: each layer is `width × height × 4` little-endian IEEE half floats,
-//!   row-major from the top-left pixel, RGBA interleaved; `scale` 1 and `bias` 0.
+//!   row-major from the top-left pixel, RGBA interleaved; `q` is the value (`scale` 1,
+//!   `offset` 0).
+//!
+//! The viewer knows no basis. `info.json` names it (`basis.name`, `basis.spec`) and
+//! ships its [`WeightTable`] (`data/weights.f16`: the `(N+1)²·k` values of
+//! `WeightTable::values`, vertex-major, as little-endian half floats), from which the
+//! browser takes the weights of every light: a directional light's in JavaScript, a
+//! light with a position's per pixel in the shader, an environment's as a quadrature
+//! over its map. Half floats halve the download (a k = 25 SH table: 3.3 MB instead of
+//! 6.6) for little error: measured against the basis on 4096 directions, the relative
+//! RMS error of SH tables grows from 8.64e-4 to 8.79e-4 (k = 16), 3.48e-4 to 3.82e-4
+//! (k = 25) and 8.96e-4 to 9.07e-4 (k = 64), their largest error not at all;
+//! `info.json` gives the shipped table's own. Files of SH bases also carry the band
+//! windows of environment lights, per coefficient (`basis.windows`).
 //!
 //! The depth map (when the file has one) is `width × height` little-endian `f32`
 //! (`data/depth.f32`), 0 where nothing was hit; with the camera in `info.json` the
 //! viewer recomputes each pixel's surface point `P = O + d·V` exactly as the CPU engine.
+//!
+//! Environment maps are shipped as the quadrature the library integrates maps of
+//! bases other than SH with (`relit::envmap`, *One dispatch*): at most
+//! [`QUADRATURE_WIDTH`] × [`QUADRATURE_HEIGHT`] directional lights, each gathering the
+//! texels whose centres a coarse texel holds, with their summed intensity `Σ E ΔΩ`
+//! (so `∫ E dω` is kept exactly) at their energy's centroid. `data/env/N.f32` holds
+//! six little-endian `f32` per light: its unit direction (light frame, unrotated) and
+//! its RGB intensity; a small sRGB preview is `data/env/N.png`. The viewer turns the
+//! directions and sums `I_t b(R ω_t)` with the weights from the table, for every basis
+//! (SH included: it has no SH rotation).
 
 use crate::{invalid, Result};
+use relit::basis::{Basis, SphericalHarmonics, WeightTable};
 use relit::camera::CameraSpec;
-use relit::envmap::EnvironmentLight;
+use relit::envmap::{latlong_direction, texel_solid_angle, EnvironmentLight, Window};
+use relit::image::ImageRgb;
 use relit::maps::RelightableImage;
+use relit::sphere::Vec3;
 use serde::Serialize;
 use serde_json::json;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-/// The format version of `info.json`.
-pub const WEB_FORMAT_VERSION: u32 = 1;
+/// The format version of `info.json` (2: any basis, its weight table, environments as
+/// quadratures).
+pub const WEB_FORMAT_VERSION: u32 = 2;
+
+/// The most coefficients per channel the viewer relights (its shader holds 16 layers a
+/// channel).
+pub const MAX_K: usize = 64;
+
+/// The size of the coarse map an environment's quadrature gathers texels into (at
+/// most; smaller maps keep their texels): the library's `QUADRATURE_SIZE`
+/// (crates/relit/src/envmap/quadrature.rs), chosen there by measurement.
+pub const QUADRATURE_WIDTH: usize = 128;
+pub const QUADRATURE_HEIGHT: usize = 64;
 
 /// Largest side the viewer accepts (WebGL2 guarantees textures of 2048 and most
 /// implementations, SwiftShader included, give 8192 or more).
@@ -35,7 +77,7 @@ pub const MAX_SIDE: usize = 16384;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum PlaneStorage {
-    /// 8-bit PNG per layer, quantised with a scale and bias per plane.
+    /// 8-bit PNG per layer, quantised with a scale and offset per plane.
     U8,
     /// Raw little-endian half floats per layer.
     #[default]
@@ -72,24 +114,33 @@ impl std::str::FromStr for PlaneStorage {
 #[derive(Clone, Debug, Default)]
 pub struct BundleOptions {
     pub storage: PlaneStorage,
-    /// Lat-long environment maps whose SH projections go into `info.json`; the rig JSON
-    /// names each by its file name.
+    /// Lat-long environment maps shipped with the bundle; the rig JSON names each by its
+    /// file name.
     pub environments: Vec<PathBuf>,
     /// A name for the source shown by the viewer (usually the EXR's file name).
     pub source_name: String,
 }
 
-/// One environment map projected onto the file's SH basis.
+/// One environment map as the bundle ships it.
 #[derive(Clone, Debug, Serialize)]
 pub struct EnvironmentInfo {
     /// The name a rig's `map` field uses (the file name).
     pub map: String,
+    /// The size of the map as loaded.
     pub width: usize,
     pub height: usize,
-    /// `∫ E(ω) Y_i(ω) dω` per colour channel in the light frame, unrotated, unwindowed.
-    pub coefficients: [Vec<f64>; 3],
+    /// Its quadrature (`data/env/N.f32`, module docs) and the number of its lights.
+    pub file: String,
+    pub lights: usize,
     /// A small sRGB preview (`data/env/N.png`).
     pub preview: String,
+}
+
+/// An environment's files: its entry in `info.json`, its quadrature and preview bytes.
+struct Environment {
+    info: EnvironmentInfo,
+    quadrature: Vec<u8>,
+    preview: Vec<u8>,
 }
 
 /// The files of a web bundle, by path relative to the site root (`data/...`).
@@ -99,16 +150,37 @@ pub struct WebBundle {
 }
 
 impl WebBundle {
-    /// Build every data file of `image`.
+    /// Build every data file of `image`, in the basis its metadata names.
     pub fn build(image: &RelightableImage, options: &BundleOptions) -> Result<WebBundle> {
+        Self::build_in(image, image.meta.basis.build()?, options)
+    }
+
+    /// Build every data file of `image` relit in `basis` (maps of a basis no family
+    /// rebuilds: tests, experiments).
+    pub fn build_in(
+        image: &RelightableImage,
+        basis: Box<dyn Basis>,
+        options: &BundleOptions,
+    ) -> Result<WebBundle> {
+        check_image(image, basis.as_ref())?;
         let environments = options
             .environments
             .iter()
             .enumerate()
-            .map(|(i, p)| project_environment(image, p, i))
+            .map(|(i, p)| load_environment(p, i))
             .collect::<Result<Vec<_>>>()?;
+        let (table, _) = WeightTable::for_basis(basis.as_ref());
+        let table = shipped_table(&table);
+        let accuracy = table.accuracy(basis.as_ref());
         let mut files = BTreeMap::new();
-        let info = info_json_with(image, options, &environments)?;
+        let info = info_json_with(
+            image,
+            basis.as_ref(),
+            &table,
+            &accuracy,
+            options,
+            &environments,
+        )?;
         let layers = info["layers"].as_array().cloned().unwrap_or_default();
         let n = layers_per_channel(image.maps.k);
         for (l, layer) in layers.iter().enumerate() {
@@ -116,6 +188,14 @@ impl WebBundle {
             let bytes = encode_layer(image, l / n, l % n, options.storage)?;
             files.insert(format!("data/{file}"), bytes);
         }
+        files.insert(
+            format!("data/{WEIGHTS_FILE}"),
+            table
+                .values
+                .iter()
+                .flat_map(|&v| half::f16::from_f32(v).to_le_bytes())
+                .collect(),
+        );
         if let Some(depth) = &image.depth {
             let bytes: Vec<u8> = depth
                 .iter()
@@ -126,8 +206,9 @@ impl WebBundle {
                 .collect();
             files.insert("data/depth.f32".to_string(), bytes);
         }
-        for (i, env) in environments.iter().enumerate() {
-            files.insert(format!("data/env/{i}.png"), env.1.clone());
+        for env in environments {
+            files.insert(format!("data/{}", env.info.file), env.quadrature);
+            files.insert(format!("data/{}", env.info.preview), env.preview);
         }
         let text = serde_json::to_string_pretty(&info).expect("info serialises");
         files.insert("data/info.json".to_string(), text.into_bytes());
@@ -142,6 +223,21 @@ impl WebBundle {
     /// Total bytes of the data files.
     pub fn bytes(&self) -> usize {
         self.files.values().map(Vec::len).sum()
+    }
+}
+
+/// The weight table's file under `data/`.
+const WEIGHTS_FILE: &str = "weights.f16";
+
+/// `table` as the bundle ships it: every weight rounded to a half float (module docs).
+pub fn shipped_table(table: &WeightTable) -> WeightTable {
+    WeightTable {
+        values: table
+            .values
+            .iter()
+            .map(|&v| half::f16::from_f32(v).to_f32())
+            .collect(),
+        ..table.clone()
     }
 }
 
@@ -161,28 +257,24 @@ pub fn camera_spec(image: &RelightableImage) -> CameraSpec {
     })
 }
 
-/// The `info.json` of `image` (without environments' previews being computed twice).
-pub fn info_json(image: &RelightableImage, options: &BundleOptions) -> Result<serde_json::Value> {
-    let environments = options
-        .environments
-        .iter()
-        .enumerate()
-        .map(|(i, p)| project_environment(image, p, i))
-        .collect::<Result<Vec<_>>>()?;
-    info_json_with(image, options, &environments)
-}
-
-fn check_image(image: &RelightableImage) -> Result<usize> {
+fn check_image(image: &RelightableImage, basis: &dyn Basis) -> Result<()> {
     let (w, h, k) = (image.width(), image.height(), image.maps.k);
     if w == 0 || h == 0 || w > MAX_SIDE || h > MAX_SIDE {
         return Err(invalid(format!(
             "the viewer shows images of 1 to {MAX_SIDE} pixels a side, not {w}×{h}"
         )));
     }
-    let bands = relit::basis::SphericalHarmonics::bands_of(&image.meta.basis).unwrap_or(0);
-    if bands * bands != k || !(1..=8).contains(&bands) {
+    if basis.len() != k {
         return Err(invalid(format!(
-            "the viewer needs 1 to 8 SH bands with k = bands² maps, not {k} maps of {bands} bands"
+            "the file has {k} coefficient maps per channel but its basis {} has {}",
+            basis.name(),
+            basis.len()
+        )));
+    }
+    if k > MAX_K {
+        return Err(invalid(format!(
+            "the viewer relights at most {MAX_K} coefficients per channel, not {k} ({})",
+            basis.name()
         )));
     }
     if image.maps.data.len() != 3 * k * w * h {
@@ -194,24 +286,55 @@ fn check_image(image: &RelightableImage) -> Result<usize> {
         }
     }
     camera_spec(image).build()?;
-    Ok(bands)
+    Ok(())
+}
+
+/// The band windows of environment lights, per coefficient, for SH bases (the only
+/// ones with bands); `None` for others. A Laplacian window of the rig's own λ needs the
+/// eigenvalue `l(l+1)` of each coefficient's band (`h = 1/(1 + λ·e²)`), shipped too.
+fn sh_windows(basis: &dyn Basis) -> Result<Option<serde_json::Value>> {
+    let Some(bands) = SphericalHarmonics::bands_of(&basis.spec()) else {
+        return Ok(None);
+    };
+    // Flat index l(l+1) + m: coefficient i lies in band ⌊√i⌋.
+    let band = |i: usize| (i as f64).sqrt().floor() as usize;
+    let k = basis.len();
+    let mut windows = serde_json::Map::new();
+    for (name, window) in [
+        ("none", Window::None),
+        ("hann", Window::Hann),
+        ("lanczos", Window::Lanczos),
+        ("laplacian", Window::Laplacian { lambda: None }),
+    ] {
+        let h = window.factors(bands)?;
+        windows.insert(
+            name.into(),
+            json!((0..k).map(|i| h[band(i)]).collect::<Vec<_>>()),
+        );
+    }
+    let eigenvalues: Vec<usize> = (0..k).map(|i| band(i) * (band(i) + 1)).collect();
+    Ok(Some(
+        json!({ "factors": windows, "laplacian_eigenvalues": eigenvalues }),
+    ))
 }
 
 fn info_json_with(
     image: &RelightableImage,
+    basis: &dyn Basis,
+    table: &WeightTable,
+    accuracy: &relit::basis::TableAccuracy,
     options: &BundleOptions,
-    environments: &[(EnvironmentInfo, Vec<u8>)],
+    environments: &[Environment],
 ) -> Result<serde_json::Value> {
-    let bands = check_image(image)?;
     let k = image.maps.k;
     let n = layers_per_channel(k);
     let mut layers = Vec::new();
     for c in 0..3 {
         for j in 0..n {
             let mut scale = [0.0f64; 4];
-            let mut bias = [0.0f64; 4];
+            let mut offset = [0.0f64; 4];
             let mut coefficients = Vec::new();
-            for (q, (s, b)) in scale.iter_mut().zip(bias.iter_mut()).enumerate() {
+            for (q, (s, o)) in scale.iter_mut().zip(offset.iter_mut()).enumerate() {
                 let i = 4 * j + q;
                 if i >= k {
                     continue;
@@ -220,9 +343,9 @@ fn info_json_with(
                 match options.storage {
                     PlaneStorage::F16 => *s = 1.0,
                     PlaneStorage::U8 => {
-                        let (lo, hi) = plane_range(image.maps.plane(i, c));
-                        *b = lo as f64;
-                        *s = (hi - lo) as f64;
+                        let (step, lo) = u8_coding(image.maps.plane(i, c));
+                        *s = step as f64;
+                        *o = lo as f64;
                     }
                 }
             }
@@ -231,19 +354,30 @@ fn info_json_with(
                 "channel": c,
                 "coefficients": coefficients,
                 "scale": scale,
-                "bias": bias,
+                "offset": offset,
             }));
         }
     }
     let camera = camera_spec(image);
+    let mut basis_info = json!({ "name": basis.name(), "spec": basis.spec(), "k": k });
+    if let Some(windows) = sh_windows(basis)? {
+        basis_info["windows"] = windows;
+    }
     Ok(json!({
         "format": "relit-web",
         "version": WEB_FORMAT_VERSION,
         "source": options.source_name,
         "width": image.width(),
         "height": image.height(),
-        "bands": bands,
+        "basis": basis_info,
         "k": k,
+        "weights": {
+            "file": WEIGHTS_FILE,
+            "format": "f16le",
+            "resolution": table.resolution,
+            "relative_rms_error": accuracy.relative_rms,
+            "relative_max_error": accuracy.relative_max,
+        },
         "color_space": image.meta.color_space,
         "light_frame": image.meta.light_frame,
         "projection": image.meta.projection,
@@ -252,7 +386,7 @@ fn info_json_with(
         "layers_per_channel": n,
         "layers": layers,
         "depth": image.depth.as_ref().map(|_| json!({ "file": "depth.f32", "format": "f32le" })),
-        "environments": environments.iter().map(|e| &e.0).collect::<Vec<_>>(),
+        "environments": environments.iter().map(|e| &e.info).collect::<Vec<_>>(),
     }))
 }
 
@@ -270,12 +404,27 @@ fn plane_range(plane: &[f32]) -> (f32, f32) {
     }
 }
 
-/// Quantise `v` of a plane with range `[lo, lo + scale]` to 8 bits.
-pub fn quantize_u8(v: f32, lo: f32, scale: f32) -> u8 {
-    if scale.is_nan() || scale <= 0.0 || !v.is_finite() {
+/// The 8-bit coding `(scale, offset)` of a plane: one step of its finite range in 255
+/// steps and its least finite value (`(0, lo)` for a constant plane, `(0, 0)` without
+/// finite values), as the CPU engine's 8-bit planes (`u8_coding` in
+/// crates/relit/src/engine/planes.rs).
+pub fn u8_coding(plane: &[f32]) -> (f32, f32) {
+    let (lo, hi) = plane_range(plane);
+    if lo < hi {
+        ((hi - lo) / 255.0, lo)
+    } else {
+        (0.0, lo)
+    }
+}
+
+/// The byte `q` of `v` in the coding `(scale, offset)` (`value = offset + scale · q`),
+/// rounded to nearest as the CPU engine's 8-bit planes; non-finite values give 0.
+pub fn quantize_u8(v: f32, scale: f32, offset: f32) -> u8 {
+    let inv = if scale > 0.0 { 1.0 / scale } else { 0.0 };
+    if !v.is_finite() {
         return 0;
     }
-    ((v - lo) / scale * 255.0).round().clamp(0.0, 255.0) as u8
+    ((v - offset) * inv).round().clamp(0.0, 255.0) as u8
 }
 
 fn encode_layer(
@@ -302,14 +451,14 @@ fn encode_layer(
             Ok(out)
         }
         PlaneStorage::U8 => {
-            let ranges: Vec<(f32, f32)> = planes
+            let codings: Vec<(f32, f32)> = planes
                 .iter()
-                .map(|pl| pl.map_or((0.0, 0.0), plane_range))
+                .map(|pl| pl.map_or((0.0, 0.0), u8_coding))
                 .collect();
             let mut rgba = Vec::with_capacity(pixels * 4);
             for p in 0..pixels {
-                for (plane, &(lo, hi)) in planes.iter().zip(&ranges) {
-                    rgba.push(plane.map_or(0, |pl| quantize_u8(pl[p], lo, hi - lo)));
+                for (plane, &(scale, offset)) in planes.iter().zip(&codings) {
+                    rgba.push(plane.map_or(0, |pl| quantize_u8(pl[p], scale, offset)));
                 }
             }
             encode_png(w, h, image::ExtendedColorType::Rgba8, &rgba)
@@ -327,20 +476,15 @@ fn encode_png(w: usize, h: usize, color: image::ExtendedColorType, data: &[u8]) 
     Ok(out)
 }
 
-/// Project one environment map onto the file's SH bands and make its preview.
-fn project_environment(
-    image: &RelightableImage,
-    path: &Path,
-    index: usize,
-) -> Result<(EnvironmentInfo, Vec<u8>)> {
-    let bands = relit::basis::SphericalHarmonics::bands_of(&image.meta.basis).unwrap_or(0);
+/// Load environment map `index`: its quadrature and its preview.
+fn load_environment(path: &Path, index: usize) -> Result<Environment> {
     let env = EnvironmentLight::load(path)?;
-    let coefficients = env.project(bands)?;
     let map = env.map();
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| path.display().to_string());
+    let lights = environment_quadrature(map, QUADRATURE_WIDTH, QUADRATURE_HEIGHT);
     // A 128×64 preview, nearest texel, clipped and sRGB encoded.
     let (pw, ph) = (128usize, 64usize);
     let mut rgb = Vec::with_capacity(pw * ph * 3);
@@ -354,14 +498,60 @@ fn project_environment(
         }
     }
     let preview = encode_png(pw, ph, image::ExtendedColorType::Rgb8, &rgb)?;
-    Ok((
-        EnvironmentInfo {
+    Ok(Environment {
+        info: EnvironmentInfo {
             map: name,
             width: map.width,
             height: map.height,
-            coefficients,
+            file: format!("env/{index}.f32"),
+            lights: lights.len(),
             preview: format!("env/{index}.png"),
         },
+        quadrature: lights
+            .iter()
+            .flat_map(|(d, i)| [d.x, d.y, d.z, i[0], i[1], i[2]])
+            .flat_map(|v| (v as f32).to_le_bytes())
+            .collect(),
         preview,
-    ))
+    })
+}
+
+/// The directional lights standing for a lat-long map (module docs): the map's texels
+/// gathered into at most `width × height` coarse texels by their centres, each light
+/// the summed `E ΔΩ` of its texels at their energy's centroid (the coarse texel's
+/// centre when it has no energy). The algorithm of `Quadrature::with_size` in
+/// crates/relit/src/envmap/quadrature.rs, which relights maps of bases other than SH on
+/// the CPU.
+pub fn environment_quadrature(
+    map: &ImageRgb,
+    width: usize,
+    height: usize,
+) -> Vec<(Vec3, [f64; 3])> {
+    let (fw, fh) = (map.width, map.height);
+    let (cw, ch) = (width.clamp(1, fw), height.clamp(1, fh));
+    let mut out = Vec::with_capacity(cw * ch);
+    for cy in 0..ch {
+        let mut sums = vec![[0.0f64; 3]; cw];
+        let mut centroid = vec![Vec3::new(0.0, 0.0, 0.0); cw];
+        // Fine rows whose centres fall in coarse row cy: y·ch/fh == cy.
+        for y in (cy * fh).div_ceil(ch)..((cy + 1) * fh).div_ceil(ch) {
+            let solid_angle = texel_solid_angle(fw, fh, y);
+            for x in 0..fw {
+                let cx = x * cw / fw;
+                let d =
+                    latlong_direction((x as f64 + 0.5) / fw as f64, (y as f64 + 0.5) / fh as f64);
+                let i = map.get(x, y).map(|v| v as f64 * solid_angle);
+                for (s, v) in sums[cx].iter_mut().zip(i) {
+                    *s += v;
+                }
+                centroid[cx] = centroid[cx] + d * i.iter().map(|v| v.abs()).sum::<f64>();
+            }
+        }
+        for (cx, (i, c)) in sums.into_iter().zip(centroid).enumerate() {
+            let centre =
+                || latlong_direction((cx as f64 + 0.5) / cw as f64, (cy as f64 + 0.5) / ch as f64);
+            out.push((c.normalized().unwrap_or_else(centre), i));
+        }
+    }
+    out
 }

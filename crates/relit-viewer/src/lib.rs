@@ -2,22 +2,24 @@
 //!
 //! * [`bundle`] turns a relightable image into what the browser loads: an `info.json`
 //!   and coefficient *layers* (four planes per RGBA texel, either 8-bit PNG quantised
-//!   with a scale and bias per plane, or raw little-endian half floats), a float depth
-//!   map and the camera, plus the SH projections of environment maps.
+//!   with a scale and offset per plane, or raw little-endian half floats), the basis'
+//!   weight table (the viewer knows no basis), a float depth map and the camera, plus
+//!   environment maps as radiance.
 //! * [`assets`] holds the viewer itself (HTML, ES modules, GLSL), embedded in the binary.
 //! * [`server`] serves the embedded assets and an in-memory bundle over HTTP
 //!   ([`serve`]); [`export`] writes the same files as a static folder ([`export_web`]).
 //!
 //! URL layout (the same for the live server and an exported folder): `/` is
 //! `index.html`, the viewer's modules sit beside it, and the data lives under `data/`:
-//! `data/info.json`, `data/planes/L00.png` (or `.f16`), `data/depth.f32`.
+//! `data/info.json`, `data/planes/L00.png` (or `.f16`), `data/weights.f32`,
+//! `data/depth.f32`, `data/env/0.f32` and `data/env/0.png`.
 
 pub mod assets;
 pub mod bundle;
 pub mod export;
 pub mod server;
 
-pub use bundle::{info_json, BundleOptions, PlaneStorage, WebBundle};
+pub use bundle::{BundleOptions, PlaneStorage, WebBundle};
 pub use export::export_web;
 pub use server::{serve, serve_with, RunningServer, ServerOptions};
 
