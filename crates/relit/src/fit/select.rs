@@ -45,7 +45,7 @@ const PERCEPTUAL_BUDGET: f64 = 3e8;
 fn perceptual_pixels(count: usize, n: usize, k: usize) -> usize {
     let per_pixel = 3.0 * n as f64 * (k * k) as f64;
     ((PERCEPTUAL_BUDGET / per_pixel) as usize)
-        .clamp(32, count.max(1))
+        .max(32)
         .min(count)
 }
 
