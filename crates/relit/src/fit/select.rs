@@ -11,7 +11,9 @@
 //! left out — is summed over folds. The evaluation hold-outs of `relit eval` never take
 //! part: they are not in the capture the fit sees.
 
-use super::{light_relevance, perceptual_weight, Objective, Regularizer};
+use super::{
+    brightness_kept, light_relevance, perceptual_weight, srgb_on_screen, Objective, Regularizer,
+};
 use crate::basis::{Basis, BasisChoice, Samples, FAMILIES};
 use crate::linalg;
 use crate::sphere::Vec3;
@@ -24,13 +26,9 @@ pub const VALIDATION_LADDER: [f64; 6] = [1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1];
 
 const LADDER: usize = VALIDATION_LADDER.len();
 
-/// Per held-out light: squared display errors per λ, summed linear predictions per λ,
-/// and the summed linear observation.
+/// Per held-out light: squared display errors per λ, summed predictions per λ and the
+/// summed observation (linear radiance).
 const SLOTS: usize = 2 * LADDER + 1;
-
-/// How far the mean prediction may stray from the mean observation before a candidate
-/// counts as biased (see `fit::MAX_MEAN_BIAS`, the same rule for the objective).
-const MAX_MEAN_BIAS: f64 = super::MAX_MEAN_BIAS;
 
 /// Folds of the captured lights (fewer for captures of very few lights).
 const FOLDS: usize = 10;
@@ -61,15 +59,15 @@ pub struct CandidateScore {
     /// The mean over the captured lights of each light's display PSNR (peak 1) when
     /// held out: what the choice maximises, comparable to `relit eval`'s figures.
     pub psnr: f64,
-    /// Mean held-out prediction over mean observation (linear radiance, 1: unbiased);
-    /// candidates beyond `MAX_MEAN_BIAS` lose to every unbiased one.
+    /// Mean held-out prediction over mean observation, linear radiance (1: unbiased);
+    /// candidates beyond a factor `MAX_MEAN_BIAS` lose to every unbiased one.
     pub mean_bias: f64,
 }
 
 impl CandidateScore {
     /// Whether the candidate keeps the scene's brightness.
     pub fn unbiased(&self) -> bool {
-        (self.mean_bias - 1.0).abs() <= MAX_MEAN_BIAS
+        brightness_kept(self.mean_bias)
     }
 
     /// Whether `self` is the better candidate: unbiased first, then the higher PSNR.
@@ -214,7 +212,7 @@ pub(super) fn validate(
         .map(|li| (li, score(li)))
         .filter(|(_, (p, _, _))| p.is_finite())
         .collect();
-    let unbiased = |b: f64| (b - 1.0).abs() <= MAX_MEAN_BIAS;
+    let unbiased = brightness_kept;
     let any_unbiased = scored.iter().any(|(_, (_, _, b))| unbiased(*b));
     let (best, (psnr, rmse, bias)) = scored
         .into_iter()
@@ -360,11 +358,4 @@ fn fold_errors(
                 a
             },
         )
-}
-
-/// The sRGB value a screen shows for radiance `v` at exposure 0: clipped to `[0, 1]`,
-/// as in an 8-bit image (a prediction above white in a highlight shows as white).
-#[inline]
-fn srgb_on_screen(v: f64) -> f64 {
-    crate::color::linear_to_srgb(v as f32) as f64
 }
