@@ -29,15 +29,13 @@ use std::sync::{Arc, Mutex, OnceLock};
 
 mod bounds;
 mod kernels;
-pub(crate) mod planes;
 mod points;
 mod tiles;
 
 pub use bounds::{fma_peak, fma_throughput, FmaPeak};
-pub use planes::{CompactPlanes, PlaneStorage};
 
 use kernels::{ShNorms, Simd};
-use planes::Planes;
+use crate::storage::{CompactPlanes, Planes, Precision};
 use points::SurfacePoints;
 use tiles::{Frame, PositionalLight, Scratch, UniformPass, TILE};
 
@@ -170,12 +168,12 @@ pub struct Relighter<'a> {
 impl<'a> Relighter<'a> {
     /// A relighter that reads the maps' own f32 values (no copy).
     pub fn new(image: &'a RelightableImage) -> Result<Self> {
-        Self::with_storage(image, PlaneStorage::F32)
+        Self::with_precision(image, Precision::F32)
     }
 
-    /// A relighter that reads the planes in `storage`: f32 borrows the maps, f16 and
-    /// u8 (per-plane scale and bias) hold a compact copy made here.
-    pub fn with_storage(image: &'a RelightableImage, storage: PlaneStorage) -> Result<Self> {
+    /// A relighter that reads the planes in `precision`: f32 borrows the maps, f16 and
+    /// u8 (per-plane scale and offset) hold a compact copy made here.
+    pub fn with_precision(image: &'a RelightableImage, precision: Precision) -> Result<Self> {
         let basis = image.meta.basis.build()?;
         if basis.len() != image.maps.k {
             return Err(Error::invalid(format!(
@@ -189,7 +187,7 @@ impl<'a> Relighter<'a> {
                 "the coefficient maps' data does not match their size",
             ));
         }
-        Ok(Self::over(image, basis, Planes::new(&image.maps, storage)))
+        Ok(Self::over(image, basis, Planes::new(&image.maps, precision)))
     }
 
     /// A relighter over checked planes, with nothing computed yet.
@@ -245,9 +243,9 @@ impl<'a> Relighter<'a> {
         self
     }
 
-    /// The storage type of the planes this relighter reads.
-    pub fn storage(&self) -> PlaneStorage {
-        self.planes.storage()
+    /// The precision of the planes this relighter reads.
+    pub fn precision(&self) -> Precision {
+        self.planes.precision()
     }
 
     /// Bytes of the planes one uniform frame streams.
@@ -1059,9 +1057,9 @@ mod tests {
         for space in [MapSpace::Linear, MapSpace::Srgb] {
             for bands in [3, 4, 5] {
                 let img = random_image(211, 97, bands, space);
-                for storage in PlaneStorage::ALL {
+                for storage in Precision::ALL {
                     for mode in ["detected", "portable", "streaming"] {
-                        let mut r = Relighter::with_storage(&img, storage).unwrap();
+                        let mut r = Relighter::with_precision(&img, storage).unwrap();
                         match mode {
                             "portable" => r = r.baseline(),
                             "streaming" => r = r.streaming(),
@@ -1097,9 +1095,9 @@ mod tests {
             .prepare(std::path::Path::new(""))
             .unwrap()];
         let want = f32_engine.relight_prepared(&lights, 0.0).unwrap();
-        for (storage, tol) in [(PlaneStorage::F16, 2e-3), (PlaneStorage::U8, 2e-2)] {
-            let r = Relighter::with_storage(&img, storage).unwrap();
-            assert_eq!(r.storage(), storage);
+        for (storage, tol) in [(Precision::F16, 2e-3), (Precision::U8, 2e-2)] {
+            let r = Relighter::with_precision(&img, storage).unwrap();
+            assert_eq!(r.precision(), storage);
             let (diff, peak) = max_abs(&r.relight_prepared(&lights, 0.0).unwrap(), &want);
             assert!(diff <= tol * peak, "{storage:?}: {diff} vs {peak}");
         }
@@ -1110,8 +1108,8 @@ mod tests {
     #[test]
     fn a_region_equals_the_crop_of_the_full_frame() {
         let img = random_image(97, 53, 4, MapSpace::Linear);
-        for storage in PlaneStorage::ALL {
-            let r = Relighter::with_storage(&img, storage).unwrap();
+        for storage in Precision::ALL {
+            let r = Relighter::with_precision(&img, storage).unwrap();
             for (name, lights) in rig_lights(&r) {
                 let full = r.relight_prepared(&lights, 0.0).unwrap();
                 for roi in [

@@ -15,12 +15,12 @@
 //! stored file.
 
 use crate::capture::Capture;
-use crate::codec::Storage;
 use crate::engine::{self, RelightOptions};
 use crate::fit::{self, FitOptions};
 use crate::light::{Light, LightRig};
 use crate::metrics;
 use crate::progress::Progress;
+use crate::storage::Precision;
 use crate::{Error, Result};
 use serde::Serialize;
 use std::str::FromStr;
@@ -113,7 +113,8 @@ impl Holdout {
 pub struct EvalOptions {
     pub holdout: Holdout,
     pub fit: FitOptions,
-    pub storage: Storage,
+    /// The precision of the file's maps (f32 or f16).
+    pub storage: Precision,
     /// Fit once without all held-out images instead of once per held-out image.
     pub joint: bool,
     /// Mask (> 0.5 inside) for the linear PSNR; overrides the capture's own mask.
@@ -219,12 +220,10 @@ pub fn evaluate_with(
             bytes_per_pixel = stored_bytes(&fitted.image, options.storage)? as f64
                 / (capture.width * capture.height) as f64;
         }
-        fitted
-            .image
-            .maps
-            .data
-            .iter_mut()
-            .for_each(|v| *v = options.storage.quantize(*v));
+        let n = fitted.image.maps.pixels().max(1);
+        for plane in fitted.image.maps.data.chunks_mut(n) {
+            options.storage.round_trip(plane);
+        }
         for &index in group {
             let light = &capture.lights[index];
             let color = light.intensity.map(|v| v as f64);
@@ -283,7 +282,7 @@ pub fn evaluate_with(
 }
 
 /// Bytes of the EXR file the maps would be stored in.
-fn stored_bytes(image: &crate::maps::RelightableImage, storage: Storage) -> Result<u64> {
+fn stored_bytes(image: &crate::maps::RelightableImage, storage: Precision) -> Result<u64> {
     let dir = tempfile::tempdir()
         .map_err(|e| Error::io(std::path::Path::new("."), "create a temporary folder in", e))?;
     let path = dir.path().join("maps.exr");

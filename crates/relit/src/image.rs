@@ -144,7 +144,7 @@ pub fn load_linear(path: &Path, encoding: Option<Encoding>) -> Result<ImageRgb> 
 /// channel named `Z`, `Y`, `R` or `A`.
 pub fn load_scalar(path: &Path) -> Result<(usize, usize, Vec<f32>)> {
     if extension(path).as_deref() == Some("exr") {
-        return crate::codec::exr::read_scalar_channel(path);
+        return openexr::read_scalar_channel(path);
     }
     let decoded = open_reader(path)?
         .decode()
@@ -160,7 +160,7 @@ pub fn save(path: &Path, image: &ImageRgb, exposure: f64) -> Result<()> {
     let ext = extension(path).unwrap_or_default();
     if ext == "exr" {
         // Scaled while encoding: no copy of a frame that may be gigabytes.
-        return crate::codec::exr::write_rgb_scaled(path, image, factor);
+        return openexr::write_rgb_scaled(path, image, factor);
     }
     let format = match ext.as_str() {
         "png" => image::ImageFormat::Png,
@@ -275,6 +275,84 @@ pub fn contact_sheet(frames: &[ImageRgb], columns: usize, max_width: usize) -> I
         }
     }
     sheet
+}
+
+
+/// OpenEXR images: frames, depth and masks (relightable files are the codec's).
+mod openexr {
+    use super::ImageRgb;
+    use crate::fsutil::write_atomically;
+    use crate::{Error, ErrorKind, Result};
+    use ::exr::prelude::*;
+    use std::path::Path;
+
+    fn exr_error(path: &Path, action: &str, e: ::exr::error::Error) -> Error {
+        Error::new(
+            ErrorKind::Io,
+            format!("cannot {action} {}: {e}", path.display()),
+        )
+    }
+
+    fn read_all_data(path: &Path) -> Result<Image<Layers<AnyChannels<FlatSamples>>>> {
+        exr::prelude::read()
+            .no_deep_data()
+            .largest_resolution_level()
+            .all_channels()
+            .all_layers()
+            .all_attributes()
+            .from_file(path)
+            .map_err(|e| exr_error(path, "read", e))
+    }
+
+    /// Write a linear RGB image times `factor` as half-float EXR (relit frames), scaled
+    /// while encoding.
+    pub(super) fn write_rgb_scaled(path: &Path, image: &ImageRgb, factor: f32) -> Result<()> {
+        let (w, h) = (image.width, image.height);
+        let channels = SpecificChannels::rgb(|pos: Vec2<usize>| {
+            let i = 3 * (pos.y() * w + pos.x());
+            (
+                f16::from_f32(image.data[i] * factor),
+                f16::from_f32(image.data[i + 1] * factor),
+                f16::from_f32(image.data[i + 2] * factor),
+            )
+        });
+        let encoding = Encoding {
+            compression: Compression::ZIP16,
+            ..Encoding::default()
+        };
+        let layer = Layer::new((w, h), LayerAttributes::default(), encoding, channels);
+        let img = Image::from_layer(layer);
+        write_atomically(path, |out| {
+            img.write()
+                .to_buffered(out)
+                .map_err(|e| exr_error(path, "write", e))
+        })
+    }
+
+    /// Read a single-valued plane (depth or mask) from the first of the channels `Z`, `Y`,
+    /// `R`, `A` that the file has.
+    pub(super) fn read_scalar_channel(path: &Path) -> Result<(usize, usize, Vec<f32>)> {
+        let image = read_all_data(path)?;
+        let layer =
+            image.layer_data.into_iter().next().ok_or_else(|| {
+                Error::parse(format!("{}: the EXR file has no layer", path.display()))
+            })?;
+        let (w, h) = (layer.size.width(), layer.size.height());
+        for wanted in ["Z", "Y", "R", "A"] {
+            if let Some(ch) = layer
+                .channel_data
+                .list
+                .iter()
+                .find(|c| c.name.to_string() == wanted)
+            {
+                return Ok((w, h, ch.sample_data.values_as_f32().collect()));
+            }
+        }
+        Err(Error::parse(format!(
+            "{}: no Z, Y, R or A channel",
+            path.display()
+        )))
+    }
 }
 
 #[cfg(test)]

@@ -51,6 +51,7 @@ pub mod memory;
 pub mod metrics;
 pub mod progress;
 pub mod sphere;
+pub mod storage;
 pub mod synth;
 
 pub use error::{Error, ErrorKind, Result};

@@ -4,13 +4,10 @@
 //! `cNN.R|G|B` (coefficient NN) and optional `Z` (depth); metadata in `relit.*`
 //! attributes, structured values as ASCII JSON so any EXR tool can show them.
 
-use super::Storage;
 use crate::basis::BasisSpec;
-use crate::engine::planes::{fold_range, u8_coding, u8_quantize, EMPTY_RANGE};
-use crate::engine::{CompactPlanes, PlaneStorage};
 use crate::fsutil::write_atomically;
-use crate::image::ImageRgb;
 use crate::maps::{CoefficientMaps, FitInfo, MapSpace, Metadata, RelightableImage, FORMAT_VERSION};
+use crate::storage::{CompactPlanes, FiniteRange, PlaneCoding, Precision};
 use crate::{Error, ErrorKind, Result};
 use exr::prelude::*;
 use std::path::Path;
@@ -49,19 +46,23 @@ fn text(s: &str) -> AttributeValue {
     AttributeValue::Text(Text::new_or_panic(s))
 }
 
-/// Write a relightable image. Maps are stored as `storage`; depth always as 32-bit float.
-pub fn write(path: &Path, image: &RelightableImage, storage: Storage) -> Result<()> {
+/// Write a relightable image. Maps are stored in `precision` (f32 or f16); depth
+/// always as 32-bit float.
+pub fn write(path: &Path, image: &RelightableImage, precision: Precision) -> Result<()> {
+    let precision = precision.require(&[Precision::F32, Precision::F16], "OpenEXR")?;
     let maps = &image.maps;
     let (w, h) = (maps.width, maps.height);
     let mut channels: Vec<AnyChannel<FlatSamples>> = Vec::with_capacity(3 * maps.k + 1);
     for i in 0..maps.k {
         for c in 0..3 {
             let plane = maps.plane(i, c);
-            let samples = match storage {
-                Storage::Half => {
-                    FlatSamples::F16(plane.iter().map(|&v| f16::from_f32(v)).collect())
+            let samples = match precision {
+                Precision::F16 => {
+                    let mut bits = vec![0u16; plane.len()];
+                    crate::storage::to_f16_bits(plane, &mut bits);
+                    FlatSamples::F16(bits.into_iter().map(f16::from_bits).collect())
                 }
-                Storage::Float => FlatSamples::F32(plane.to_vec()),
+                _ => FlatSamples::F32(plane.to_vec()),
             };
             channels.push(AnyChannel::new(channel_name(i, c).as_str(), samples));
         }
@@ -92,7 +93,10 @@ pub fn write(path: &Path, image: &RelightableImage, storage: Storage) -> Result<
         Text::new_or_panic("relit.projection"),
         text(&ascii_json(&meta.projection)),
     );
-    other.insert(Text::new_or_panic("relit.storage"), text(storage.name()));
+    other.insert(
+        Text::new_or_panic("relit.storage"),
+        text(precision.name()),
+    );
     if let Some(fit) = &meta.fit {
         other.insert(Text::new_or_panic("relit.fit"), text(&ascii_json(fit)));
     }
@@ -133,36 +137,31 @@ pub fn read(path: &Path) -> Result<RelightableImage> {
     Ok(read_planes(path, Sink::F32)?.0)
 }
 
-/// Read a relightable file straight into compact planes (`storage` f16 or u8) for
-/// [`Relighter::with_compact`](crate::engine::Relighter::with_compact), never holding
-/// the f32 maps: the returned image's `maps.data` is empty (sizes, metadata and depth
-/// are there). f16 rounds each value to half (exact for half-float files). u8 reads the
-/// file twice, first for each plane's range, then decoding straight into 8 bits with
-/// that plane's scale and bias: the same bytes as quantising the f32 maps. Peak memory:
-/// the compact planes plus the blocks in flight.
+/// Read a relightable file straight into compact planes (`precision` f16 or u8), for a
+/// relighter that never holds the f32 maps: the returned image's `maps.data` is empty
+/// (sizes, metadata and depth are there). f16 rounds each value to half (exact for
+/// half-float files). u8 reads the file twice, first for each plane's range, then
+/// decoding straight into 8 bits with that plane's coding: the same bytes as
+/// quantising the f32 maps ([`CompactPlanes::from_maps`]). Peak memory: the compact
+/// planes plus the blocks in flight.
 pub fn read_compact(
     path: &Path,
-    storage: PlaneStorage,
+    precision: Precision,
 ) -> Result<(RelightableImage, CompactPlanes)> {
-    let (image, sink) = match storage {
-        PlaneStorage::F32 => {
-            return Err(Error::invalid(
-                "read_compact makes f16 or u8 planes; use read for f32",
-            ))
-        }
-        PlaneStorage::F16 => read_planes(path, Sink::F16(Vec::new()))?,
-        PlaneStorage::U8 => {
+    let precision = precision.require(&[Precision::F16, Precision::U8], "read_compact")?;
+    let (image, sink) = match precision {
+        Precision::F16 => read_planes(path, Sink::F16(Vec::new()))?,
+        _ => {
             let ranges = match read_planes(path, Sink::Ranges(Vec::new()))?.1 {
                 Sink::Ranges(r) => r,
                 _ => unreachable!("a range scan returns ranges"),
             };
-            let (scale, bias) = ranges.iter().map(|&(lo, hi)| u8_coding(lo, hi)).unzip();
+            let coding = ranges.into_iter().map(PlaneCoding::u8).collect();
             read_planes(
                 path,
                 Sink::U8 {
                     data: Vec::new(),
-                    scale,
-                    bias,
+                    coding,
                 },
             )?
         }
@@ -170,7 +169,7 @@ pub fn read_compact(
     let (pixels, count) = (image.maps.pixels(), 3 * image.maps.k);
     let planes = match sink {
         Sink::F16(bits) => CompactPlanes::from_f16_bits(bits, pixels, count),
-        Sink::U8 { data, scale, bias } => CompactPlanes::from_u8(data, scale, bias, pixels, count),
+        Sink::U8 { data, coding } => CompactPlanes::from_u8(data, coding, pixels, count),
         _ => None,
     }
     .expect("the planes were sized from the header");
@@ -183,13 +182,12 @@ enum Sink {
     F32,
     /// Half-float bits (allocated by the reader).
     F16(Vec<u16>),
-    /// Only each plane's finite range `(lo, hi)` (allocated by the reader).
-    Ranges(Vec<(f32, f32)>),
+    /// Only each plane's finite range (allocated by the reader).
+    Ranges(Vec<FiniteRange>),
     /// 8 bits in the given coding per plane (`data` allocated by the reader).
     U8 {
         data: Vec<u8>,
-        scale: Vec<f32>,
-        bias: Vec<f32>,
+        coding: Vec<PlaneCoding>,
     },
 }
 
@@ -291,9 +289,9 @@ fn read_planes(path: &Path, mut sink: Sink) -> Result<(RelightableImage, Sink)> 
     match &mut sink {
         Sink::F32 => maps.data = try_zeroed(values, &what)?,
         Sink::F16(bits) => *bits = try_zeroed(values, &what)?,
-        Sink::Ranges(ranges) => *ranges = vec![EMPTY_RANGE; 3 * k],
-        Sink::U8 { data, scale, .. } => {
-            if scale.len() != 3 * k {
+        Sink::Ranges(ranges) => *ranges = vec![FiniteRange::EMPTY; 3 * k],
+        Sink::U8 { data, coding } => {
+            if coding.len() != 3 * k {
                 return Err(Error::invalid(format!(
                     "{}: the file changed between its two reads",
                     path.display()
@@ -384,16 +382,14 @@ fn read_planes(path: &Path, mut sink: Sink) -> Result<(RelightableImage, Sink)> 
                 match &mut sink {
                     Sink::F32 => maps.data[at].copy_from_slice(&samples),
                     Sink::F16(bits) => {
-                        for (d, &v) in bits[at].iter_mut().zip(&samples) {
-                            *d = f16::from_f32(v).to_bits();
-                        }
+                        crate::storage::to_f16_bits(&samples, &mut bits[at]);
                     }
                     Sink::Ranges(ranges) => {
-                        ranges[j] = samples.iter().copied().fold(ranges[j], fold_range);
+                        ranges[j] = samples.iter().copied().fold(ranges[j], FiniteRange::add);
                     }
-                    Sink::U8 { data, scale, bias } => {
+                    Sink::U8 { data, coding } => {
                         for (d, &v) in data[at].iter_mut().zip(&samples) {
-                            *d = u8_quantize(v, scale[j], bias[j]);
+                            *d = coding[j].quantize(v);
                         }
                     }
                 }
@@ -417,17 +413,6 @@ fn read_planes(path: &Path, mut sink: Sink) -> Result<(RelightableImage, Sink)> 
         fit,
     };
     Ok((RelightableImage { meta, maps, depth }, sink))
-}
-
-fn read_all_data(path: &Path) -> Result<Image<Layers<AnyChannels<FlatSamples>>>> {
-    exr::prelude::read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .all_channels()
-        .all_layers()
-        .all_attributes()
-        .from_file(path)
-        .map_err(|e| exr_error(path, "read", e))
 }
 
 fn parse_channel_name(name: &str) -> Option<(usize, usize)> {
@@ -467,64 +452,11 @@ pub fn read_metadata_summary(path: &Path) -> Result<Vec<(String, String)>> {
     Ok(out)
 }
 
-/// Write a linear RGB image as half-float EXR (relit frames).
-pub fn write_rgb(path: &Path, image: &ImageRgb) -> Result<()> {
-    write_rgb_scaled(path, image, 1.0)
-}
-
-/// [`write_rgb`] of the image times `factor`, scaled while encoding.
-pub fn write_rgb_scaled(path: &Path, image: &ImageRgb, factor: f32) -> Result<()> {
-    let (w, h) = (image.width, image.height);
-    let channels = SpecificChannels::rgb(|pos: Vec2<usize>| {
-        let i = 3 * (pos.y() * w + pos.x());
-        (
-            f16::from_f32(image.data[i] * factor),
-            f16::from_f32(image.data[i + 1] * factor),
-            f16::from_f32(image.data[i + 2] * factor),
-        )
-    });
-    let encoding = Encoding {
-        compression: Compression::ZIP16,
-        ..Encoding::default()
-    };
-    let layer = Layer::new((w, h), LayerAttributes::default(), encoding, channels);
-    let img = Image::from_layer(layer);
-    write_atomically(path, |out| {
-        img.write()
-            .to_buffered(out)
-            .map_err(|e| exr_error(path, "write", e))
-    })
-}
-
-/// Read a single-valued plane (depth or mask) from the first of the channels `Z`, `Y`,
-/// `R`, `A` that the file has.
-pub fn read_scalar_channel(path: &Path) -> Result<(usize, usize, Vec<f32>)> {
-    let image = read_all_data(path)?;
-    let layer =
-        image.layer_data.into_iter().next().ok_or_else(|| {
-            Error::parse(format!("{}: the EXR file has no layer", path.display()))
-        })?;
-    let (w, h) = (layer.size.width(), layer.size.height());
-    for wanted in ["Z", "Y", "R", "A"] {
-        if let Some(ch) = layer
-            .channel_data
-            .list
-            .iter()
-            .find(|c| c.name.to_string() == wanted)
-        {
-            return Ok((w, h, ch.sample_data.values_as_f32().collect()));
-        }
-    }
-    Err(Error::parse(format!(
-        "{}: no Z, Y, R or A channel",
-        path.display()
-    )))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::camera::Projection;
+    use crate::storage::{f16_bits, f16_value};
 
     fn sample_image(k: usize) -> RelightableImage {
         let mut maps = CoefficientMaps::zeros(5, 3, k);
@@ -569,7 +501,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("m.exr");
         let img = sample_image(4);
-        write(&path, &img, Storage::Float).unwrap();
+        write(&path, &img, Precision::F32).unwrap();
         let back = read(&path).unwrap();
         assert_eq!(back, img);
     }
@@ -579,10 +511,10 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("m.exr");
         let img = sample_image(4);
-        write(&path, &img, Storage::Half).unwrap();
+        write(&path, &img, Precision::F16).unwrap();
         let back = read(&path).unwrap();
         for (a, b) in back.maps.data.iter().zip(&img.maps.data) {
-            assert_eq!(*a, Storage::Half.quantize(*b));
+            assert_eq!(*a, f16_value(f16_bits(*b)));
         }
         assert_eq!(back.meta, img.meta);
         assert_eq!(back.depth, img.depth, "depth is always stored as float");
@@ -592,7 +524,7 @@ mod tests {
     fn foreign_and_broken_files_are_clear_errors() {
         let dir = tempfile::tempdir().unwrap();
         let plain = dir.path().join("plain.exr");
-        write_rgb(&plain, &ImageRgb::new(2, 2)).unwrap();
+        crate::image::save(&plain, &crate::image::ImageRgb::new(2, 2), 0.0).unwrap();
         assert!(read(&plain)
             .unwrap_err()
             .to_string()
@@ -608,37 +540,34 @@ mod tests {
 
     #[test]
     fn compact_reads_equal_compact_copies_of_the_maps() {
-        // Decoding straight into f16 or u8 planes relights exactly like the compact copy
-        // a relighter makes from the f32 maps, for half and float files, and holds no
+        // Decoding straight into f16 or u8 planes gives the planes and codings of the
+        // compact copy made from the f32 maps, for half and float files, and holds no
         // f32 maps.
-        use crate::engine::{RelightOptions, Relighter};
-        use crate::light::{Light, LightRig};
         let dir = tempfile::tempdir().unwrap();
-        let rig = LightRig::new(vec![Light::directional([0.3, 0.5, 0.8], [1.0, 0.8, 0.6])]);
-        for storage_in_file in [Storage::Half, Storage::Float] {
+        for in_file in [Precision::F16, Precision::F32] {
             let path = dir.path().join("m.exr");
-            write(&path, &sample_image(4), storage_in_file).unwrap();
+            write(&path, &sample_image(4), in_file).unwrap();
             let full = read(&path).unwrap();
-            for storage in [PlaneStorage::F16, PlaneStorage::U8] {
-                let (image, planes) = read_compact(&path, storage).unwrap();
+            for precision in [Precision::F16, Precision::U8] {
+                let (image, planes) = read_compact(&path, precision).unwrap();
                 assert!(image.maps.data.is_empty());
                 assert_eq!(
                     (image.meta.clone(), image.depth.clone()),
                     (full.meta.clone(), full.depth.clone())
                 );
-                assert_eq!(planes.storage(), storage);
-                let compact = Relighter::with_compact(&image, planes)
-                    .unwrap()
-                    .relight(&rig, &RelightOptions::default())
-                    .unwrap();
-                let copied = Relighter::with_storage(&full, storage)
-                    .unwrap()
-                    .relight(&rig, &RelightOptions::default())
-                    .unwrap();
-                assert_eq!(compact, copied, "{storage_in_file:?} {storage:?}");
+                assert_eq!(planes.precision(), precision);
+                let copied = CompactPlanes::from_maps(&full.maps, precision).unwrap();
+                assert_eq!(planes.bytes(), copied.bytes());
+                for j in 0..3 * full.maps.k {
+                    assert_eq!(planes.coding(j), copied.coding(j), "{in_file} {precision}");
+                    for p in 0..full.maps.pixels() {
+                        assert_eq!(planes.value(j, p), copied.value(j, p));
+                    }
+                }
             }
         }
-        assert!(read_compact(&dir.path().join("m.exr"), PlaneStorage::F32).is_err());
+        assert!(read_compact(&dir.path().join("m.exr"), Precision::F32).is_err());
+        assert!(write(&dir.path().join("u8.exr"), &sample_image(1), Precision::U8).is_err());
     }
 
     #[test]

@@ -28,7 +28,7 @@
 //! then (the engine's kernels use 8 lanes, so 8-lane code cannot exceed half of it).
 
 use super::kernels::{Simd, FMA_PER_ITER};
-use super::planes::Planes;
+use crate::storage::Planes;
 use super::tiles::TILE;
 use super::Relighter;
 use rayon::prelude::*;
@@ -71,7 +71,7 @@ fn plane_bytes<'p>(planes: &'p Planes) -> &'p [u8] {
 /// The engine's pattern: rayon over tiles, eight plane segments read together.
 fn read_tiles(simd: Simd, planes: &Planes, n: usize) -> u64 {
     let data = plane_bytes(planes);
-    let b = planes.storage().bytes_per_value();
+    let b = planes.precision().bytes_per_value();
     let count = data.len() / (n * b).max(1);
     let tiles = n.div_ceil(TILE);
     (0..tiles)
@@ -184,7 +184,7 @@ fn chain_rate(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::engine::PlaneStorage;
+    use crate::storage::Precision;
 
     #[test]
     fn the_or_of_streams_reads_every_byte() {
@@ -216,8 +216,8 @@ mod tests {
             maps: img,
             depth: None,
         };
-        for storage in PlaneStorage::ALL {
-            let r = Relighter::with_storage(&image, storage).unwrap();
+        for storage in Precision::ALL {
+            let r = Relighter::with_precision(&image, storage).unwrap();
             let rate = r.plane_read_rate(2);
             assert!(rate.is_finite() && rate > 0.0, "{storage:?}");
         }

@@ -9,7 +9,7 @@
 
 use super::kernels::{AreaSamples, Cone, Falloff, Projector, Rows, ShNorms, Shift, Simd};
 use super::kernels::{Stored, BLOCK};
-use super::planes::Planes;
+use crate::storage::{PlaneCoding, Planes};
 use super::points::SurfacePoints;
 use crate::color;
 use crate::light::PreparedLight;
@@ -42,8 +42,8 @@ impl UniformPass {
                 .iter()
                 .enumerate()
                 .map(|(i, &v)| {
-                    let (scale, bias) = planes.coding(3 * i + c);
-                    o += v * bias as f64;
+                    let PlaneCoding { scale, offset } = planes.coding(3 * i + c);
+                    o += v * offset as f64;
                     (v * scale as f64) as f32
                 })
                 .collect();
@@ -295,10 +295,10 @@ impl Frame<'_> {
         for r0 in (0..len).step_by(RUN) {
             let rl = RUN.min(len - r0);
             for (j, row) in scratch_values.chunks_exact_mut(RUN).enumerate() {
-                let (scale, bias) = self.planes.coding(j);
+                let PlaneCoding { scale, offset } = self.planes.coding(j);
                 let at = j * n + p0 + r0;
                 self.simd
-                    .decode(&mut row[..rl], &data[at..at + rl], scale, bias);
+                    .decode(&mut row[..rl], &data[at..at + rl], scale, offset);
                 row[rl..].fill(0.0);
             }
             for b in (0..rl).step_by(BLOCK) {
