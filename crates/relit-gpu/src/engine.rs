@@ -2,7 +2,7 @@
 //!
 //! The maps are cut into *slabs* of whole rows so that no buffer exceeds the adapter's
 //! binding limit; each slab holds its `3k` planes (padded to a common stride) in the
-//! chosen [`Storage`], and, when the file has depth, the surface point of every pixel
+//! chosen [`Precision`], and, when the file has depth, the surface point of every pixel
 //! (computed once from camera and depth, as the CPU engine does). A frame is one
 //! dispatch per slab that meets the region of interest, each writing its rows of the
 //! region into its own output buffer; a readback copies them, in order, into one
@@ -19,7 +19,8 @@
 use crate::error::{invalid, GpuError, Result};
 use crate::lighting::{Lighting, MAX_K};
 use crate::roi::Roi;
-use crate::storage::{PlaneCoding, Storage, STRIDE_ALIGN};
+use crate::storage::{encode, shader_fetch, STRIDE_ALIGN};
+use relit::storage::{PlaneCoding, Precision};
 use bytemuck::{Pod, Zeroable};
 use relit::basis::{Basis, TableAccuracy, WeightTable};
 use relit::camera::Camera;
@@ -45,8 +46,8 @@ const OUT_BYTES: u64 = 12;
 /// How a [`GpuRelighter`] stores its maps.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct GpuOptions {
-    /// The value type of the planes on the GPU.
-    pub storage: Storage,
+    /// The precision of the planes on the GPU.
+    pub precision: Precision,
     /// Cap on the bytes of one slab buffer (the adapter's limit applies anyway); small
     /// values force many slabs, which tests use.
     pub max_slab_bytes: Option<u64>,
@@ -154,8 +155,8 @@ pub struct GpuRelighter {
     height: usize,
     basis: Box<dyn Basis>,
     display: bool,
-    storage: Storage,
-    coding: PlaneCoding,
+    precision: Precision,
+    coding: Vec<PlaneCoding>,
     /// Why positional lights cannot be used (no depth, bad camera), if so.
     no_positions_reason: Option<String>,
     max_groups: u32,
@@ -192,7 +193,7 @@ fn request_adapter(instance: &wgpu::Instance) -> Result<wgpu::Adapter> {
 }
 
 impl GpuRelighter {
-    /// Upload `image` in `f32` storage.
+    /// Upload `image` with `f32` planes.
     pub fn new(image: &RelightableImage) -> Result<Self> {
         Self::with_options(image, GpuOptions::default())
     }
@@ -254,8 +255,8 @@ impl GpuRelighter {
                 .push(e.to_string());
         }));
 
-        let storage = options.storage;
-        let bpv = storage.bytes_per_value() as u64;
+        let precision = options.precision;
+        let bpv = precision.bytes_per_value() as u64;
         let limit = limits
             .max_storage_buffer_binding_size
             .min(limits.max_buffer_size)
@@ -276,7 +277,7 @@ impl GpuRelighter {
             )));
         }
 
-        let coding = storage.coding(&image.maps);
+        let coding = precision.codings(&image.maps);
         let mut slabs = Vec::new();
         let mut resident_bytes = 0;
         let mut scratch = Vec::new();
@@ -298,7 +299,8 @@ impl GpuRelighter {
                     .map_err(|e| GpuError::Device(e.to_string()))?;
                 for j in 0..3 * k {
                     let src = &image.maps.data[j * n + row0 * width..j * n + (row0 + rows) * width];
-                    storage.encode(src, coding.scale[j], coding.offset[j], &mut scratch);
+                    scratch.clear();
+                    encode(precision, src, coding[j], &mut scratch);
                     let at = j * stride * bpv as usize;
                     view.slice(at..at + scratch.len()).copy_from_slice(&scratch);
                 }
@@ -367,8 +369,8 @@ impl GpuRelighter {
         ];
         for i in 0..k {
             for c in 0..3 {
-                setup.scale[i][c] = coding.scale[3 * i + c];
-                setup.offset[i][c] = coding.offset[3 * i + c];
+                setup.scale[i][c] = coding[3 * i + c].scale;
+                setup.offset[i][c] = coding[3 * i + c].offset;
             }
         }
         let setup = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -391,7 +393,7 @@ impl GpuRelighter {
         let module = |extra: bool| {
             let source = format!(
                 "const EXTRA_LIGHTS: bool = {extra};\n{}\n{}",
-                storage.shader_fetch(),
+                shader_fetch(precision),
                 include_str!("../shaders/relight.wgsl")
             );
             device.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -470,7 +472,7 @@ impl GpuRelighter {
             height,
             basis,
             display,
-            storage,
+            precision,
             coding,
             no_positions_reason,
             max_groups: limits.max_compute_workgroups_per_dimension.max(1),
@@ -493,9 +495,9 @@ impl GpuRelighter {
         &self.adapter
     }
 
-    /// The storage type of the planes.
-    pub fn storage(&self) -> Storage {
-        self.storage
+    /// The precision of the planes.
+    pub fn precision(&self) -> Precision {
+        self.precision
     }
 
     /// Bytes resident on the GPU for the maps, the surface points and the weight table.

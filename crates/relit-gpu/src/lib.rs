@@ -21,8 +21,8 @@
 //! # Ok(()) }
 //! ```
 //!
-//! The kernel is `shaders/relight.wgsl`; one `shaders/fetch_*.wgsl` per [`Storage`]
-//! type supplies how a stored value is read. Frames of linear maps cost one pass over
+//! The kernel is `shaders/relight.wgsl`; one `shaders/fetch_*.wgsl` per
+//! [`relit::storage::Precision`] supplies how a stored value is read. Frames of linear maps cost one pass over
 //! the planes whatever the number of uniform lights (they fold into one weight per
 //! plane, as on the CPU); positional lights take the basis' weights at each pixel's
 //! light vector from its weight table (the bilinear lookup of
@@ -40,4 +40,4 @@ pub use engine::{probe, AdapterSummary, GpuOptions, GpuRelighter};
 pub use error::{GpuError, Result};
 pub use lighting::{Lighting, MAX_AREAS, MAX_PASSES, MAX_POSITIONAL, MAX_PROJECTORS};
 pub use roi::Roi;
-pub use storage::{PlaneCoding, Storage, STRIDE_ALIGN};
+pub use storage::{stored_maps, STRIDE_ALIGN};

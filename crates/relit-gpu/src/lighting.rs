@@ -9,7 +9,7 @@
 //! buffer, area lights their emitter and strata (`relit::light::{projector, area}`).
 
 use crate::error::{invalid, GpuError, Result};
-use crate::storage::PlaneCoding;
+use relit::storage::PlaneCoding;
 use bytemuck::{Pod, Zeroable};
 use relit::image::ImageRgb;
 use relit::light::{AreaLight, AreaShape, Attenuation, PreparedLight, ProjectorLight};
@@ -287,7 +287,7 @@ impl Lighting {
 
     /// The shader's `Frame`, with the storage's per-plane coding folded into the passes:
     /// `Σ_i w_i (offset_i + scale_i q_i) = Σ_i (w_i scale_i) q_i + Σ_i w_i offset_i`.
-    pub(crate) fn to_gpu(&self, coding: &PlaneCoding) -> Result<Box<FrameGpu>> {
+    pub(crate) fn to_gpu(&self, coding: &[PlaneCoding]) -> Result<Box<FrameGpu>> {
         let uniform: Vec<(&[Vec<f64>; 3], [f64; 3])> = match &self.folded {
             Some(w) => vec![(w, [1.0; 3])],
             None => self.passes.iter().map(|(w, rgb)| (w, *rgb)).collect(),
@@ -328,8 +328,8 @@ impl Lighting {
             for c in 0..3 {
                 for i in 0..self.k {
                     let j = 3 * i + c;
-                    dst.w[i][c] = (weights[c][i] * coding.scale[j] as f64) as f32;
-                    offset[c] += weights[c][i] * coding.offset[j] as f64;
+                    dst.w[i][c] = (weights[c][i] * coding[j].scale as f64) as f32;
+                    offset[c] += weights[c][i] * coding[j].offset as f64;
                 }
                 dst.offset[c] = offset[c] as f32;
                 dst.tint[c] = tint[c] as f32;
@@ -424,10 +424,10 @@ mod tests {
 
     #[test]
     fn linear_maps_fold_uniform_lights_into_one_pass() {
-        let coding = PlaneCoding {
-            scale: vec![2.0; 3],
-            offset: vec![0.5; 3],
-        };
+        let coding = [PlaneCoding {
+            scale: 2.0,
+            offset: 0.5,
+        }; 3];
         let mut l = Lighting::new(1, false);
         l.add_uniform([vec![1.0], vec![2.0], vec![3.0]], [1.0, 1.0, 0.5])
             .unwrap();
@@ -445,10 +445,7 @@ mod tests {
 
     #[test]
     fn display_maps_keep_one_pass_per_light_up_to_the_limit() {
-        let coding = PlaneCoding {
-            scale: vec![1.0; 3],
-            offset: vec![0.0; 3],
-        };
+        let coding = [PlaneCoding::IDENTITY; 3];
         let mut l = Lighting::new(1, true);
         for _ in 0..MAX_PASSES {
             l.add_uniform([vec![1.0], vec![1.0], vec![1.0]], [0.5; 3])

@@ -16,7 +16,7 @@
 
 use relit::basis::{Basis, BasisChoice, BasisSpec, Samples, WeightTable, FAMILIES};
 use relit::camera::{CameraSpec, Pose, Projection};
-use relit::engine::{relight, PlaneStorage, RelightOptions, Relighter};
+use relit::engine::{relight, RelightOptions, Relighter};
 use relit::image::ImageRgb;
 use relit::light::{
     AreaLight, AreaShape, Attenuation, EnvironmentMapLight, Light, LightRig, PointLight,
@@ -24,7 +24,8 @@ use relit::light::{
 };
 use relit::maps::{CoefficientMaps, MapSpace, Metadata, RelightableImage};
 use relit::sphere::{fibonacci, Vec3};
-use relit_gpu::{GpuError, GpuOptions, GpuRelighter, Lighting, Roi, Storage};
+use relit::storage::Precision;
+use relit_gpu::{GpuError, GpuOptions, GpuRelighter, Lighting, Roi};
 use std::path::{Path, PathBuf};
 
 /// Largest |GPU − reference| allowed, relative to the largest |reference| value of the
@@ -757,7 +758,7 @@ fn area_light_regions_use_the_image_pixel_index() {
     let sliced = GpuRelighter::with_options(
         &img,
         GpuOptions {
-            storage: Storage::F32,
+            precision: Precision::F32,
             max_slab_bytes: Some(4 * 48 * 45 * 4),
         },
     )
@@ -799,16 +800,16 @@ fn compact_storage_matches_the_cpu_on_the_same_stored_numbers() {
     let img = image(40, 21, basis.as_ref(), MapSpace::Linear);
     let rig = rig();
     let uniform = LightRig::new(rig.lights[..2].to_vec());
-    for storage in [Storage::F16, Storage::Unorm8] {
+    for storage in [Precision::F16, Precision::U8] {
         let options = GpuOptions {
-            storage,
+            precision: storage,
             ..Default::default()
         };
         let Some(gpu) = gpu_or_skip(&img, sh(25), options) else {
             return;
         };
         let mut rounded = img.clone();
-        rounded.maps = storage.round_trip(&img.maps);
+        rounded.maps = relit_gpu::stored_maps(&img.maps, storage);
         check(
             &format!("{} storage", storage.name()),
             &gpu,
@@ -819,8 +820,8 @@ fn compact_storage_matches_the_cpu_on_the_same_stored_numbers() {
             0.0,
             Path::new(""),
         );
-        let cpu_storage = PlaneStorage::parse(storage.name()).unwrap();
-        let engine = Relighter::with_storage(&img, cpu_storage).unwrap();
+        let cpu_storage = Precision::parse(storage.name()).unwrap();
+        let engine = Relighter::with_precision(&img, cpu_storage).unwrap();
         assert_close(
             &format!(
                 "{} storage, uniform lights vs the CPU engine's {} planes",
@@ -845,7 +846,7 @@ fn regions_and_slabs_give_the_same_pixels() {
     let sliced = GpuRelighter::with_options(
         &img,
         GpuOptions {
-            storage: Storage::F32,
+            precision: Precision::F32,
             max_slab_bytes: Some(4 * 48 * 45 * 4),
         },
     )

@@ -96,11 +96,18 @@ impl Precision {
     /// stored numbers, little-endian.
     pub fn encode(self, values: &[f32], coding: PlaneCoding, out: &mut Vec<u8>) {
         match self {
+            Precision::F32 if cfg!(target_endian = "little") => {
+                out.extend_from_slice(bytemuck::cast_slice(values))
+            }
             Precision::F32 => out.extend(values.iter().flat_map(|v| v.to_le_bytes())),
             Precision::F16 => {
                 let mut bits = vec![0u16; values.len()];
                 to_f16_bits(values, &mut bits);
-                out.extend(bits.iter().flat_map(|b| b.to_le_bytes()));
+                if cfg!(target_endian = "little") {
+                    out.extend_from_slice(bytemuck::cast_slice(&bits));
+                } else {
+                    out.extend(bits.iter().flat_map(|b| b.to_le_bytes()));
+                }
             }
             Precision::U8 => out.extend(values.iter().map(|&v| coding.quantize(v))),
         }
@@ -237,7 +244,7 @@ impl FiniteRange {
 
     /// The range grown by `v` (unchanged when `v` is not finite).
     #[inline]
-    pub fn add(self, v: f32) -> Self {
+    pub fn with(self, v: f32) -> Self {
         if v.is_finite() {
             FiniteRange {
                 lo: self.lo.min(v),
@@ -250,7 +257,7 @@ impl FiniteRange {
 
     /// The range of `values`.
     pub fn of(values: impl IntoIterator<Item = f32>) -> Self {
-        values.into_iter().fold(Self::EMPTY, Self::add)
+        values.into_iter().fold(Self::EMPTY, Self::with)
     }
 }
 

@@ -385,7 +385,7 @@ fn read_planes(path: &Path, mut sink: Sink) -> Result<(RelightableImage, Sink)> 
                         crate::storage::to_f16_bits(&samples, &mut bits[at]);
                     }
                     Sink::Ranges(ranges) => {
-                        ranges[j] = samples.iter().copied().fold(ranges[j], FiniteRange::add);
+                        ranges[j] = samples.iter().copied().fold(ranges[j], FiniteRange::with);
                     }
                     Sink::U8 { data, coding } => {
                         for (d, &v) in data[at].iter_mut().zip(&samples) {
