@@ -67,12 +67,13 @@ use anyhow::{bail, Context};
 use rayon::prelude::*;
 use relit::basis::BasisSpec;
 use relit::camera::{CameraSpec, Pose, Projection};
-use relit::engine::{PlaneStorage, Relighter, ShEvaluator};
+use relit::engine::{Relighter, ShEvaluator};
+use relit::storage::Precision;
 use relit::envmap::EnvironmentLight;
 use relit::image::ImageRgb;
 use relit::light::{Light, PreparedLight};
 use relit::maps::{CoefficientMaps, MapSpace, Metadata, RelightableImage};
-use relit_gpu::{GpuError, GpuOptions, GpuRelighter, Lighting, Storage};
+use relit_gpu::{GpuError, GpuOptions, GpuRelighter, Lighting};
 use serde::Serialize;
 use std::hint::black_box;
 use std::path::Path;
@@ -98,7 +99,7 @@ pub struct Args {
     /// GPU storage types (`f32`, `f16`, `u8`; repeatable). Default: all three, except
     /// f16 alone above 64 Mpixel·k on a software adapter (see the module docs).
     #[arg(long = "gpu-storage")]
-    pub gpu_storage: Vec<String>,
+    pub gpu_storage: Vec<Precision>,
     /// Skip the GPU engine.
     #[arg(long)]
     pub no_gpu: bool,
@@ -111,7 +112,7 @@ pub struct Args {
     pub cases: Vec<String>,
     /// CPU plane storage types (`f32`, `f16`, `u8`; repeatable). Default: all three.
     #[arg(long = "cpu-storage")]
-    pub cpu_storage: Vec<String>,
+    pub cpu_storage: Vec<Precision>,
     /// Write the synthetic maps of the first --size and --k to this relightable EXR
     /// (f16, with depth and camera) and exit: a large test file for `relit relight`.
     #[arg(long)]
@@ -224,29 +225,12 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
     if let Some(&bad) = ks.iter().find(|&&k| bands_of(k).is_none()) {
         bail!("--k {bad}: k must be a square of 1..8 bands (1, 4, 9, …, 64)");
     }
-    let gpu_storage: Option<Vec<Storage>> = if args.gpu_storage.is_empty() {
-        None
+    let gpu_storage: Option<Vec<Precision>> =
+        (!args.gpu_storage.is_empty()).then(|| args.gpu_storage.clone());
+    let cpu_storage: Vec<Precision> = if args.cpu_storage.is_empty() {
+        Precision::ALL.to_vec()
     } else {
-        Some(
-            args.gpu_storage
-                .iter()
-                .map(|s| {
-                    Storage::parse(s)
-                        .with_context(|| format!("--gpu-storage `{s}`: expected f32, f16 or u8"))
-                })
-                .collect::<anyhow::Result<_>>()?,
-        )
-    };
-    let cpu_storage: Vec<PlaneStorage> = if args.cpu_storage.is_empty() {
-        PlaneStorage::ALL.to_vec()
-    } else {
-        args.cpu_storage
-            .iter()
-            .map(|s| {
-                PlaneStorage::parse(s)
-                    .with_context(|| format!("--cpu-storage `{s}`: expected f32, f16 or u8"))
-            })
-            .collect::<anyhow::Result<_>>()?
+        args.cpu_storage.clone()
     };
     if let Some(path) = &args.write_maps {
         // The maps are synthetic: the only file read is the program itself.
@@ -254,7 +238,7 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
         let (width, height) = sizes[0];
         let bands = bands_of(ks[0]).expect("checked");
         let image = synthetic_image(width, height, bands)?;
-        relit::codec::exr::write(path, &image, relit::codec::Storage::Half)?;
+        relit::codec::exr::write(path, &image, Precision::F16)?;
         println!(
             "wrote {} ({width}×{height}, k = {}, {} of f32 maps)",
             path.display(),
@@ -345,7 +329,7 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
             let mut evals: std::collections::HashMap<&str, u64> = Default::default();
             if !args.no_cpu {
                 for &storage in &cpu_storage {
-                    let relighter = Relighter::with_storage(&image, storage)?;
+                    let relighter = Relighter::with_precision(&image, storage)?;
                     let key = (width, height, k, storage.name());
                     let reps = probe_reps(relighter.plane_bytes());
                     raise(&mut bounds, key, relighter.plane_read_rate(3 * reps));
@@ -397,14 +381,14 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
             if gpu_skip.is_none() {
                 let storages = gpu_storage.clone().unwrap_or_else(|| {
                     if software && n * k as u64 > 64 << 20 {
-                        vec![Storage::F16]
+                        vec![Precision::F16]
                     } else {
-                        Storage::ALL.to_vec()
+                        Precision::ALL.to_vec()
                     }
                 });
                 for storage in storages {
                     let options = GpuOptions {
-                        storage,
+                        precision: storage,
                         ..Default::default()
                     };
                     let gpu = match GpuRelighter::with_options(&image, options) {
@@ -420,8 +404,7 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
                     let host_bound = gpu.adapter().device_type == "Cpu";
                     let key = (width, height, k, storage.name());
                     if host_bound && !bounds.iter().any(|(k, _)| *k == key) {
-                        let cpu = PlaneStorage::parse(storage.name()).context("storage name")?;
-                        let relighter = Relighter::with_storage(&image, cpu)?;
+                        let relighter = Relighter::with_precision(&image, storage)?;
                         let reps = probe_reps(relighter.plane_bytes());
                         let rate = relighter.plane_read_rate(3 * reps);
                         raise(&mut bounds, key, rate);

@@ -174,7 +174,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     relit::codec::exr::write(
         &staged.file("scene.exr")?,
         &fitted.image,
-        relit::codec::Storage::Half,
+        relit::storage::Precision::F16,
     )?;
     let r = &fitted.report;
     say(format!(

@@ -1,11 +1,10 @@
 //! `relit eval`: fidelity against held-out captured lights, or (`--scene`) against the
 //! studio's ray-traced truth under every light type.
 
-use crate::cmd_fit::StorageArg;
 use crate::shared::{mib, refuse_overwriting_inputs, rig_inputs, scene_inputs, Bars, FitArgs};
 use relit::capture::Capture;
-use relit::codec::Storage;
 use relit::eval::{evaluate_with, EvalOptions, Holdout};
+use relit::storage::Precision;
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
@@ -49,9 +48,10 @@ pub struct Args {
     pub mask: Option<PathBuf>,
     #[command(flatten)]
     pub fit: FitArgs,
-    /// Precision the maps are stored (and scored) at.
-    #[arg(long, value_enum, default_value_t = StorageArg::Half)]
-    pub storage: StorageArg,
+    /// Precision the maps are stored (and scored) at: f16 (alias half) or f32 (alias
+    /// float).
+    #[arg(long, default_value = "f16")]
+    pub storage: Precision,
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
@@ -88,10 +88,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let options = EvalOptions {
         holdout,
         fit: args.fit.to_options()?,
-        storage: match args.storage {
-            StorageArg::Half => Storage::Half,
-            StorageArg::Float => Storage::Float,
-        },
+        storage: args
+            .storage
+            .require(&[Precision::F32, Precision::F16], "--storage (OpenEXR)")?,
         joint: args.joint,
         mask,
     };

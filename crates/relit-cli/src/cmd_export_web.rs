@@ -2,7 +2,8 @@
 
 use crate::shared::refuse_overwriting_inputs;
 use relit::fsutil::Output;
-use relit_viewer::{export_web, BundleOptions, PlaneStorage};
+use relit::storage::Precision;
+use relit_viewer::{export_web, BundleOptions, PRECISIONS};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
@@ -11,21 +12,23 @@ pub struct Args {
     pub file: PathBuf,
     /// Output folder (created; an earlier export there is replaced).
     pub dir: PathBuf,
-    /// Plane storage: u8 (8-bit PNG, scale/offset per plane) or f16 (half floats).
+    /// Precision of the coefficient layers: u8 (8-bit PNG, scale/offset per plane) or
+    /// f16 (half floats).
     #[arg(long, default_value = "u8")]
-    pub storage: PlaneStorage,
+    pub storage: Precision,
     /// Lat-long environment maps (.hdr/.exr) offered as environment lights. Repeatable.
     #[arg(long = "env")]
     pub envs: Vec<PathBuf>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    args.storage.require(&PRECISIONS, "--storage (the viewer)")?;
     // An earlier export in the folder is replaced whole, so nothing it holds may be read.
     let mut inputs = vec![args.file.clone()];
     inputs.extend(args.envs.iter().cloned());
     refuse_overwriting_inputs(&inputs, &[Output::folder(&args.dir)])?;
     let options = BundleOptions {
-        storage: args.storage,
+        precision: args.storage,
         environments: args.envs.clone(),
         source_name: String::new(),
     };

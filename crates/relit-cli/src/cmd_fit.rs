@@ -3,16 +3,10 @@
 use crate::shared::{mib, refuse_overwriting_inputs, Bars, FitArgs};
 use anyhow::Context;
 use relit::capture::Capture;
-use relit::codec::{exr, Storage};
+use relit::codec::exr;
 use relit::fsutil::Output;
+use relit::storage::Precision;
 use std::path::PathBuf;
-
-/// Sample precision of the stored maps.
-#[derive(Clone, Copy, Debug, clap::ValueEnum)]
-pub enum StorageArg {
-    Half,
-    Float,
-}
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -23,9 +17,9 @@ pub struct Args {
     pub output: PathBuf,
     #[command(flatten)]
     pub fit: FitArgs,
-    /// Sample precision of the stored maps.
-    #[arg(long, value_enum, default_value_t = StorageArg::Half)]
-    pub storage: StorageArg,
+    /// Precision of the stored maps: f16 (alias half) or f32 (alias float).
+    #[arg(long, default_value = "f16")]
+    pub storage: Precision,
     /// Print the summary as JSON.
     #[arg(long)]
     pub json: bool,
@@ -35,6 +29,8 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    args.storage
+        .require(&[Precision::F32, Precision::F16], "--storage (OpenEXR)")?;
     let options = args.fit.to_options()?;
     let outputs = [Output::file(&args.output)];
     refuse_overwriting_inputs(std::slice::from_ref(&args.capture), &outputs)?;
@@ -57,11 +53,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let bars = Bars::new(args.quiet || args.json);
     let output = relit::fit::fit(&capture, &options, &bars)?;
-    let storage = match args.storage {
-        StorageArg::Half => Storage::Half,
-        StorageArg::Float => Storage::Float,
-    };
-    exr::write(&args.output, &output.image, storage)
+    exr::write(&args.output, &output.image, args.storage)
         .with_context(|| format!("writing {}", args.output.display()))?;
     let bytes = std::fs::metadata(&args.output)
         .map(|m| m.len())

@@ -3,11 +3,12 @@
 use crate::shared::{refuse_overwriting_inputs, rig_inputs, Bars};
 use anyhow::{bail, Context};
 use relit::codec::exr;
-use relit::engine::{CompactPlanes, PlaneStorage, RelightOptions, Relighter, Roi};
+use relit::engine::{RelightOptions, Relighter, Roi};
 use relit::fsutil::{Output, StagedFolder};
 use relit::image::ImageRgb;
 use relit::light::{parse_triple, Light, LightRig, RigFile};
 use relit::maps::RelightableImage;
+use relit::storage::{CompactPlanes, Precision};
 use relit::progress::Progress;
 use relit_gpu::{GpuOptions, GpuRelighter};
 use std::path::{Path, PathBuf};
@@ -51,10 +52,10 @@ pub struct Args {
     /// environment weights are projected once by the CPU engine.
     #[arg(long)]
     pub gpu: bool,
-    /// Value type of the planes the engine reads: f32 (the file's values, no copy), f16
-    /// or u8 (per-plane scale and bias; a compact copy is made first).
+    /// Precision of the planes the engine reads: f32 (the file's values, no copy), f16
+    /// or u8 (per-plane scale and offset; a compact copy is made first).
     #[arg(long, default_value = "f32")]
-    pub storage: String,
+    pub storage: Precision,
     /// Also relight on the CPU and print the largest absolute difference (with --gpu,
     /// or with --storage f16/u8 against the f32 maps).
     #[arg(long)]
@@ -80,7 +81,7 @@ impl Engine<'_> {
     fn plane_bytes(&self, image: &RelightableImage) -> usize {
         let f32_maps = image.maps.bytes();
         match self {
-            Engine::Cpu(r) if r.storage() != PlaneStorage::F32 => f32_maps + r.plane_bytes(),
+            Engine::Cpu(r) if r.precision() != Precision::F32 => f32_maps + r.plane_bytes(),
             _ => f32_maps,
         }
     }
@@ -132,28 +133,22 @@ fn max_abs_difference(a: &ImageRgb, b: &ImageRgb) -> (f32, f32) {
     (diff, peak)
 }
 
-fn storage_arg(args: &Args) -> anyhow::Result<PlaneStorage> {
-    PlaneStorage::parse(&args.storage)
-        .with_context(|| format!("--storage `{}`: expected f32, f16 or u8", args.storage))
-}
-
 fn build_engine<'a>(
     image: &'a RelightableImage,
     compact: Option<CompactPlanes>,
     args: &Args,
 ) -> anyhow::Result<Engine<'a>> {
-    let storage = storage_arg(args)?;
+    let storage = args.storage;
     if let Some(planes) = compact {
         return Ok(Engine::Cpu(Relighter::with_compact(image, planes)?));
     }
     if !args.gpu {
-        return Ok(Engine::Cpu(Relighter::with_storage(image, storage)?));
+        return Ok(Engine::Cpu(Relighter::with_precision(image, storage)?));
     }
-    let gpu_storage = relit_gpu::Storage::parse(storage.name()).expect("same names");
     let gpu = GpuRelighter::with_options(
         image,
         GpuOptions {
-            storage: gpu_storage,
+            precision: storage,
             ..Default::default()
         },
     )
@@ -210,8 +205,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     // Compact CPU planes are decoded straight from the file, so the f32 maps are never
     // held (--compare and --gpu need them).
-    let storage = storage_arg(&args)?;
-    let (image, compact) = if storage != PlaneStorage::F32 && !args.gpu && !args.compare {
+    let storage = args.storage;
+    let (image, compact) = if storage != Precision::F32 && !args.gpu && !args.compare {
         let (image, planes) = exr::read_compact(&args.file, storage)?;
         (image, Some(planes))
     } else {

@@ -1,6 +1,7 @@
 //! `relit view`: serve the interactive relighting viewer for one file.
 
-use relit_viewer::{serve, BundleOptions, PlaneStorage, WebBundle};
+use relit::storage::Precision;
+use relit_viewer::{serve, BundleOptions, WebBundle};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
@@ -18,16 +19,18 @@ pub struct Args {
     pub open: bool,
     /// How coefficient planes are sent: f16 (half floats) or u8 (quantised 8-bit PNG).
     #[arg(long, default_value = "f16")]
-    pub storage: PlaneStorage,
+    pub storage: Precision,
     /// Lat-long environment maps (.hdr/.exr) offered as environment lights. Repeatable.
     #[arg(long = "env")]
     pub envs: Vec<PathBuf>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    args.storage
+        .require(&relit_viewer::PRECISIONS, "--storage (the viewer)")?;
     let image = relit::codec::exr::read(&args.file)?;
     let options = BundleOptions {
-        storage: args.storage,
+        precision: args.storage,
         environments: args.envs.clone(),
         source_name: args
             .file

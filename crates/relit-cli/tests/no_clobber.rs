@@ -156,7 +156,7 @@ impl Fixture {
         relit::codec::exr::write(
             &d.join("scene.exr"),
             &fitted.image,
-            relit::codec::Storage::Half,
+            relit::storage::Precision::F16,
         )
         .unwrap();
 

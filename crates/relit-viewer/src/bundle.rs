@@ -7,15 +7,15 @@
 //! products of a texel and a weight `vec4`.
 //!
 //! Every layer component holds a stored number `q` whose value is
-//! `offset + scale · q`, with the component's own `scale` and `offset` in `info.json`
-//! (the meaning of the CPU and GPU engines' planes too):
+//! `offset + scale · q`, with the component's own `scale` and `offset` in `info.json`:
+//! the planes in a [`Precision`] with their [`PlaneCoding`]s, encoded by
+//! `relit::storage` as the CPU and GPU engines' planes are (`info.json`'s `storage`
+//! names the precision):
 //!
-//! * `u8` storage: each layer is an RGBA 8-bit PNG; `q` is the byte, 0–255, `offset`
-//!   the plane's least finite value and `scale` one step of its range in 255 steps,
-//!   quantised exactly as the CPU engine's 8-bit planes.
-//! * `f16` storage: each layer is `width × height × 4` little-endian IEEE half floats,
-//!   row-major from the top-left pixel, RGBA interleaved; `q` is the value (`scale` 1,
-//!   `offset` 0).
+//! * `u8`: each layer is an RGBA 8-bit PNG; `q` is the byte, 0–255, `offset` the
+//!   plane's least finite value and `scale` one step of its range in 255 steps.
+//! * `f16`: each layer is `width × height × 4` little-endian IEEE half floats, row-major
+//!   from the top-left pixel, RGBA interleaved; `q` is the value (`scale` 1, `offset` 0).
 //!
 //! The viewer knows no basis. `info.json` names it (`basis.name`, `basis.spec`) and
 //! ships its [`WeightTable`] (`data/weights.f16`: the `(N+1)²·k` values of
@@ -50,6 +50,7 @@ use relit::envmap::{latlong_direction, texel_solid_angle, EnvironmentLight, Wind
 use relit::image::ImageRgb;
 use relit::maps::RelightableImage;
 use relit::sphere::Vec3;
+use relit::storage::{PlaneCoding, Precision};
 use serde::Serialize;
 use serde_json::json;
 use std::collections::BTreeMap;
@@ -73,52 +74,37 @@ pub const QUADRATURE_HEIGHT: usize = 64;
 /// implementations, SwiftShader included, give 8192 or more).
 pub const MAX_SIDE: usize = 16384;
 
-/// How coefficient planes are stored for the web.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum PlaneStorage {
-    /// 8-bit PNG per layer, quantised with a scale and offset per plane.
-    U8,
-    /// Raw little-endian half floats per layer.
-    #[default]
-    F16,
-}
+/// The precisions the viewer reads (WebGL2 textures of half floats or bytes).
+pub const PRECISIONS: [Precision; 2] = [Precision::F16, Precision::U8];
 
-impl PlaneStorage {
-    pub fn name(self) -> &'static str {
-        match self {
-            PlaneStorage::U8 => "u8",
-            PlaneStorage::F16 => "f16",
-        }
-    }
-    fn extension(self) -> &'static str {
-        match self {
-            PlaneStorage::U8 => "png",
-            PlaneStorage::F16 => "f16",
-        }
-    }
-}
-
-impl std::str::FromStr for PlaneStorage {
-    type Err = String;
-    fn from_str(s: &str) -> std::result::Result<Self, String> {
-        match s.to_ascii_lowercase().as_str() {
-            "u8" | "8" | "png" => Ok(PlaneStorage::U8),
-            "f16" | "half" | "16" => Ok(PlaneStorage::F16),
-            other => Err(format!("unknown storage `{other}` (u8 or f16)")),
-        }
+/// The file extension of a layer in `precision`.
+fn extension(precision: Precision) -> &'static str {
+    match precision {
+        Precision::U8 => "png",
+        _ => "f16",
     }
 }
 
 /// Options of a bundle.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct BundleOptions {
-    pub storage: PlaneStorage,
+    /// The precision of the coefficient layers: f16 (the default) or u8.
+    pub precision: Precision,
     /// Lat-long environment maps shipped with the bundle; the rig JSON names each by its
     /// file name.
     pub environments: Vec<PathBuf>,
     /// A name for the source shown by the viewer (usually the EXR's file name).
     pub source_name: String,
+}
+
+impl Default for BundleOptions {
+    fn default() -> Self {
+        BundleOptions {
+            precision: Precision::F16,
+            environments: Vec::new(),
+            source_name: String::new(),
+        }
+    }
 }
 
 /// One environment map as the bundle ships it.
@@ -163,6 +149,7 @@ impl WebBundle {
         options: &BundleOptions,
     ) -> Result<WebBundle> {
         check_image(image, basis.as_ref())?;
+        options.precision.require(&PRECISIONS, "the viewer")?;
         let environments = options
             .environments
             .iter()
@@ -185,7 +172,7 @@ impl WebBundle {
         let n = layers_per_channel(image.maps.k);
         for (l, layer) in layers.iter().enumerate() {
             let file = layer["file"].as_str().expect("layer file").to_string();
-            let bytes = encode_layer(image, l / n, l % n, options.storage)?;
+            let bytes = encode_layer(image, l / n, l % n, options.precision)?;
             files.insert(format!("data/{file}"), bytes);
         }
         files.insert(
@@ -340,17 +327,12 @@ fn info_json_with(
                     continue;
                 }
                 coefficients.push(i);
-                match options.storage {
-                    PlaneStorage::F16 => *s = 1.0,
-                    PlaneStorage::U8 => {
-                        let (step, lo) = u8_coding(image.maps.plane(i, c));
-                        *s = step as f64;
-                        *o = lo as f64;
-                    }
-                }
+                let coding = options.precision.coding(image.maps.plane(i, c));
+                *s = coding.scale as f64;
+                *o = coding.offset as f64;
             }
             layers.push(json!({
-                "file": format!("planes/L{:02}.{}", c * n + j, options.storage.extension()),
+                "file": format!("planes/L{:02}.{}", c * n + j, extension(options.precision)),
                 "channel": c,
                 "coefficients": coefficients,
                 "scale": scale,
@@ -382,7 +364,7 @@ fn info_json_with(
         "light_frame": image.meta.light_frame,
         "projection": image.meta.projection,
         "camera": camera,
-        "storage": options.storage,
+        "storage": options.precision,
         "layers_per_channel": n,
         "layers": layers,
         "depth": image.depth.as_ref().map(|_| json!({ "file": "depth.f32", "format": "f32le" })),
@@ -390,79 +372,44 @@ fn info_json_with(
     }))
 }
 
-/// The finite range of a plane (0, 0 when nothing is finite).
-fn plane_range(plane: &[f32]) -> (f32, f32) {
-    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-    for &v in plane.iter().filter(|v| v.is_finite()) {
-        lo = lo.min(v);
-        hi = hi.max(v);
-    }
-    if lo > hi {
-        (0.0, 0.0)
-    } else {
-        (lo, hi)
-    }
-}
-
-/// The 8-bit coding `(scale, offset)` of a plane: one step of its finite range in 255
-/// steps and its least finite value (`(0, lo)` for a constant plane, `(0, 0)` without
-/// finite values), as the CPU engine's 8-bit planes (`u8_coding` in
-/// crates/relit/src/engine/planes.rs).
-pub fn u8_coding(plane: &[f32]) -> (f32, f32) {
-    let (lo, hi) = plane_range(plane);
-    if lo < hi {
-        ((hi - lo) / 255.0, lo)
-    } else {
-        (0.0, lo)
-    }
-}
-
-/// The byte `q` of `v` in the coding `(scale, offset)` (`value = offset + scale · q`),
-/// rounded to nearest as the CPU engine's 8-bit planes; non-finite values give 0.
-pub fn quantize_u8(v: f32, scale: f32, offset: f32) -> u8 {
-    let inv = if scale > 0.0 { 1.0 / scale } else { 0.0 };
-    if !v.is_finite() {
-        return 0;
-    }
-    ((v - offset) * inv).round().clamp(0.0, 255.0) as u8
-}
-
+/// Layer `j` of channel `c`: planes `4j … 4j+3` (zero past `k`), each encoded by
+/// [`Precision::encode`] with its coding, interleaved per pixel.
 fn encode_layer(
     image: &RelightableImage,
     c: usize,
     j: usize,
-    storage: PlaneStorage,
+    precision: Precision,
 ) -> Result<Vec<u8>> {
     let (w, h, k) = (image.width(), image.height(), image.maps.k);
     let pixels = w * h;
-    let planes: Vec<Option<&[f32]>> = (0..4)
-        .map(|q| (4 * j + q < k).then(|| image.maps.plane(4 * j + q, c)))
+    let b = precision.bytes_per_value();
+    let planes: Vec<Vec<u8>> = (0..4)
+        .map(|q| {
+            let mut bytes = Vec::with_capacity(pixels * b);
+            if 4 * j + q < k {
+                let plane = image.maps.plane(4 * j + q, c);
+                precision.encode(plane, precision.coding(plane), &mut bytes);
+            } else {
+                // A component past k: zeros, whose value is 0 in the coding `(0, 0)`.
+                let zeros = vec![0.0; pixels];
+                let none = PlaneCoding {
+                    scale: 0.0,
+                    offset: 0.0,
+                };
+                precision.encode(&zeros, none, &mut bytes);
+            }
+            bytes
+        })
         .collect();
-    match storage {
-        PlaneStorage::F16 => {
-            let mut out = Vec::with_capacity(pixels * 8);
-            for p in 0..pixels {
-                for plane in &planes {
-                    let v = plane.map_or(0.0, |pl| pl[p]);
-                    let v = if v.is_finite() { v } else { 0.0 };
-                    out.extend_from_slice(&half::f16::from_f32(v).to_le_bytes());
-                }
-            }
-            Ok(out)
+    let mut texels = Vec::with_capacity(pixels * 4 * b);
+    for p in 0..pixels {
+        for plane in &planes {
+            texels.extend_from_slice(&plane[p * b..(p + 1) * b]);
         }
-        PlaneStorage::U8 => {
-            let codings: Vec<(f32, f32)> = planes
-                .iter()
-                .map(|pl| pl.map_or((0.0, 0.0), u8_coding))
-                .collect();
-            let mut rgba = Vec::with_capacity(pixels * 4);
-            for p in 0..pixels {
-                for (plane, &(scale, offset)) in planes.iter().zip(&codings) {
-                    rgba.push(plane.map_or(0, |pl| quantize_u8(pl[p], scale, offset)));
-                }
-            }
-            encode_png(w, h, image::ExtendedColorType::Rgba8, &rgba)
-        }
+    }
+    match precision {
+        Precision::U8 => encode_png(w, h, image::ExtendedColorType::Rgba8, &texels),
+        _ => Ok(texels),
     }
 }
 

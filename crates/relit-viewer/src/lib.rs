@@ -19,7 +19,7 @@ pub mod bundle;
 pub mod export;
 pub mod server;
 
-pub use bundle::{BundleOptions, PlaneStorage, WebBundle};
+pub use bundle::{BundleOptions, WebBundle, PRECISIONS};
 pub use export::export_web;
 pub use server::{serve, serve_with, RunningServer, ServerOptions};
 

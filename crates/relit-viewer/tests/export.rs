@@ -7,17 +7,18 @@ use relit::basis::{Basis, WeightTable};
 use relit::envmap::{latlong_direction, texel_solid_angle, Window};
 use relit::image::ImageRgb;
 use relit_viewer::bundle::{environment_quadrature, shipped_table};
-use relit_viewer::{export_web, BundleOptions, PlaneStorage, WebBundle};
+use relit::storage::Precision;
+use relit_viewer::{export_web, BundleOptions, WebBundle};
 use serde_json::Value;
 
-fn export(storage: PlaneStorage) -> (tempfile::TempDir, relit::maps::RelightableImage, Value) {
+fn export(storage: Precision) -> (tempfile::TempDir, relit::maps::RelightableImage, Value) {
     let dir = tempfile::tempdir().unwrap();
     let image = common::sample_image(40, 10, 3);
     let exr = dir.path().join("scene.exr");
-    relit::codec::exr::write(&exr, &image, relit::codec::Storage::Float).unwrap();
+    relit::codec::exr::write(&exr, &image, Precision::F32).unwrap();
     let site = dir.path().join("site");
     let options = BundleOptions {
-        storage,
+        precision: storage,
         ..Default::default()
     };
     export_web(&exr, &site, &options).unwrap();
@@ -71,7 +72,7 @@ fn decode(site: &std::path::Path, info: &Value, l: usize) -> Vec<[f32; 4]> {
     }
 }
 
-fn check(storage: PlaneStorage) {
+fn check(storage: Precision) {
     let (dir, image, info) = export(storage);
     let site = dir.path().join("site");
     assert_eq!(info["format"], "relit-web");
@@ -106,8 +107,8 @@ fn check(storage: PlaneStorage) {
             let step = layer["scale"][q].as_f64().unwrap();
             for (p, &v) in original.iter().enumerate() {
                 let tolerance = match storage {
-                    PlaneStorage::U8 => 0.5 * step + 1e-6,
-                    PlaneStorage::F16 => (v.abs() as f64) * 1e-3 + 1e-7,
+                    Precision::U8 => 0.5 * step + 1e-6,
+                    _ => (v.abs() as f64) * 1e-3 + 1e-7,
                 };
                 let err = (planes[p][q] - v).abs() as f64;
                 assert!(
@@ -143,7 +144,7 @@ fn check(storage: PlaneStorage) {
 /// its range in 255 steps, the nearest code.
 #[test]
 fn u8_layers_use_the_engines_coding() {
-    let (dir, image, info) = export(PlaneStorage::U8);
+    let (dir, image, info) = export(Precision::U8);
     let site = dir.path().join("site");
     let layer = &info["layers"][0];
     let plane = image.maps.plane(0, 0);
@@ -166,17 +167,17 @@ fn u8_layers_use_the_engines_coding() {
 
 #[test]
 fn u8_planes_round_trip_within_half_a_step() {
-    check(PlaneStorage::U8);
+    check(Precision::U8);
 }
 
 #[test]
 fn f16_planes_round_trip_within_half_precision() {
-    check(PlaneStorage::F16);
+    check(Precision::F16);
 }
 
 #[test]
 fn export_replaces_an_earlier_export_but_not_other_folders() {
-    let (dir, _, _) = export(PlaneStorage::U8);
+    let (dir, _, _) = export(Precision::U8);
     let exr = dir.path().join("scene.exr");
     let site = dir.path().join("site");
     // Again over the earlier export: replaced.
@@ -208,7 +209,7 @@ fn export_replaces_an_earlier_export_but_not_other_folders() {
 
 #[test]
 fn an_export_never_replaces_a_folder_holding_its_input() {
-    let (dir, _, _) = export(PlaneStorage::U8);
+    let (dir, _, _) = export(Precision::U8);
     // The maps moved into the earlier export, which a new export would replace whole.
     let site = dir.path().join("site");
     let inside = site.join("scene.exr");

@@ -3,7 +3,8 @@
 mod common;
 
 use relit_viewer::server::{clean_path, MAX_HEAD};
-use relit_viewer::{serve, serve_with, BundleOptions, PlaneStorage, ServerOptions, WebBundle};
+use relit::storage::Precision;
+use relit_viewer::{serve, serve_with, BundleOptions, ServerOptions, WebBundle};
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpStream};
 use std::sync::{Arc, Barrier};
@@ -14,7 +15,7 @@ fn bundle() -> WebBundle {
     WebBundle::build(
         &image,
         &BundleOptions {
-            storage: PlaneStorage::U8,
+            precision: Precision::U8,
             environments: vec![],
             source_name: "test.exr".into(),
         },

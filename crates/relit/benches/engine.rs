@@ -12,7 +12,8 @@
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use relit::basis::BasisSpec;
 use relit::camera::{CameraSpec, Pose, Projection};
-use relit::engine::{PlaneStorage, Relighter, Roi, ShEvaluator};
+use relit::engine::{Relighter, Roi, ShEvaluator};
+use relit::storage::Precision;
 use relit::image::ImageRgb;
 use relit::light::{AreaLight, AreaShape, Light, PreparedLight, ProjectorLight};
 use relit::maps::{CoefficientMaps, MapSpace, Metadata, RelightableImage};
@@ -136,8 +137,8 @@ fn frames(c: &mut Criterion) {
         group.throughput(Throughput::Elements((WIDTH * HEIGHT) as u64));
         group.sample_size(30);
         group.measurement_time(Duration::from_secs(2));
-        for storage in PlaneStorage::ALL {
-            let r = Relighter::with_storage(&image, storage).unwrap();
+        for storage in Precision::ALL {
+            let r = Relighter::with_precision(&image, storage).unwrap();
             let mut out = ImageRgb::new(0, 0);
             group.bench_function(BenchmarkId::from_parameter(storage.name()), |b| {
                 b.iter(|| {

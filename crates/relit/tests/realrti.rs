@@ -37,7 +37,7 @@ fn item1_beats_the_best_peer_figure() {
     let options = EvalOptions {
         holdout: Holdout::Spread(5),
         fit: Default::default(),
-        storage: Default::default(),
+        storage: relit::storage::Precision::F16,
         joint: false,
         mask: None,
     };
