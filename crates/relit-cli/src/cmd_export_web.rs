@@ -22,7 +22,8 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    args.storage.require(&PRECISIONS, "--storage (the viewer)")?;
+    args.storage
+        .require(&PRECISIONS, "--storage (the viewer)")?;
     // An earlier export in the folder is replaced whole, so nothing it holds may be read.
     let mut inputs = vec![args.file.clone()];
     inputs.extend(args.envs.iter().cloned());

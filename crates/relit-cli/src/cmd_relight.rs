@@ -8,8 +8,8 @@ use relit::fsutil::{Output, StagedFolder};
 use relit::image::ImageRgb;
 use relit::light::{parse_triple, Light, LightRig, RigFile};
 use relit::maps::RelightableImage;
-use relit::storage::{CompactPlanes, Precision};
 use relit::progress::Progress;
+use relit::storage::{CompactPlanes, Precision};
 use relit_gpu::{GpuOptions, GpuRelighter};
 use std::path::{Path, PathBuf};
 

@@ -62,7 +62,10 @@ fn viewer(image: &RelightableImage, p: Precision) -> Vec<f32> {
     for layer in info["layers"].as_array().unwrap() {
         let bytes = &bundle.files[&format!("data/{}", layer["file"].as_str().unwrap())];
         let texels: Vec<u8> = match p {
-            Precision::U8 => image::load_from_memory(bytes).unwrap().into_rgba8().into_raw(),
+            Precision::U8 => image::load_from_memory(bytes)
+                .unwrap()
+                .into_rgba8()
+                .into_raw(),
             _ => bytes.clone(),
         };
         let c = layer["channel"].as_u64().unwrap() as usize;
@@ -103,9 +106,15 @@ fn every_back_end_decodes_the_same_values() {
         for plane in shared.chunks_mut(image.maps.pixels()) {
             p.round_trip(plane);
         }
-        assert!(same(&cpu, &shared), "{p}: CPU planes and relit::storage differ");
+        assert!(
+            same(&cpu, &shared),
+            "{p}: CPU planes and relit::storage differ"
+        );
         if PRECISIONS.contains(&p) {
-            assert!(same(&cpu, &viewer(&image, p)), "{p}: CPU planes and viewer layers differ");
+            assert!(
+                same(&cpu, &viewer(&image, p)),
+                "{p}: CPU planes and viewer layers differ"
+            );
         } else {
             let options = BundleOptions {
                 precision: p,

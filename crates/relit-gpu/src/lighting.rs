@@ -9,11 +9,11 @@
 //! buffer, area lights their emitter and strata (`relit::light::{projector, area}`).
 
 use crate::error::{invalid, GpuError, Result};
-use relit::storage::PlaneCoding;
 use bytemuck::{Pod, Zeroable};
 use relit::image::ImageRgb;
 use relit::light::{AreaLight, AreaShape, Attenuation, PreparedLight, ProjectorLight};
 use relit::sphere::Vec3;
+use relit::storage::PlaneCoding;
 use std::sync::Arc;
 
 /// The most coefficients per colour channel (the shader's arrays hold 64).

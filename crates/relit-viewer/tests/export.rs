@@ -6,8 +6,8 @@ mod common;
 use relit::basis::{Basis, WeightTable};
 use relit::envmap::{latlong_direction, texel_solid_angle, Window};
 use relit::image::ImageRgb;
-use relit_viewer::bundle::{environment_quadrature, shipped_table};
 use relit::storage::Precision;
+use relit_viewer::bundle::{environment_quadrature, shipped_table};
 use relit_viewer::{export_web, BundleOptions, WebBundle};
 use serde_json::Value;
 

@@ -2,8 +2,8 @@
 
 mod common;
 
-use relit_viewer::server::{clean_path, MAX_HEAD};
 use relit::storage::Precision;
+use relit_viewer::server::{clean_path, MAX_HEAD};
 use relit_viewer::{serve, serve_with, BundleOptions, ServerOptions, WebBundle};
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpStream};

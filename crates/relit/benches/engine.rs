@@ -13,10 +13,10 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Through
 use relit::basis::BasisSpec;
 use relit::camera::{CameraSpec, Pose, Projection};
 use relit::engine::{Relighter, Roi, ShEvaluator};
-use relit::storage::Precision;
 use relit::image::ImageRgb;
 use relit::light::{AreaLight, AreaShape, Light, PreparedLight, ProjectorLight};
 use relit::maps::{CoefficientMaps, MapSpace, Metadata, RelightableImage};
+use relit::storage::Precision;
 use std::hint::black_box;
 use std::time::Duration;
 

@@ -34,8 +34,8 @@ mod tiles;
 
 pub use bounds::{fma_peak, fma_throughput, FmaPeak};
 
-use kernels::{ShNorms, Simd};
 use crate::storage::{CompactPlanes, Planes, Precision};
+use kernels::{ShNorms, Simd};
 use points::SurfacePoints;
 use tiles::{Frame, PositionalLight, Scratch, UniformPass, TILE};
 
@@ -187,7 +187,11 @@ impl<'a> Relighter<'a> {
                 "the coefficient maps' data does not match their size",
             ));
         }
-        Ok(Self::over(image, basis, Planes::new(&image.maps, precision)))
+        Ok(Self::over(
+            image,
+            basis,
+            Planes::new(&image.maps, precision),
+        ))
     }
 
     /// A relighter over checked planes, with nothing computed yet.

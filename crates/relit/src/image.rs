@@ -277,7 +277,6 @@ pub fn contact_sheet(frames: &[ImageRgb], columns: usize, max_width: usize) -> I
     sheet
 }
 
-
 /// OpenEXR images: frames, depth and masks (relightable files are the codec's).
 mod openexr {
     use super::ImageRgb;
@@ -333,10 +332,9 @@ mod openexr {
     /// `R`, `A` that the file has.
     pub(super) fn read_scalar_channel(path: &Path) -> Result<(usize, usize, Vec<f32>)> {
         let image = read_all_data(path)?;
-        let layer =
-            image.layer_data.into_iter().next().ok_or_else(|| {
-                Error::parse(format!("{}: the EXR file has no layer", path.display()))
-            })?;
+        let layer = image.layer_data.into_iter().next().ok_or_else(|| {
+            Error::parse(format!("{}: the EXR file has no layer", path.display()))
+        })?;
         let (w, h) = (layer.size.width(), layer.size.height());
         for wanted in ["Z", "Y", "R", "A"] {
             if let Some(ch) = layer

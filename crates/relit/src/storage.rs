@@ -1,7 +1,7 @@
-//! How coefficient values are stored: the one description the file
-//! ([`crate::codec::exr`] writes f32 or f16), the CPU engine (its planes in any
-//! [`Precision`]), the GPU engine (`relit-gpu`) and the browser viewer (`relit-viewer`,
-//! f16 or u8 layers) all share ([conventions](crate#stored-numbers)).
+//! How coefficient values are stored: the one description the relightable file (maps
+//! in f32 or f16), the CPU engine (planes in any [`Precision`]), the GPU engine
+//! (`relit-gpu`) and the browser viewer (`relit-viewer`, f16 or u8 layers) all share
+//! ([conventions](crate#stored-numbers)).
 //!
 //! A stored plane holds one number `q` per value, in a [`Precision`], and one
 //! [`PlaneCoding`] that gives it meaning: **`value = offset + scale · q`**.
@@ -283,7 +283,8 @@ pub fn to_f16_bits(values: &[f32], out: &mut [u16]) {
 /// [`f16_value`] of every half.
 pub fn from_f16_bits(bits: &[u16], out: &mut [f32]) {
     assert_eq!(bits.len(), out.len(), "one value per half");
-    bits.reinterpret_cast::<half::f16>().convert_to_f32_slice(out);
+    bits.reinterpret_cast::<half::f16>()
+        .convert_to_f32_slice(out);
 }
 
 /// Planes (plane `j` at `j · n`, `n` values each) in their precision, as the CPU
@@ -372,9 +373,9 @@ fn quantize<T: Sync>(values: &[T], n: usize, decode: impl Fn(&T) -> f32 + Sync) 
     Planes::U8 { data, coding }
 }
 
-/// Planes in f16 or u8 that own their values, made without keeping f32 maps: what
-/// [`crate::codec::exr::read_compact`] decodes a file into, so that a relighter with
-/// compact planes never holds the f32 maps at all.
+/// Planes in f16 or u8 that own their values, made without keeping f32 maps: what the
+/// EXR reader's `read_compact` decodes a file into, so that a relighter with compact
+/// planes never holds the f32 maps at all.
 pub struct CompactPlanes {
     pub(crate) planes: Planes<'static>,
     /// Values per plane.
@@ -549,7 +550,13 @@ mod tests {
         );
         assert_eq!(constant, vec![0.25; 7]);
         let coding = Precision::U8.coding(&[f32::NAN, f32::INFINITY]);
-        assert_eq!(coding, PlaneCoding { scale: 0.0, offset: 0.0 });
+        assert_eq!(
+            coding,
+            PlaneCoding {
+                scale: 0.0,
+                offset: 0.0
+            }
+        );
         // NaN takes code 0; infinities saturate; the range ignores them.
         let coding = Precision::U8.coding(&[0.0, 1.0, f32::NAN, f32::NEG_INFINITY]);
         assert_eq!(coding.offset, 0.0);

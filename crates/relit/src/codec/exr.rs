@@ -93,10 +93,7 @@ pub fn write(path: &Path, image: &RelightableImage, precision: Precision) -> Res
         Text::new_or_panic("relit.projection"),
         text(&ascii_json(&meta.projection)),
     );
-    other.insert(
-        Text::new_or_panic("relit.storage"),
-        text(precision.name()),
-    );
+    other.insert(Text::new_or_panic("relit.storage"), text(precision.name()));
     if let Some(fit) = &meta.fit {
         other.insert(Text::new_or_panic("relit.fit"), text(&ascii_json(fit)));
     }

@@ -28,9 +28,9 @@
 //! then (the engine's kernels use 8 lanes, so 8-lane code cannot exceed half of it).
 
 use super::kernels::{Simd, FMA_PER_ITER};
-use crate::storage::Planes;
 use super::tiles::TILE;
 use super::Relighter;
+use crate::storage::Planes;
 use rayon::prelude::*;
 use std::hint::black_box;
 use std::time::Instant;

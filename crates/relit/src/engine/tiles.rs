@@ -9,10 +9,10 @@
 
 use super::kernels::{AreaSamples, Cone, Falloff, Projector, Rows, ShNorms, Shift, Simd};
 use super::kernels::{Stored, BLOCK};
-use crate::storage::{PlaneCoding, Planes};
 use super::points::SurfacePoints;
 use crate::color;
 use crate::light::PreparedLight;
+use crate::storage::{PlaneCoding, Planes};
 use std::cell::RefCell;
 
 /// Pixels per tile: each plane's segment (64 KiB in f32, 16 KiB in u8) is read in one

@@ -195,8 +195,8 @@ impl Light {
     }
 
     /// Load what the light refers to (a projector's slide, relative to `base`).
-    /// Environment lights depend on the maps' basis: prepare them with
-    /// [`crate::engine::Relighter`].
+    /// Environment lights depend on the maps' basis, which a light does not know: the
+    /// relighting engine prepares them.
     pub fn prepare(&self, base: &Path) -> Result<PreparedLight> {
         self.validate()?;
         let rgb = self.rgb();
