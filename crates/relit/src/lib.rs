@@ -10,6 +10,8 @@
 //! * [`capture`] — images, light directions and intensities (`.lp` files, JSON manifests);
 //! * [`basis`] — the spherical bases the functions are expressed in ([`basis::Basis`]);
 //! * [`fit`] — streaming, regularised least squares from a capture to [`maps::RelightableImage`];
+//! * [`storage`] — how coefficient values are stored (precision, per-plane coding), one
+//!   description for files, engines and the viewer;
 //! * [`codec`] — files: OpenEXR, the native format;
 //! * [`light`] and [`engine`] — light rigs and the relighting of maps into images;
 //! * [`eval`] — fidelity against held-out captures, scored by [`metrics`] (the one
