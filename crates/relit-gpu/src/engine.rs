@@ -297,10 +297,10 @@ impl GpuRelighter {
                     .slice(..)
                     .get_mapped_range_mut()
                     .map_err(|e| GpuError::Device(e.to_string()))?;
-                for j in 0..3 * k {
+                for (j, &plane_coding) in coding.iter().enumerate() {
                     let src = &image.maps.data[j * n + row0 * width..j * n + (row0 + rows) * width];
                     scratch.clear();
-                    encode(precision, src, coding[j], &mut scratch);
+                    encode(precision, src, plane_coding, &mut scratch);
                     let at = j * stride * bpv as usize;
                     view.slice(at..at + scratch.len()).copy_from_slice(&scratch);
                 }
