@@ -6,7 +6,11 @@
 //! plane before any pixel is touched, so the cost is one pass over the planes whatever
 //! their number. Lights with a position (point, spot, projector, area) have a light
 //! vector per pixel, `L = S − P` with `P` the pixel's surface point from the camera
-//! and depth (seed 004 eq. 3), and evaluate the basis per pixel (seed 000, figure 8).
+//! and depth (seed 004 eq. 3), and evaluate the basis per pixel (seed 000, figure 8):
+//! SH by its f32 recurrence, any other basis from its half-float weight table (the
+//! weights the GPU and the browser viewer read). Environment lights are one weight
+//! vector per frame for every basis (`crate::envmap`: SH's exact projection, or a
+//! quadrature of the map for the others). Nothing here names a particular basis.
 //! Display-referred maps are evaluated per light and decoded to linear before adding.
 //!
 //! Known limitation (seed 004 §VI): the maps record shadows cast by *directional*
@@ -16,7 +20,7 @@
 
 use crate::basis::Basis;
 use crate::camera::{Camera, CameraSpec};
-use crate::envmap::EnvironmentLight;
+use crate::envmap::{BasisEnvironment, EnvironmentLight};
 use crate::image::ImageRgb;
 use crate::light::{Light, LightRig, PreparedLight};
 use crate::maps::{MapSpace, RelightableImage};
@@ -36,7 +40,8 @@ mod tiles;
 pub use bounds::{fma_peak, fma_throughput, FmaPeak};
 pub use planes::{CompactPlanes, PlaneStorage};
 
-use kernels::{ShNorms, Simd};
+pub use kernels::BasisEvaluator;
+use kernels::{PixelBasis, Simd};
 use planes::Planes;
 use points::SurfacePoints;
 use tiles::{Frame, PositionalLight, Scratch, UniformPass, TILE};
@@ -136,9 +141,6 @@ pub fn relight(
     Relighter::new(image)?.relight(rig, options)
 }
 
-/// An environment map and its unrotated SH projection per channel.
-type ProjectedEnvironment = (EnvironmentLight, [Vec<f64>; 3]);
-
 /// Relights one relightable image many times, keeping what does not depend on the lights
 /// (the planes in their storage type, the basis, the per-pixel surface points, loaded
 /// slides and environment maps).
@@ -147,24 +149,25 @@ type ProjectedEnvironment = (EnvironmentLight, [Vec<f64>; 3]);
 /// planar layout, tile by tile (rayon over tiles of [`tiles::TILE`] pixels, or over
 /// rows of a region), with AVX2/FMA/F16C code when the CPU has it. Directional and
 /// environment lights on linear maps fold into one weight per plane, so a frame reads
-/// each plane once; positional lights (point, spot, projector, area) evaluate the SH
-/// basis per block of 64 pixels with an f32 recurrence at each pixel's light vectors
-/// (an area light's samples summed in SH before one dot with the coefficients).
+/// each plane once; positional lights (point, spot, projector, area) evaluate the
+/// basis per block of 64 pixels at each pixel's light vectors (SH by an f32 recurrence,
+/// other bases from their half-float weight table; an area light's samples summed on
+/// the basis before one dot with the coefficients).
 pub struct Relighter<'a> {
     image: &'a RelightableImage,
     basis: Box<dyn Basis>,
-    bands: usize,
+    /// The basis per pixel (its weight table built on the first frame that needs it).
+    pixel_basis: OnceLock<PixelBasis>,
     planes: Planes<'a>,
     simd: Simd,
-    norms: ShNorms,
     /// Frames of at least this many bytes are written with non-temporal stores.
     stream_from: usize,
     points: OnceLock<Result<Vec<Option<Vec3>>, String>>,
     /// Surface points rebuilt per block from camera and depth.
     point_rows: OnceLock<Result<SurfacePoints<'a>, String>>,
     slides: Mutex<HashMap<PathBuf, Arc<ImageRgb>>>,
-    /// Environment maps with their unrotated SH projection, by file.
-    environments: Mutex<HashMap<PathBuf, Arc<ProjectedEnvironment>>>,
+    /// Environment maps made ready for the basis, by file.
+    environments: Mutex<HashMap<PathBuf, Arc<BasisEnvironment>>>,
 }
 
 impl<'a> Relighter<'a> {
@@ -194,15 +197,12 @@ impl<'a> Relighter<'a> {
 
     /// A relighter over checked planes, with nothing computed yet.
     fn over(image: &'a RelightableImage, basis: Box<dyn Basis>, planes: Planes<'a>) -> Self {
-        // 0: no SH fast path (positional and environment lights need the table path).
-        let bands = kernels::sh_bands(basis.as_ref()).unwrap_or(0);
         Self {
             image,
             basis,
-            bands,
+            pixel_basis: OnceLock::new(),
             planes,
             simd: Simd::detect(),
-            norms: ShNorms::new(),
             stream_from: STREAM_BYTES,
             points: OnceLock::new(),
             point_rows: OnceLock::new(),
@@ -305,6 +305,19 @@ impl<'a> Relighter<'a> {
         Ok((camera, depth))
     }
 
+    /// How the basis is evaluated per pixel, made once (a weight table is built here
+    /// for bases other than SH).
+    fn pixel_basis(&self) -> &PixelBasis {
+        self.pixel_basis
+            .get_or_init(|| PixelBasis::new(self.basis.as_ref()))
+    }
+
+    /// How lights with a position evaluate the basis: `sh recurrence` or `weight
+    /// table` (building the table if needed).
+    pub fn pixel_path(&self) -> &'static str {
+        self.pixel_basis().name()
+    }
+
     /// The per-block source of surface points, made once.
     fn point_rows(&self) -> Result<&SurfacePoints<'a>> {
         let rows = self.point_rows.get_or_init(|| {
@@ -314,21 +327,16 @@ impl<'a> Relighter<'a> {
         rows.as_ref().map_err(|e| Error::invalid(e.clone()))
     }
 
-    /// The basis weights of an environment light for these maps: the map's SH projection
-    /// (computed once per file) rotated and windowed, times the light's colour.
+    /// The basis weights of an environment light for these maps, times the light's
+    /// colour: the map made ready for the basis once per file
+    /// ([`EnvironmentLight::for_basis`]), then rotated (and, on bases with bands,
+    /// windowed) per call.
     pub fn environment_weights(
         &self,
         light: &crate::light::EnvironmentMapLight,
         resource_dir: &std::path::Path,
     ) -> Result<[Vec<f64>; 3]> {
         light.validate()?;
-        let bands = self.bands;
-        if bands == 0 {
-            return Err(Error::invalid(format!(
-                "environment lights are not yet supported on basis {}",
-                self.basis.name()
-            )));
-        }
         let path = resource_dir.join(&light.map);
         let entry = {
             let mut cache = self.environments.lock().expect("environment cache");
@@ -336,19 +344,15 @@ impl<'a> Relighter<'a> {
                 Some(e) => e.clone(),
                 None => {
                     let env = EnvironmentLight::load(&path)?;
-                    let projection = env.project(bands)?;
-                    let e = Arc::new((env, projection));
+                    let e = Arc::new(env.for_basis(self.basis.as_ref())?);
                     cache.insert(path, e.clone());
                     e
                 }
             }
         };
-        let (env, projection) = &*entry;
-        let env = env
-            .clone()
-            .with_rotation(light.rotation()?)?
-            .with_window(light.window)?;
-        let mut weights = env.weights_from_projection(projection)?;
+        let mut weights = entry
+            .weights(self.basis.as_ref(), light.rotation()?, light.window)
+            .map_err(|e| Error::invalid(format!("environment light {}: {e}", light.map)))?;
         let rgb = Light::Environment(light.clone()).rgb();
         for (c, w) in weights.iter_mut().enumerate() {
             w.iter_mut().for_each(|v| *v *= rgb[c]);
@@ -491,22 +495,21 @@ impl<'a> Relighter<'a> {
             .iter()
             .filter_map(|l| PositionalLight::new(l, scale))
             .collect();
-        let points = if positional.is_empty() {
-            None
+        let (points, pixel_basis) = if positional.is_empty() {
+            (None, None)
         } else {
-            Some(self.point_rows()?)
+            (Some(self.point_rows()?), Some(self.pixel_basis()))
         };
         let frame = Frame {
             simd: self.simd,
             planes: &self.planes,
             n: image.maps.pixels(),
             k,
-            bands: self.bands,
             display,
             passes: &passes,
             lights: &positional,
             points,
-            norms: &self.norms,
+            basis: pixel_basis,
             stream: passes.len() == 1
                 && positional.is_empty()
                 && 12 * roi.pixels() >= self.stream_from,
@@ -540,66 +543,6 @@ impl<'a> Relighter<'a> {
                 });
         }
         Ok(())
-    }
-}
-
-/// The real SH basis in f32, evaluated 64 directions at a time with the vectorised
-/// recurrence the engine uses for positional lights (AVX2/FMA where the CPU has it).
-/// Values agree with [`crate::basis::SphericalHarmonics`] within 2e-5.
-#[derive(Clone, Debug)]
-pub struct ShEvaluator {
-    bands: usize,
-    norms: ShNorms,
-    simd: Simd,
-}
-
-impl ShEvaluator {
-    /// An evaluator of `bands` bands (1 to 8).
-    pub fn new(bands: usize) -> Result<Self> {
-        if !(1..=8).contains(&bands) {
-            return Err(Error::invalid(format!(
-                "SH bands must be 1 to 8, not {bands}"
-            )));
-        }
-        Ok(Self {
-            bands,
-            norms: ShNorms::new(),
-            simd: Simd::detect(),
-        })
-    }
-
-    /// Coefficients per direction (`bands²`).
-    pub fn len(&self) -> usize {
-        self.bands * self.bands
-    }
-
-    /// Never true.
-    pub fn is_empty(&self) -> bool {
-        false
-    }
-
-    /// `out[i · n + p] = Y_i(x_p, y_p, z_p)` for the `n` unit vectors given as three
-    /// coordinate slices of equal length (`out` holds `len() · n` values, one row per
-    /// basis function).
-    pub fn eval(&self, x: &[f32], y: &[f32], z: &[f32], out: &mut [f32]) {
-        let n = x.len();
-        assert!(y.len() == n && z.len() == n, "x, y and z differ in length");
-        assert_eq!(out.len(), self.len() * n, "out must hold len() × n values");
-        use kernels::BLOCK;
-        let mut dir = [[0f32; BLOCK]; 3];
-        let mut rows = vec![[0f32; BLOCK]; self.len()];
-        for b in (0..n).step_by(BLOCK) {
-            let bl = BLOCK.min(n - b);
-            for (d, src) in dir.iter_mut().zip([x, y, z]) {
-                d[..bl].copy_from_slice(&src[b..b + bl]);
-                d[bl..].fill(0.0);
-            }
-            self.simd
-                .sh_values(self.bands, &self.norms, &dir, &mut rows);
-            for (i, row) in rows.iter().enumerate() {
-                out[i * n + b..i * n + b + bl].copy_from_slice(&row[..bl]);
-            }
-        }
     }
 }
 
@@ -1167,20 +1110,7 @@ mod tests {
         assert!(Roi::parse("1,2,3").is_err());
     }
     #[test]
-    fn the_public_sh_evaluator_equals_the_basis() {
-        let dirs = crate::sphere::fibonacci(150);
-        let f = |a: fn(&Vec3) -> f64| dirs.iter().map(|d| a(d) as f32).collect::<Vec<_>>();
-        let (x, y, z) = (f(|d| d.x), f(|d| d.y), f(|d| d.z));
-        let e = ShEvaluator::new(5).unwrap();
-        let mut out = vec![0f32; e.len() * dirs.len()];
-        e.eval(&x, &y, &z, &mut out);
-        let sh = BasisSpec::named("sh:25").unwrap().build().unwrap();
-        for (p, d) in dirs.iter().enumerate() {
-            for (i, want) in sh.values(*d).into_iter().enumerate() {
-                assert!((out[i * dirs.len() + p] as f64 - want).abs() < 2e-5);
-            }
-        }
-        assert!(ShEvaluator::new(9).is_err());
+    fn the_fma_probe_runs() {
         assert!(fma_throughput(0.01) > 1e6);
     }
 }
