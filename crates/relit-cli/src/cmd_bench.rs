@@ -409,7 +409,14 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
             }
             if !args.no_cpu && wanted("basis_eval") {
                 let t = time_basis_eval(&image, basis.as_ref(), seconds)?;
-                let mut r = row("basis_eval", "-", 0, "cpu", format!("{threads} threads"), &t);
+                let mut r = row(
+                    "basis_eval",
+                    "-",
+                    0,
+                    "cpu",
+                    format!("{threads} threads"),
+                    &t,
+                );
                 r.basis_evals_per_frame = Some(n);
                 r.basis_evals_per_s = Some(r.pixels_per_s);
                 report(&r, args.json);
@@ -615,11 +622,7 @@ fn synthetic_image(
         .enumerate()
         .for_each(|(p, d)| *d = 2.0 + 0.5 * ((p * 7919 % 1000) as f32 / 1000.0 - 0.5));
     let projection = Projection::Cylindrical { fov_y_deg: None };
-    let mut meta = Metadata::new(
-        basis.spec(),
-        MapSpace::Linear,
-        projection.clone(),
-    );
+    let mut meta = Metadata::new(basis.spec(), MapSpace::Linear, projection.clone());
     meta.camera = Some(CameraSpec {
         projection,
         width,

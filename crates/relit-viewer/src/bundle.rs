@@ -515,4 +515,3 @@ fn load_environment(path: &Path, index: usize) -> Result<Environment> {
         preview,
     })
 }
-

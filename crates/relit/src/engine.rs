@@ -745,10 +745,22 @@ mod tests {
         .unwrap_err();
         assert!(err.to_string().contains("depth"), "{err}");
     }
-    /// A pseudo-random `w × h` image of `bands²`-coefficient maps (bright constant
-    /// term) seen by a perspective camera, depth 1.5–2.5, a few pixels without depth.
+    /// A pseudo-random `w × h` image of `bands²`-coefficient SH maps (module below).
     fn random_image(w: usize, h: usize, bands: usize, space: MapSpace) -> RelightableImage {
-        let k = bands * bands;
+        let spec = BasisSpec::named(&format!("sh:{}", bands * bands)).unwrap();
+        random_image_of(w, h, spec, bands * bands, space)
+    }
+
+    /// A pseudo-random `w × h` image of `k`-coefficient maps of basis `spec` (bright
+    /// first coefficient) seen by a perspective camera, depth 1.5–2.5, a few pixels
+    /// without depth.
+    fn random_image_of(
+        w: usize,
+        h: usize,
+        spec: BasisSpec,
+        k: usize,
+        space: MapSpace,
+    ) -> RelightableImage {
         let mut maps = CoefficientMaps::zeros(w, h, k);
         let n = w * h;
         let mut s = 0x2545_F491_4F6C_DD1Du64;
@@ -762,11 +774,7 @@ mod tests {
         let projection = Projection::Planar {
             fov_y_deg: Some(60.0),
         };
-        let mut meta = Metadata::new(
-            BasisSpec::named(&format!("sh:{}", bands * bands)).unwrap(),
-            space,
-            projection.clone(),
-        );
+        let mut meta = Metadata::new(spec, space, projection.clone());
         meta.camera = Some(crate::camera::CameraSpec {
             projection,
             width: w,
@@ -793,8 +801,21 @@ mod tests {
     /// The relit frame computed the plain way: per pixel, in f64, from the values the
     /// relighter's storage holds, every light through `illuminate` (uniform weights as
     /// a dot product).
-    #[allow(clippy::needless_range_loop)]
     fn reference(r: &Relighter, lights: &[PreparedLight], exposure: f64) -> ImageRgb {
+        reference_within(r, lights, exposure, 0.0).0
+    }
+
+    /// [`reference`], and per pixel and channel the bound on what a weight table of
+    /// largest weight error `eps` may change in it: Σ over the pixel's light vectors of
+    /// |rgb| · Σ_i |c_i| · eps, times the largest slope of the sRGB decode (2.3) on
+    /// display-referred maps.
+    #[allow(clippy::needless_range_loop)]
+    fn reference_within(
+        r: &Relighter,
+        lights: &[PreparedLight],
+        exposure: f64,
+        eps: f64,
+    ) -> (ImageRgb, Vec<f64>) {
         let img = r.image;
         let (w, h) = (img.width(), img.height());
         let n = w * h;
@@ -810,10 +831,14 @@ mod tests {
                 v
             }
         };
+        let slope = if display { 2.3 } else { 1.0 };
         let mut out = ImageRgb::new(w, h);
+        let mut bound = vec![0.0; 3 * n];
         for p in 0..n {
             let coef: Vec<f64> = (0..3 * k).map(|j| r.planes.value(j, p, n) as f64).collect();
             let dot = |c: usize, y: &[f64]| (0..k).map(|i| coef[3 * i + c] * y[i]).sum::<f64>();
+            let l1: [f64; 3] =
+                std::array::from_fn(|c| (0..k).map(|i| coef[3 * i + c].abs()).sum::<f64>());
             let mut sum = [0.0f64; 3];
             let d = depth[p];
             let surface = (d > 0.0).then(|| camera.position(p % w, p / w, d as f64));
@@ -833,6 +858,9 @@ mod tests {
                     let y = r.basis.values(l);
                     for c in 0..3 {
                         sum[c] += rgb[c] * decode(dot(c, &y));
+                        if !light.is_uniform() {
+                            bound[3 * p + c] += rgb[c].abs() * l1[c] * eps * slope * scale;
+                        }
                     }
                 });
             }
@@ -840,7 +868,7 @@ mod tests {
                 out.data[3 * p + c] = (sum[c] * scale) as f32;
             }
         }
-        out
+        (out, bound)
     }
 
     fn max_abs(a: &ImageRgb, b: &ImageRgb) -> (f64, f64) {
@@ -1109,6 +1137,169 @@ mod tests {
         );
         assert!(Roi::parse("1,2,3").is_err());
     }
+    /// `series` pixel series at the captured directions `dirs`: mixtures of eight fixed
+    /// lobes with weights varying by series, as a capture's pixels would be.
+    fn capture_samples(dirs: &[Vec3], series: usize) -> Vec<f32> {
+        let lobes = crate::sphere::fibonacci(8);
+        let mut out = Vec::with_capacity(series * dirs.len());
+        for s in 0..series {
+            for d in dirs {
+                let v: f64 = lobes
+                    .iter()
+                    .enumerate()
+                    .map(|(i, l)| {
+                        let w = 1.0 + ((s * 8 + i) * 7919 % 1000) as f64 / 1000.0;
+                        w * (4.0 * (d.dot(*l) - 1.0)).exp()
+                    })
+                    .sum();
+                out.push(v as f32);
+            }
+        }
+        out
+    }
+
+    /// Every registered family at a size near 16 (rbf and bilinear built from a
+    /// synthetic capture).
+    fn every_family() -> Vec<Box<dyn crate::basis::Basis>> {
+        use crate::basis::{BasisChoice, Samples, FAMILIES};
+        let dirs = crate::sphere::hemisphere_fibonacci(48);
+        let values = capture_samples(&dirs, 200);
+        let samples = Samples {
+            values: &values,
+            n: dirs.len(),
+        };
+        FAMILIES
+            .iter()
+            .map(|family| {
+                let sizes = family.sizes(64);
+                let k = sizes
+                    .iter()
+                    .copied()
+                    .min_by_key(|&k| k.abs_diff(16))
+                    .unwrap();
+                BasisChoice::parse(&format!("{}:{k}", family.name()))
+                    .unwrap()
+                    .build(&dirs, Some(samples))
+                    .unwrap()
+            })
+            .collect()
+    }
+
+    /// Every registered family, every light type, linear and display-referred maps: the
+    /// engine's frame equals the per-pixel reference with `basis.eval` itself, within
+    /// what the basis' half-float weight table may cost per pixel (`reference_within`,
+    /// with the table's largest error measured on 4096 directions, doubled for the
+    /// directions between them) plus f32 rounding (1e-4 of the peak). SH has no table
+    /// (a bound of 0: its recurrence is exact to f32 rounding).
+    #[test]
+    fn every_basis_relights_every_light_like_its_reference() {
+        for basis in every_family() {
+            let name = basis.name();
+            for space in [MapSpace::Linear, MapSpace::Srgb] {
+                let img = random_image_of(73, 45, basis.spec(), basis.len(), space);
+                let r = Relighter::new(&img).unwrap();
+                let eps = match r.pixel_basis().table_accuracy() {
+                    None => 0.0,
+                    Some(accuracy) => {
+                        let peak = crate::sphere::fibonacci(4096)
+                            .into_iter()
+                            .flat_map(|d| basis.values(d))
+                            .fold(0f64, |m, v| m.max(v.abs()));
+                        2.0 * accuracy.relative_max * peak
+                    }
+                };
+                assert_eq!(eps == 0.0, basis.family() == "sh", "{name}");
+                let mut worst = 0f64;
+                for (light, lights) in rig_lights(&r) {
+                    let got = r.relight_prepared(&lights, 0.5).unwrap();
+                    let (want, bound) = reference_within(&r, &lights, 0.5, eps);
+                    let (_, peak) = max_abs(&got, &want);
+                    assert!(peak > 0.0, "{name} {space:?} {light}: a black frame");
+                    for ((g, w), b) in got.data.iter().zip(&want.data).zip(&bound) {
+                        let err = (g - w).abs() as f64;
+                        let allowed = b + 1e-4 * peak;
+                        worst = worst.max(err / allowed);
+                        assert!(
+                            err <= allowed,
+                            "{name} {space:?} {light}: {g} vs {w} (allowed {allowed:e})"
+                        );
+                    }
+                }
+                eprintln!(
+                    "{name} {space:?} ({}): at most {:.0} % of the bound",
+                    r.pixel_path(),
+                    100.0 * worst
+                );
+            }
+        }
+    }
+
+    /// An environment light on a basis without bands is the sum of directional lights
+    /// over the map's quadrature, their directions turned by the light's rotation and
+    /// their intensities times its colour; band windows are refused there (and taken on
+    /// SH).
+    #[test]
+    fn environments_on_other_bases_are_their_quadrature() {
+        use crate::envmap::{environment_quadrature, QUADRATURE_HEIGHT, QUADRATURE_WIDTH};
+        let dir = std::env::temp_dir().join(format!("relit-engine-env-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let (w, h) = (64, 32);
+        let mut sky = ImageRgb::new(w, h);
+        for (i, v) in sky.data.iter_mut().enumerate() {
+            let (x, y) = ((i / 3) % w, (i / 3) / w);
+            let sun = (x as i64 - 20).abs() <= 1 && (y as i64 - 9).abs() <= 1;
+            *v = if sun {
+                8.0
+            } else {
+                0.2 + 0.3 * (y as f32 / h as f32) + 0.1 * (i % 3) as f32
+            };
+        }
+        crate::image::save(&dir.join("sky.exr"), &sky, 0.0).unwrap();
+        let light: crate::light::EnvironmentMapLight = serde_json::from_str(
+            r#"{ "map": "sky.exr", "yaw_deg": 40, "pitch_deg": -15, "roll_deg": 10, "color": [1, 0.8, 0.6], "intensity": 0.7 }"#,
+        )
+        .unwrap();
+        let rotation = light.rotation().unwrap();
+        let rgb = Light::Environment(light.clone()).rgb();
+        let basis = BasisSpec::named("hsh:16").unwrap();
+        let img = random_image_of(37, 23, basis, 16, MapSpace::Linear);
+        let r = Relighter::new(&img).unwrap();
+        let options = RelightOptions {
+            exposure: 0.0,
+            resource_dir: dir.clone(),
+        };
+        let got = r
+            .relight(
+                &LightRig::new(vec![Light::Environment(light.clone())]),
+                &options,
+            )
+            .unwrap();
+        let map = crate::image::load_linear(&dir.join("sky.exr"), None).unwrap();
+        let directional: Vec<PreparedLight> =
+            environment_quadrature(&map, QUADRATURE_WIDTH, QUADRATURE_HEIGHT)
+                .into_iter()
+                .map(|(d, i)| PreparedLight::Directional {
+                    direction: crate::basis::mat3_apply(&rotation, d),
+                    rgb: std::array::from_fn(|c| i[c] * rgb[c]),
+                })
+                .collect();
+        let want = r.relight_prepared(&directional, 0.0).unwrap();
+        let (diff, peak) = max_abs(&got, &want);
+        assert!(peak > 0.0 && diff <= 1e-5 * peak, "{diff} vs peak {peak}");
+        let hann = crate::light::EnvironmentMapLight {
+            window: crate::envmap::Window::Hann,
+            ..light
+        };
+        let err = r.environment_weights(&hann, &dir).unwrap_err().to_string();
+        assert!(err.contains("window") && err.contains("hsh:16"), "{err}");
+        let sh = random_image(37, 23, 4, MapSpace::Linear);
+        assert!(Relighter::new(&sh)
+            .unwrap()
+            .environment_weights(&hann, &dir)
+            .is_ok());
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
     #[test]
     fn the_fma_probe_runs() {
         assert!(fma_throughput(0.01) > 1e6);

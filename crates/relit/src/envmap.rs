@@ -107,12 +107,12 @@ use crate::basis::{
 
 pub mod quadrature;
 
-pub use quadrature::{
-    environment_quadrature, quadrature_weights, QUADRATURE_HEIGHT, QUADRATURE_WIDTH,
-};
 use crate::image::{load_linear, ImageRgb};
 use crate::sphere::Vec3;
 use crate::{Error, Result};
+pub use quadrature::{
+    environment_quadrature, quadrature_weights, QUADRATURE_HEIGHT, QUADRATURE_WIDTH,
+};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
@@ -516,9 +516,9 @@ impl BasisEnvironment {
         check_rotation(&rotation)?;
         window.validate()?;
         match self {
-            BasisEnvironment::Sh { projection } => EnvironmentLight::rotated_projection(
-                projection, rotation, window,
-            ),
+            BasisEnvironment::Sh { projection } => {
+                EnvironmentLight::rotated_projection(projection, rotation, window)
+            }
             BasisEnvironment::Quadrature(lights) => {
                 if window != Window::None {
                     return Err(Error::invalid(format!(

@@ -158,7 +158,11 @@ mod tests {
         }
         for c in 0..3 {
             let got: f64 = lights.iter().map(|(_, i)| i[c]).sum();
-            assert!((got - want[c]).abs() < 1e-9 * want[c], "{got} vs {}", want[c]);
+            assert!(
+                (got - want[c]).abs() < 1e-9 * want[c],
+                "{got} vs {}",
+                want[c]
+            );
         }
         assert_eq!(environment_quadrature(&map, 1000, 1000).len(), 256 * 128);
     }
@@ -185,8 +189,14 @@ mod tests {
                 .flatten()
                 .zip(exact.iter().flatten())
                 .fold(0f64, |m, (a, b)| m.max((a - b).abs()));
-            eprintln!("sh bands {bands}: max |quadrature − exact| = {:.2e} of the peak", err / peak);
-            assert!(err <= QUADRATURE_SH_TOLERANCE * peak, "bands {bands}: {err} vs peak {peak}");
+            eprintln!(
+                "sh bands {bands}: max |quadrature − exact| = {:.2e} of the peak",
+                err / peak
+            );
+            assert!(
+                err <= QUADRATURE_SH_TOLERANCE * peak,
+                "bands {bands}: {err} vs peak {peak}"
+            );
         }
     }
 
@@ -199,16 +209,12 @@ mod tests {
     #[test]
     #[ignore]
     fn quadrature_size_measurement() {
-        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/envmaps");
+        let root =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/envmaps");
         let mut paths: Vec<_> = std::fs::read_dir(&root)
             .map(|d| d.filter_map(|e| e.ok().map(|e| e.path())).collect())
             .unwrap_or_default();
-        paths.retain(|p| {
-            matches!(
-                p.extension().and_then(|e| e.to_str()),
-                Some("hdr" | "exr")
-            )
-        });
+        paths.retain(|p| matches!(p.extension().and_then(|e| e.to_str()), Some("hdr" | "exr")));
         paths.sort();
         let bases: Vec<Box<dyn Basis>> = ["sh:25", "sh:64", "hsh:25", "sg:25", "sg:64", "ptm:6"]
             .iter()
@@ -219,7 +225,13 @@ mod tests {
             let env = EnvironmentLight::load(path).unwrap();
             let map = env.map();
             let fine = environment_quadrature(map, 1024, 512);
-            eprintln!("{} ({}×{}, fine {} lights)", path.display(), map.width, map.height, fine.len());
+            eprintln!(
+                "{} ({}×{}, fine {} lights)",
+                path.display(),
+                map.width,
+                map.height,
+                fine.len()
+            );
             for basis in &bases {
                 let want = quadrature_weights(&fine, basis.as_ref(), &rotation);
                 let peak = want.iter().flatten().fold(0f64, |m, v| m.max(v.abs()));
