@@ -329,6 +329,15 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
             eprintln!("relit bench: {width}×{height}, {basis_name}: building synthetic maps…");
             let image = synthetic_image(width, height, basis.as_ref())?;
             let env = Environment::new(basis.as_ref())?;
+            if let Some(t) = BasisEvaluator::new(basis.as_ref()).table_accuracy() {
+                let vertices = (t.resolution + 1) * (t.resolution + 1);
+                eprintln!(
+                    "relit bench: {basis_name} per pixel: half-float weight table of {} cells a side ({}), relative RMS error {:.1e}",
+                    t.resolution,
+                    relit::memory::mib((vertices * k.div_ceil(8) * 16) as u64),
+                    t.relative_rms
+                );
+            }
             let n = (width * height) as u64;
             let row = |case,
                        storage: &'static str,

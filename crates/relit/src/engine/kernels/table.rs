@@ -10,7 +10,8 @@
 //! Speed: each vertex's weights are stored contiguously, padded to a multiple of eight
 //! halves, so a pixel reads four runs of `k` halves (neighbouring pixels mostly read the
 //! same vertices: the table stays in the caches) and blends them eight weights at a time
-//! with F16C conversions and FMAs; the blend is then scattered into the block's rows.
+//! with F16C conversions and FMAs; eight pixels' blends are transposed in registers
+//! into the block's rows.
 
 use super::{Rows, Simd, BLOCK};
 use crate::basis::{Basis, TableAccuracy, WeightTable};
@@ -68,7 +69,7 @@ impl TableKernel {
     /// `out[i][p] = y_i(dir_p)` for `i < k`, from the table. A zero vector (a pixel a
     /// light does not reach) gets weights 0.
     pub(crate) fn values(&self, simd: Simd, dir: &[[f32; BLOCK]; 3], out: &mut [[f32; BLOCK]]) {
-        let corners = self.corners(dir, None);
+        let corners = self.corners(simd, dir, None);
         self.blend::<false>(simd, &corners, &mut out[..self.k]);
     }
 
@@ -80,7 +81,7 @@ impl TableKernel {
         w: &[f32; BLOCK],
         out: &mut [[f32; BLOCK]],
     ) {
-        let corners = self.corners(dir, Some(w));
+        let corners = self.corners(simd, dir, Some(w));
         self.blend::<true>(simd, &corners, &mut out[..self.k]);
     }
 
@@ -101,11 +102,18 @@ impl TableKernel {
 
     /// Each pixel's first vertex and the bilinear weights of its four vertices
     /// (`v`, `v + 1`, `v + N + 1`, `v + N + 2`), times `w[p]` when given.
-    fn corners(&self, dir: &[[f32; BLOCK]; 3], w: Option<&[f32; BLOCK]>) -> Corners {
+    fn corners(&self, simd: Simd, dir: &[[f32; BLOCK]; 3], w: Option<&[f32; BLOCK]>) -> Corners {
         let mut c = Corners {
             vertex: [0; BLOCK],
             weight: [[0.0; BLOCK]; 4],
         };
+        #[cfg(target_arch = "x86_64")]
+        if simd.avx2() {
+            // SAFETY: `Simd::detect` found avx2, fma and f16c on this CPU.
+            unsafe { corners_avx2(self.resolution, dir, w, &mut c) };
+            return c;
+        }
+        let _ = simd;
         corners_body(self.resolution, dir, w, &mut c);
         c
     }
@@ -164,6 +172,18 @@ fn corners_body(n: usize, dir: &[[f32; BLOCK]; 3], w: Option<&[f32; BLOCK]>, c: 
     }
 }
 
+/// [`corners_body`] in 8-lane code (the floors become `vroundps`, not calls to libm).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,f16c")]
+unsafe fn corners_avx2(
+    n: usize,
+    dir: &[[f32; BLOCK]; 3],
+    w: Option<&[f32; BLOCK]>,
+    c: &mut Corners,
+) {
+    corners_body(n, dir, w, c)
+}
+
 /// The four vertices of pixel `p`: offsets into `bits` and their weights.
 #[inline(always)]
 fn pixel_corners(t: &TableKernel, c: &Corners, p: usize) -> ([usize; 4], [f32; 4]) {
@@ -201,37 +221,76 @@ fn blend_portable<const ADD: bool>(t: &TableKernel, c: &Corners, out: &mut [[f32
 unsafe fn blend_avx2<const ADD: bool>(t: &TableKernel, c: &Corners, out: &mut [[f32; BLOCK]]) {
     use std::arch::x86_64::*;
     let groups = t.stride / 8;
-    // A vertex's blend, eight weights at a time (k ≤ 8·MAX_GROUPS here; larger tables
-    // take the portable loop).
-    const MAX_GROUPS: usize = 16;
-    if groups > MAX_GROUPS {
-        return blend_portable::<ADD>(t, c, out);
-    }
-    let mut y = [0f32; 8 * MAX_GROUPS];
-    for p in 0..BLOCK {
-        let (at, w) = pixel_corners(t, c, p);
-        if ADD && w == [0.0; 4] {
+    // Eight pixels at a time: each pixel's blend of eight weights is one register; the
+    // 8×8 block of them is transposed in registers into eight weights' rows of eight
+    // pixels, stored whole (scattering them one value at a time cost as much as the
+    // blend).
+    for q in (0..BLOCK).step_by(8) {
+        let pixels: [([usize; 4], [f32; 4]); 8] =
+            std::array::from_fn(|e| pixel_corners(t, c, q + e));
+        if ADD && pixels.iter().all(|(_, w)| *w == [0.0; 4]) {
             continue;
         }
-        let w = w.map(|v| _mm256_set1_ps(v));
         for g in 0..groups {
-            let mut acc = _mm256_setzero_ps();
-            for q in 0..4 {
-                let o = at[q] + 8 * g;
-                let bits: [u16; 8] = t.bits[o..o + 8].try_into().expect("8 halves");
-                let v = _mm256_cvtph_ps(bytemuck::cast::<[u16; 8], __m128i>(bits));
-                acc = _mm256_fmadd_ps(v, w[q], acc);
+            let mut lanes = [_mm256_setzero_ps(); 8];
+            for (lane, (at, w)) in lanes.iter_mut().zip(&pixels) {
+                for v in 0..4 {
+                    let o = at[v] + 8 * g;
+                    let bits: [u16; 8] = t.bits[o..o + 8].try_into().expect("8 halves");
+                    let h = _mm256_cvtph_ps(bytemuck::cast::<[u16; 8], __m128i>(bits));
+                    *lane = _mm256_fmadd_ps(h, _mm256_set1_ps(w[v]), *lane);
+                }
             }
-            y[8 * g..8 * g + 8].copy_from_slice(&bytemuck::cast::<__m256, [f32; 8]>(acc));
-        }
-        for (row, &v) in out.iter_mut().zip(&y[..t.k]) {
-            if ADD {
-                row[p] += v;
-            } else {
-                row[p] = v;
+            let rows = transpose8(lanes);
+            for (d, row) in rows.iter().enumerate() {
+                let i = 8 * g + d;
+                if i >= t.k {
+                    break;
+                }
+                let dst: &mut [f32; 8] = (&mut out[i][q..q + 8]).try_into().expect("8 lanes");
+                let v = if ADD {
+                    _mm256_add_ps(bytemuck::cast::<[f32; 8], __m256>(*dst), *row)
+                } else {
+                    *row
+                };
+                *dst = bytemuck::cast::<__m256, [f32; 8]>(v);
             }
         }
     }
+}
+
+/// The 8×8 transpose of eight registers: lane `d` of result `e` is lane `e` of input `d`.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,f16c")]
+#[inline]
+fn transpose8(r: [std::arch::x86_64::__m256; 8]) -> [std::arch::x86_64::__m256; 8] {
+    use std::arch::x86_64::*;
+    let t0 = _mm256_unpacklo_ps(r[0], r[1]);
+    let t1 = _mm256_unpackhi_ps(r[0], r[1]);
+    let t2 = _mm256_unpacklo_ps(r[2], r[3]);
+    let t3 = _mm256_unpackhi_ps(r[2], r[3]);
+    let t4 = _mm256_unpacklo_ps(r[4], r[5]);
+    let t5 = _mm256_unpackhi_ps(r[4], r[5]);
+    let t6 = _mm256_unpacklo_ps(r[6], r[7]);
+    let t7 = _mm256_unpackhi_ps(r[6], r[7]);
+    let u0 = _mm256_shuffle_ps::<0x44>(t0, t2);
+    let u1 = _mm256_shuffle_ps::<0xEE>(t0, t2);
+    let u2 = _mm256_shuffle_ps::<0x44>(t1, t3);
+    let u3 = _mm256_shuffle_ps::<0xEE>(t1, t3);
+    let u4 = _mm256_shuffle_ps::<0x44>(t4, t6);
+    let u5 = _mm256_shuffle_ps::<0xEE>(t4, t6);
+    let u6 = _mm256_shuffle_ps::<0x44>(t5, t7);
+    let u7 = _mm256_shuffle_ps::<0xEE>(t5, t7);
+    [
+        _mm256_permute2f128_ps::<0x20>(u0, u4),
+        _mm256_permute2f128_ps::<0x20>(u1, u5),
+        _mm256_permute2f128_ps::<0x20>(u2, u6),
+        _mm256_permute2f128_ps::<0x20>(u3, u7),
+        _mm256_permute2f128_ps::<0x31>(u0, u4),
+        _mm256_permute2f128_ps::<0x31>(u1, u5),
+        _mm256_permute2f128_ps::<0x31>(u2, u6),
+        _mm256_permute2f128_ps::<0x31>(u3, u7),
+    ]
 }
 
 #[cfg(test)]
