@@ -82,13 +82,8 @@ fn lobes(k: usize) -> Box<dyn Basis> {
     })
 }
 
-/// Whether the CPU engine relights lights with a position on bases other than SH. Not
-/// yet on this branch: its positional kernels evaluate SH only, until the library's
-/// engine works through the weight table (then this is true and every registered
-/// family meets the CPU engine for every light).
-const CPU_ENGINE_RELIGHTS_ANY_BASIS: bool = false;
-
-/// A basis to test with; `registered` ones are compared with the CPU engine too.
+/// A basis to test with; `registered` ones (every family's) are compared with the CPU
+/// engine too, which relights every light on every basis.
 struct Case {
     basis: Box<dyn Basis>,
     registered: bool,
@@ -135,10 +130,8 @@ fn bases() -> Vec<Case> {
             });
         }
     }
-    // Families built from a capture's samples, from a synthetic one, at two sizes. The
-    // CPU engine relights lights with a position for SH only until the library's
-    // engine works through the weight table, so these meet the per-pixel references
-    // only.
+    // Families built from a capture's samples, from a synthetic one, at two sizes: the
+    // CPU engine rebuilds them from their spec like any other family.
     let dirs = relit::sphere::hemisphere_fibonacci(48);
     let values = capture_samples(&dirs, 200);
     let samples = Samples {
@@ -154,7 +147,7 @@ fn bases() -> Vec<Case> {
             let choice = BasisChoice::parse(&format!("{}:{k}", family.name())).unwrap();
             out.push(Case {
                 basis: choice.build(&dirs, Some(samples)).unwrap(),
-                registered: false,
+                registered: true,
             });
         }
     }
@@ -619,7 +612,7 @@ fn check(
         assert_close(&format!("{label} vs its table"), &got, &tabled.image);
         assert_within_table_error(&format!("{label} vs basis"), &got, &exact);
     }
-    if registered && (uniform || basis.family() == "sh" || CPU_ENGINE_RELIGHTS_ANY_BASIS) {
+    if registered {
         let want = cpu_in(img, rig, exposure, dir);
         if uniform {
             assert_close(&format!("{label} vs CPU engine"), &got, &want);
@@ -669,7 +662,7 @@ fn every_light_type_matches_the_references_for_every_basis() {
 
 /// Environment weights come from the library (`Relighter::environment_weights`), added
 /// as a uniform light: the GPU frame equals the CPU engine's for every registered basis
-/// the library projects environments onto.
+/// (SH's exact projection, the quadrature for the others).
 #[test]
 fn environment_lights_match_the_cpu_engine() {
     let dir = resource_dir("environment");
@@ -682,16 +675,10 @@ fn environment_lights_match_the_cpu_engine() {
         let name = case.basis.name();
         for space in [MapSpace::Linear, MapSpace::Srgb] {
             let img = image(37, 23, case.basis.as_ref(), space);
-            let weights = match Relighter::new(&img)
+            let weights = Relighter::new(&img)
                 .unwrap()
                 .environment_weights(&env, &dir)
-            {
-                Ok(w) => w,
-                Err(e) => {
-                    eprintln!("{name}: no environment weights from the library yet: {e}");
-                    continue;
-                }
-            };
+                .unwrap();
             let Some(gpu) = gpu_or_skip(&img, img.meta.basis.build().unwrap(), Default::default())
             else {
                 return;
