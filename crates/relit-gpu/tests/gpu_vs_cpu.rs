@@ -36,6 +36,14 @@ use std::path::{Path, PathBuf};
 /// whose `pow` (sRGB decode) is coarser.
 const MAX_RELATIVE_TO_PEAK: f64 = 1e-5;
 
+/// GPU against the CPU engine where both read the same weight table (lights with a
+/// position on bases other than SH): their light vectors differ in the last f32 bits
+/// (surface points, area samples), which a steep basis (HSH near the horizon) and the
+/// sRGB decode of display-referred maps amplify: measured on lavapipe at most 1.6e-5
+/// of the peak (hsh:25, display-referred, a two-sided area light among the surface
+/// points), 1e-6 elsewhere; the CPU engine's own reference test allows 1e-4.
+const SAME_TABLE_RELATIVE_TO_PEAK: f64 = 1e-4;
+
 /// Against the basis itself, lights with a position may be off by what the table costs:
 /// per pixel, Σ over light vectors of |rgb| · Σ_i |c_i| · ε, with ε the table's largest
 /// weight error. ε is measured on 4096 Fibonacci directions; the factor 2 covers light
@@ -614,9 +622,22 @@ fn check(
     }
     if registered {
         let want = cpu_in(img, rig, exposure, dir);
+        let cpu_reads_the_table = relit::engine::BasisEvaluator::new(basis)
+            .table_accuracy()
+            .is_some();
         if uniform {
             assert_close(&format!("{label} vs CPU engine"), &got, &want);
+        } else if cpu_reads_the_table {
+            // The same half-float table: the engines differ only by their f32 light
+            // vectors and sums.
+            let (diff, peak) = difference(&got, &want);
+            eprintln!("{label} vs CPU engine: max |GPU - CPU| = {diff:.3e} (peak {peak:.3})");
+            assert!(
+                diff <= SAME_TABLE_RELATIVE_TO_PEAK * peak,
+                "{label} vs CPU engine: {diff:e}, peak {peak}"
+            );
         } else {
+            // The CPU evaluates the basis itself (SH's recurrence), the GPU its table.
             let engine = Direct {
                 image: want,
                 table_bound: exact.table_bound,
