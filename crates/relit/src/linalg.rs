@@ -289,7 +289,7 @@ mod tests {
                     .map(|i| ((i * (d + 3) + d) as f64 * 0.7).sin())
                     .collect()
             };
-            let mut basis = vec![dir(0), dir(1), dir(2)];
+            let mut basis = [dir(0), dir(1), dir(2)];
             let mut flat = basis.concat();
             orthonormalize(&mut flat, n, 3);
             for (d, b) in basis.iter_mut().enumerate() {

@@ -349,6 +349,14 @@ fn read_subsample(
 /// principal components and errors, few enough that every candidate costs little.
 const SELECTION_PIXELS: usize = 512;
 
+/// A chosen basis, the objective and λ its validation chose (where it was validated)
+/// and the scores of the candidates.
+type ChosenBasis = (
+    Box<dyn Basis>,
+    Option<(Objective, f64)>,
+    Vec<CandidateScore>,
+);
+
 /// The basis `request` names for `capture`, built (data-driven families from the
 /// subsample `sub`), with the objective and λ its validation chose where it was
 /// validated.
@@ -359,11 +367,7 @@ fn choose_basis(
     dirs: &[Vec3],
     sub: Option<&[f32]>,
     sub_count: usize,
-) -> Result<(
-    Box<dyn Basis>,
-    Option<(Objective, f64)>,
-    Vec<CandidateScore>,
-)> {
+) -> Result<ChosenBasis> {
     let n = dirs.len();
     let needs_validation = match request {
         BasisRequest::Auto => true,
