@@ -616,13 +616,14 @@ fn synthetic_image(
         .enumerate()
         .for_each(|(c, chunk)| {
             let mut s = (c as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-            let constant = c * CHUNK < 3 * n;
-            for v in chunk {
+            for (j, v) in chunk.iter_mut().enumerate() {
                 s ^= s << 13;
                 s ^= s >> 7;
                 s ^= s << 17;
                 let r = (s >> 40) as f32 / (1u64 << 24) as f32 - 0.5;
-                *v = if constant { 0.5 + 0.1 * r } else { 0.3 * r };
+                // The first coefficient's three planes come first.
+                let first = c * CHUNK + j < 3 * n;
+                *v = if first { 0.5 + 0.1 * r } else { 0.3 * r };
             }
         });
     let mut depth = vec![0f32; n];
