@@ -1,27 +1,34 @@
 //! `relit bench`: relighting speed on this machine, and how close it gets to the limit.
 //!
-//! For each size and coefficient count the command builds synthetic maps (random
-//! coefficients, a depth map, a cylindrical camera at the origin) and times three cases:
+//! For each size and basis (`--basis FAMILY:K`, any registered family; `--k K` is
+//! `sh:K`) the command builds synthetic maps (random coefficients, a depth map, a
+//! cylindrical camera at the origin) and times these cases:
 //!
 //! * `directional` — one directional light: one weight per plane, one pass over the maps;
 //! * `environment` — a synthetic lat-long sky (blue gradient and a small sun), given to
-//!   both engines as its SH projection (`EnvironmentLight::light_weights`, the
-//!   `PreparedLight::Weights` a rig's environment light becomes): one folded weight
-//!   vector per channel, one pass over the maps like `directional`;
-//! * `point` — one point light near the eye: per-pixel light vector and SH evaluation;
+//!   both engines as its weights on the basis (`EnvironmentLight::for_basis`: SH's
+//!   projection or the quadrature, the `PreparedLight::Weights` a rig's environment
+//!   light becomes): one folded weight vector per channel, one pass over the maps like
+//!   `directional`;
+//! * `point` — one point light near the eye: per-pixel light vector and basis
+//!   evaluation (SH's recurrence, or the basis' half-float weight table);
 //! * `area` — a one-sided rectangular area light above the scene, 16 emitter samples
 //!   per pixel: 16 light vectors and weights per pixel (every pixel is lit);
 //! * `projector` — a slide projector (fov 90°, a 2:1 synthetic slide) beside the eye,
 //!   its frustum covering about a third of the panorama: per-pixel light vector and
-//!   slide colour, SH evaluation where the slide reaches;
-//! * `sh_eval` (CPU) — the per-pixel SH basis alone (`relit::engine::ShEvaluator`, the
-//!   f32 recurrence of the point case) at every pixel's light vector, reported in
+//!   slide colour, basis evaluation where the slide reaches;
+//! * `basis_eval` (CPU) — the per-pixel basis alone (`relit::engine::BasisEvaluator`,
+//!   the evaluation of the point case) at every pixel's light vector, reported in
 //!   pixels per second (`pixels_per_s`); no coefficient is read.
 //!
-//! Positional cases also report `sh_evals_per_s`: the (pixel, light vector) pairs of
+//! Families built from a capture's samples (`rbf`, `bilinear`) are built here from a
+//! synthetic capture: 48 directions over the upper hemisphere, 200 pixel series each a
+//! mixture of eight smooth lobes (as the GPU tests build them).
+//!
+//! Positional cases also report `basis_evals_per_s`: the (pixel, light vector) pairs of
 //! non-zero weight per frame (counted once with the lights' own per-pixel definition,
 //! `PreparedLight::illuminate`) times fps, the rate comparable across them and with
-//! `sh_eval`.
+//! `basis_eval`.
 //!
 //! on the CPU engine (`relit::engine::Relighter`, rayon over all cores) for each plane
 //! storage (`f32`, `f16`, `u8`) and on the GPU engine (`relit-gpu`, skipped with the
@@ -65,9 +72,9 @@
 
 use anyhow::{bail, Context};
 use rayon::prelude::*;
-use relit::basis::BasisSpec;
+use relit::basis::{Basis, BasisChoice, Samples};
 use relit::camera::{CameraSpec, Pose, Projection};
-use relit::engine::{Relighter, ShEvaluator};
+use relit::engine::{BasisEvaluator, Relighter};
 use relit::envmap::EnvironmentLight;
 use relit::image::ImageRgb;
 use relit::light::{Light, PreparedLight};
@@ -90,9 +97,15 @@ pub struct Args {
     /// Sizes to run, `WxH` (repeatable; default 1024x256 and 8192x2048).
     #[arg(long = "size")]
     pub sizes: Vec<String>,
-    /// Coefficient counts to run (perfect squares; repeatable; default 16 and 25).
+    /// SH coefficient counts to run (perfect squares; repeatable; `--k K` is `--basis
+    /// sh:K`). Default, without `--basis`: 16 and 25.
     #[arg(long = "k")]
     pub ks: Vec<usize>,
+    /// Bases to run, `FAMILY:K` (any family: `sh:25`, `hsh:25`, `sg:25`, `ptm:6`,
+    /// `rbf:25`, `bilinear:25`; repeatable). rbf and bilinear are built from a
+    /// synthetic capture.
+    #[arg(long = "basis")]
+    pub bases: Vec<String>,
     /// Seconds of timed frames per case (at least one frame after a warm-up frame).
     #[arg(long, default_value_t = 0.5)]
     pub seconds: f64,
@@ -107,7 +120,7 @@ pub struct Args {
     #[arg(long)]
     pub no_cpu: bool,
     /// Cases to run (`directional`, `environment`, `point`, `area`, `projector`,
-    /// `sh_eval`; repeatable). Default: all (the GPU runs all but `sh_eval`).
+    /// `basis_eval`; repeatable). Default: all (the GPU runs all but `basis_eval`).
     #[arg(long = "case")]
     pub cases: Vec<String>,
     /// CPU plane storage types (`f32`, `f16`, `u8`; repeatable). Default: all three.
@@ -125,6 +138,8 @@ struct Row {
     case: &'static str,
     width: usize,
     height: usize,
+    /// The basis, `family:K`.
+    basis: String,
     k: usize,
     storage: &'static str,
     /// `cpu` or `gpu`.
@@ -135,13 +150,13 @@ struct Row {
     fps: f64,
     /// Frames per second of the median batch.
     fps_median: f64,
-    /// Pixels relit (or, for `sh_eval`, basis evaluations) per second, at `fps`.
+    /// Pixels relit (or, for `basis_eval`, basis evaluations) per second, at `fps`.
     pixels_per_s: f64,
     /// Positional CPU cases: the per-pixel light vectors of non-zero weight one frame
     /// evaluates the basis at (area lights: every sample of every lit pixel).
-    sh_evals_per_frame: Option<u64>,
-    /// `fps × sh_evals_per_frame`.
-    sh_evals_per_s: Option<f64>,
+    basis_evals_per_frame: Option<u64>,
+    /// `fps × basis_evals_per_frame`.
+    basis_evals_per_s: Option<f64>,
     ms_per_frame: f64,
     /// Frames timed, over all batches.
     frames: usize,
@@ -164,7 +179,7 @@ struct Row {
 
 const CASES: [&str; 5] = ["directional", "environment", "point", "area", "projector"];
 
-/// The cases the GPU engine runs: all of them (`sh_eval` is a CPU measurement).
+/// The cases the GPU engine runs: all of them (`basis_eval` is a CPU measurement).
 const GPU_CASES: [&str; 5] = CASES;
 
 /// Cases with one weight per plane (a frame streams the planes once).
@@ -211,19 +226,23 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
     } else {
         vec![(1024, 256), (8192, 2048)]
     };
-    let ks: Vec<usize> = if !args.ks.is_empty() {
-        args.ks.clone()
-    } else if args.quick {
-        vec![16]
-    } else {
-        vec![16, 25]
-    };
-    let bands_of = |k: usize| {
-        let b = (k as f64).sqrt().round() as usize;
-        (b * b == k && (1..=8).contains(&b)).then_some(b)
-    };
-    if let Some(&bad) = ks.iter().find(|&&k| bands_of(k).is_none()) {
-        bail!("--k {bad}: k must be a square of 1..8 bands (1, 4, 9, …, 64)");
+    let mut bases: Vec<String> = args.bases.clone();
+    for k in &args.ks {
+        let b = (*k as f64).sqrt().round() as usize;
+        if b * b != *k || !(1..=8).contains(&b) {
+            bail!("--k {k}: k must be a square of 1..8 bands (1, 4, 9, …, 64)");
+        }
+        bases.push(format!("sh:{k}"));
+    }
+    if bases.is_empty() {
+        bases = if args.quick {
+            vec!["sh:16".into()]
+        } else {
+            vec!["sh:16".into(), "sh:25".into()]
+        };
+    }
+    for name in &bases {
+        BasisChoice::parse(name).with_context(|| format!("--basis `{name}`"))?;
     }
     let gpu_storage: Option<Vec<Precision>> =
         (!args.gpu_storage.is_empty()).then(|| args.gpu_storage.clone());
@@ -236,13 +255,13 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
         // The maps are synthetic: the only file read is the program itself.
         crate::shared::refuse_overwriting_inputs(&[], &[relit::fsutil::Output::file(path)])?;
         let (width, height) = sizes[0];
-        let bands = bands_of(ks[0]).expect("checked");
-        let image = synthetic_image(width, height, bands)?;
+        let basis = bench_basis(&bases[0])?;
+        let image = synthetic_image(width, height, basis.as_ref())?;
         relit::codec::exr::write(path, &image, Precision::F16)?;
         println!(
-            "wrote {} ({width}×{height}, k = {}, {} of f32 maps)",
+            "wrote {} ({width}×{height}, {}, {} of f32 maps)",
             path.display(),
-            ks[0],
+            basis.name(),
             relit::memory::mib(image.maps.bytes() as u64)
         );
         return Ok(None);
@@ -254,7 +273,7 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
         "point",
         "area",
         "projector",
-        "sh_eval",
+        "basis_eval",
     ];
     if let Some(bad) = args.cases.iter().find(|c| !known.contains(&c.as_str())) {
         bail!("--case `{bad}`: expected one of {}", known.join(", "));
@@ -287,11 +306,22 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
         }
     }
     for &(width, height) in &sizes {
-        for &k in &ks {
-            let bands = bands_of(k).expect("checked");
-            eprintln!("relit bench: {width}×{height}, k = {k}: building synthetic maps…");
-            let image = synthetic_image(width, height, bands)?;
-            let env = Environment::new(bands)?;
+        for name in &bases {
+            let basis = bench_basis(name)?;
+            let k = basis.len();
+            let basis_name = basis.name();
+            eprintln!("relit bench: {width}×{height}, {basis_name}: building synthetic maps…");
+            let image = synthetic_image(width, height, basis.as_ref())?;
+            let env = Environment::new(basis.as_ref())?;
+            if let Some(t) = BasisEvaluator::new(basis.as_ref()).table_accuracy() {
+                let vertices = (t.resolution + 1) * (t.resolution + 1);
+                eprintln!(
+                    "relit bench: {basis_name} per pixel: half-float weight table of {} cells a side ({}), relative RMS error {:.1e}",
+                    t.resolution,
+                    relit::memory::mib((vertices * k.div_ceil(8) * 16) as u64),
+                    t.relative_rms
+                );
+            }
             let n = (width * height) as u64;
             let row = |case,
                        storage: &'static str,
@@ -304,6 +334,7 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
                     case,
                     width,
                     height,
+                    basis: basis_name.clone(),
                     k,
                     storage,
                     device,
@@ -311,8 +342,8 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
                     fps,
                     fps_median: 1.0 / t.median,
                     pixels_per_s: fps * n as f64,
-                    sh_evals_per_frame: None,
-                    sh_evals_per_s: None,
+                    basis_evals_per_frame: None,
+                    basis_evals_per_s: None,
                     ms_per_frame: t.best * 1e3,
                     frames: t.frames,
                     batches: t.batches,
@@ -360,20 +391,27 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
                         if !uniform(case) {
                             let evals = *evals
                                 .entry(case)
-                                .or_insert_with(|| sh_evals(&relighter, &lights));
-                            r.sh_evals_per_frame = Some(evals);
-                            r.sh_evals_per_s = Some(r.fps * evals as f64);
+                                .or_insert_with(|| basis_evals(&relighter, &lights));
+                            r.basis_evals_per_frame = Some(evals);
+                            r.basis_evals_per_s = Some(r.fps * evals as f64);
                         }
                         report(&r, args.json);
                         rows.push(r);
                     }
                 }
             }
-            if !args.no_cpu && wanted("sh_eval") {
-                let t = time_sh_eval(&image, bands, seconds)?;
-                let mut r = row("sh_eval", "-", 0, "cpu", format!("{threads} threads"), &t);
-                r.sh_evals_per_frame = Some(n);
-                r.sh_evals_per_s = Some(r.pixels_per_s);
+            if !args.no_cpu && wanted("basis_eval") {
+                let t = time_basis_eval(&image, basis.as_ref(), seconds)?;
+                let mut r = row(
+                    "basis_eval",
+                    "-",
+                    0,
+                    "cpu",
+                    format!("{threads} threads"),
+                    &t,
+                );
+                r.basis_evals_per_frame = Some(n);
+                r.basis_evals_per_s = Some(r.pixels_per_s);
                 report(&r, args.json);
                 rows.push(r);
             }
@@ -455,7 +493,7 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
             .iter()
             .find(|(key, _)| *key == (r.width, r.height, r.k, r.storage))
             .map(|(_, b)| *b);
-        if let (Some(b), true, false) = (bound, r.host_bound, r.case == "sh_eval") {
+        if let (Some(b), true, false) = (bound, r.host_bound, r.case == "basis_eval") {
             r.read_bandwidth_gbs = b / 1e9;
             r.bandwidth_fraction = Some(r.fps * r.map_bytes as f64 / b);
         }
@@ -504,10 +542,45 @@ fn parse_size(s: &str) -> anyhow::Result<(usize, usize)> {
     Ok((w, h))
 }
 
-/// Maps of `bands²` coefficients with random values (a brighter constant term), depth
-/// 1.5–2.5 everywhere, seen by a cylindrical panorama camera at the origin.
-fn synthetic_image(width: usize, height: usize, bands: usize) -> anyhow::Result<RelightableImage> {
-    let k = bands * bands;
+/// The basis named `name`: analytic families by name, families built from a capture's
+/// samples from a synthetic capture (module docs).
+fn bench_basis(name: &str) -> anyhow::Result<Box<dyn Basis>> {
+    let choice = BasisChoice::parse(name).with_context(|| format!("--basis `{name}`"))?;
+    if !choice.needs_samples() {
+        return Ok(choice.build(&[], None)?);
+    }
+    let dirs = relit::sphere::hemisphere_fibonacci(48);
+    let lobes = relit::sphere::fibonacci(8);
+    let series = 200;
+    let mut values = Vec::with_capacity(series * dirs.len());
+    for s in 0..series {
+        for d in &dirs {
+            let v: f64 = lobes
+                .iter()
+                .enumerate()
+                .map(|(i, l)| {
+                    let weight = 1.0 + ((s * 8 + i) * 7919 % 1000) as f64 / 1000.0;
+                    weight * (4.0 * (d.dot(*l) - 1.0)).exp()
+                })
+                .sum();
+            values.push(v as f32);
+        }
+    }
+    let samples = Samples {
+        values: &values,
+        n: dirs.len(),
+    };
+    Ok(choice.build(&dirs, Some(samples))?)
+}
+
+/// Maps of `basis` with random values (a brighter first coefficient), depth 1.5–2.5
+/// everywhere, seen by a cylindrical panorama camera at the origin.
+fn synthetic_image(
+    width: usize,
+    height: usize,
+    basis: &dyn Basis,
+) -> anyhow::Result<RelightableImage> {
+    let k = basis.len();
     let n = width * height;
     let values = 3usize
         .checked_mul(k)
@@ -526,13 +599,14 @@ fn synthetic_image(width: usize, height: usize, bands: usize) -> anyhow::Result<
         .enumerate()
         .for_each(|(c, chunk)| {
             let mut s = (c as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-            let constant = c * CHUNK < 3 * n;
-            for v in chunk {
+            for (j, v) in chunk.iter_mut().enumerate() {
                 s ^= s << 13;
                 s ^= s >> 7;
                 s ^= s << 17;
                 let r = (s >> 40) as f32 / (1u64 << 24) as f32 - 0.5;
-                *v = if constant { 0.5 + 0.1 * r } else { 0.3 * r };
+                // The first coefficient's three planes come first.
+                let first = c * CHUNK + j < 3 * n;
+                *v = if first { 0.5 + 0.1 * r } else { 0.3 * r };
             }
         });
     let mut depth = vec![0f32; n];
@@ -541,11 +615,7 @@ fn synthetic_image(width: usize, height: usize, bands: usize) -> anyhow::Result<
         .enumerate()
         .for_each(|(p, d)| *d = 2.0 + 0.5 * ((p * 7919 % 1000) as f32 / 1000.0 - 0.5));
     let projection = Projection::Cylindrical { fov_y_deg: None };
-    let mut meta = Metadata::new(
-        BasisSpec::named(&format!("sh:{}", bands * bands)).unwrap(),
-        MapSpace::Linear,
-        projection.clone(),
-    );
+    let mut meta = Metadata::new(basis.spec(), MapSpace::Linear, projection.clone());
     meta.camera = Some(CameraSpec {
         projection,
         width,
@@ -565,16 +635,20 @@ fn synthetic_image(width: usize, height: usize, bands: usize) -> anyhow::Result<
     })
 }
 
-/// A synthetic sky as both engines take it: SH light weights per channel.
+/// A synthetic sky as both engines take it: its light weights on the basis per channel.
 struct Environment {
     weights: [Vec<f64>; 3],
 }
 
 impl Environment {
-    fn new(bands: usize) -> anyhow::Result<Self> {
+    fn new(basis: &dyn Basis) -> anyhow::Result<Self> {
         let sky = EnvironmentLight::from_image(sky())?;
         Ok(Self {
-            weights: sky.light_weights(bands)?,
+            weights: sky.for_basis(basis)?.weights(
+                basis,
+                relit::basis::MAT3_IDENTITY,
+                relit::envmap::Window::None,
+            )?,
         })
     }
 }
@@ -653,7 +727,7 @@ fn projector_parts() -> (relit::light::ProjectorLight, std::sync::Arc<ImageRgb>)
 
 /// The light vectors of non-zero weight one frame of `lights` evaluates the basis at:
 /// every pixel's contributions by the lights' own per-pixel (f64) definition.
-fn sh_evals(relighter: &Relighter, lights: &[PreparedLight]) -> u64 {
+fn basis_evals(relighter: &Relighter, lights: &[PreparedLight]) -> u64 {
     let Ok(points) = relighter.surface_points() else {
         return 0;
     };
@@ -760,13 +834,17 @@ fn time_gpu(gpu: &GpuRelighter, lighting: &Lighting, seconds: f64) -> anyhow::Re
     Ok(Timing::of(per_frame, frames * BATCHES))
 }
 
-/// Seconds per evaluation of the SH basis at every pixel's light vector (toward the
-/// `point` case's light), and the number of timed passes: rayon over chunks of 4096
-/// pixels, each evaluated into a per-thread buffer (no coefficient read, nothing
-/// written to memory beyond L2).
-fn time_sh_eval(image: &RelightableImage, bands: usize, seconds: f64) -> anyhow::Result<Timing> {
+/// Seconds per evaluation of the basis at every pixel's light vector (toward the
+/// `point` case's light), as the engine evaluates it, and the number of timed passes:
+/// rayon over chunks of 4096 pixels, each evaluated into a per-thread buffer (no
+/// coefficient read, nothing written to memory beyond L2).
+fn time_basis_eval(
+    image: &RelightableImage,
+    basis: &dyn Basis,
+    seconds: f64,
+) -> anyhow::Result<Timing> {
     const CHUNK: usize = 4096;
-    let eval = ShEvaluator::new(bands)?;
+    let eval = BasisEvaluator::new(basis);
     let camera = Relighter::new(image)?.camera()?;
     let depth = image.depth.as_ref().context("synthetic maps have depth")?;
     let Light::Point(light) = point_light() else {
@@ -809,8 +887,8 @@ fn time_sh_eval(image: &RelightableImage, bands: usize, seconds: f64) -> anyhow:
 fn report(row: &Row, json: bool) {
     if !json {
         let evals = row
-            .sh_evals_per_s
-            .map(|e| format!("  {:>8.1} M SH evaluations/s", e / 1e6))
+            .basis_evals_per_s
+            .map(|e| format!("  {:>8.1} M basis evaluations/s", e / 1e6))
             .unwrap_or_default();
         eprintln!(
             "  {:<11} {:>4}  {:<3} {:>9.1} fps (median {:.1})  {:>8.1} Mpx/s{evals}",
@@ -826,10 +904,10 @@ fn report(row: &Row, json: bool) {
 
 fn print_summary(rows: &[Row]) {
     println!(
-        "{:<11} {:>10} {:>3} {:<4} {:<4} {:>9} {:>9} {:>9} {:>9} {:>9} {:>7} {:>8} {:>7}  engine",
+        "{:<11} {:>10} {:<12} {:<4} {:<4} {:>9} {:>9} {:>9} {:>9} {:>9} {:>7} {:>8} {:>7}  engine",
         "case",
         "size",
-        "k",
+        "basis",
         "stor",
         "dev",
         "fps",
@@ -852,14 +930,14 @@ fn print_summary(rows: &[Row]) {
             "-".into()
         };
         let evals = r
-            .sh_evals_per_s
+            .basis_evals_per_s
             .map(|e| format!("{:.1}", e / 1e6))
             .unwrap_or_else(|| "-".into());
         println!(
-            "{:<11} {:>10} {:>3} {:<4} {:<4} {:>9.1} {:>9.1} {:>9.1} {:>9} {:>9.3} {:>7} {:>8} {:>7}  {}",
+            "{:<11} {:>10} {:<12} {:<4} {:<4} {:>9.1} {:>9.1} {:>9.1} {:>9} {:>9.3} {:>7} {:>8} {:>7}  {}",
             r.case,
             format!("{}×{}", r.width, r.height),
-            r.k,
+            r.basis,
             r.storage,
             r.device,
             r.fps,
@@ -896,6 +974,7 @@ mod tests {
             json: true,
             sizes: vec!["64x16".into()],
             ks: vec![4],
+            bases: vec![],
             seconds: 0.01,
             gpu_storage: vec![],
             no_gpu: true,
@@ -922,28 +1001,31 @@ mod tests {
             }
             assert!(r.fps > 0.0 && r.fps_median <= r.fps && r.batches == BATCHES);
             assert!(r.fma_peak_gs > 0.0);
-            if r.case == "sh_eval" {
+            if r.case == "basis_eval" {
                 assert!(r.bandwidth_fraction.is_none());
             } else {
                 assert!(r.read_bandwidth_gbs > 0.0);
                 assert!(r.bandwidth_fraction.is_some_and(|f| f > 0.0));
                 assert_eq!(r.fma_fraction.is_some(), uniform(r.case));
-                assert_eq!(r.sh_evals_per_s.is_some(), !uniform(r.case));
+                assert_eq!(r.basis_evals_per_s.is_some(), !uniform(r.case));
             }
         }
     }
 
     #[test]
     fn synthetic_maps_relight_on_the_cpu() {
-        let image = synthetic_image(64, 16, 2).unwrap();
-        let relighter = Relighter::new(&image).unwrap();
-        let env = Environment::new(2).unwrap();
-        for case in CASES {
-            let frame = relighter
-                .relight_prepared(&cpu_lights(case, &env).unwrap(), 0.0)
-                .unwrap();
-            assert!(frame.data.iter().all(|v| v.is_finite()), "{case}");
-            assert!(frame.data.iter().any(|&v| v > 0.0), "{case}");
+        for name in ["sh:4", "hsh:9", "sg:9", "ptm:6", "rbf:9", "bilinear:9"] {
+            let basis = bench_basis(name).unwrap();
+            let image = synthetic_image(64, 16, basis.as_ref()).unwrap();
+            let relighter = Relighter::new(&image).unwrap();
+            let env = Environment::new(basis.as_ref()).unwrap();
+            for case in CASES {
+                let frame = relighter
+                    .relight_prepared(&cpu_lights(case, &env).unwrap(), 0.0)
+                    .unwrap();
+                assert!(frame.data.iter().all(|v| v.is_finite()), "{name} {case}");
+                assert!(frame.data.iter().any(|&v| v > 0.0), "{name} {case}");
+            }
         }
     }
 }

@@ -339,7 +339,11 @@ impl GpuRelighter {
         }
 
         let (table, _) = WeightTable::for_basis(basis.as_ref());
-        let table = half_rounded(&table);
+        // Half floats, as the shader reads them and as the CPU table kernel and the
+        // viewer use them: every back end relights with the same weights. Half the
+        // bytes are also faster (lavapipe, 1024×256, k = 25: 95 ms of CPU per point-light
+        // frame against 106 with the table in f32, `examples/frame_cpu.rs`).
+        let table = table.rounded_to_half();
         let table_accuracy = table.accuracy(basis.as_ref());
         let table_bytes = (table.values.len() / k.max(1) * k.div_ceil(4) * 8) as u64;
         let binding_limit = limits
@@ -849,23 +853,6 @@ impl GpuRelighter {
         } else {
             Err(GpuError::Device(errors.join("; ")))
         }
-    }
-}
-
-/// `table` with every weight rounded to a half float: what the shader reads, as the CPU
-/// engine's table kernel and the browser viewer do, so that every back end relights
-/// with the same weights (the rounding is within the table's measured accuracy, which
-/// is taken after it). Half the bytes are also faster: on lavapipe at 1024×256, k = 25,
-/// 95 ms of CPU per point-light frame and 560 per 16-sample area light, against 106 and
-/// 627 with the table in f32 (`examples/frame_cpu.rs`).
-fn half_rounded(table: &WeightTable) -> WeightTable {
-    WeightTable {
-        values: table
-            .values
-            .iter()
-            .map(|&v| half::f16::from_f32(v).to_f32())
-            .collect(),
-        ..table.clone()
     }
 }
 

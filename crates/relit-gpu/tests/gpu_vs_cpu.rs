@@ -37,6 +37,14 @@ use std::path::{Path, PathBuf};
 /// whose `pow` (sRGB decode) is coarser.
 const MAX_RELATIVE_TO_PEAK: f64 = 1e-5;
 
+/// GPU against the CPU engine where both read the same weight table (lights with a
+/// position on bases other than SH): their light vectors differ in the last f32 bits
+/// (surface points, area samples), which a steep basis (HSH near the horizon) and the
+/// sRGB decode of display-referred maps amplify: measured on lavapipe at most 1.6e-5
+/// of the peak (hsh:25, display-referred, a two-sided area light among the surface
+/// points), 1e-6 elsewhere; the CPU engine's own reference test allows 1e-4.
+const SAME_TABLE_RELATIVE_TO_PEAK: f64 = 1e-4;
+
 /// Against the basis itself, lights with a position may be off by what the table costs:
 /// per pixel, Σ over light vectors of |rgb| · Σ_i |c_i| · ε, with ε the table's largest
 /// weight error. ε is measured on 4096 Fibonacci directions; the factor 2 covers light
@@ -83,13 +91,8 @@ fn lobes(k: usize) -> Box<dyn Basis> {
     })
 }
 
-/// Whether the CPU engine relights lights with a position on bases other than SH. Not
-/// yet on this branch: its positional kernels evaluate SH only, until the library's
-/// engine works through the weight table (then this is true and every registered
-/// family meets the CPU engine for every light).
-const CPU_ENGINE_RELIGHTS_ANY_BASIS: bool = false;
-
-/// A basis to test with; `registered` ones are compared with the CPU engine too.
+/// A basis to test with; `registered` ones (every family's) are compared with the CPU
+/// engine too, which relights every light on every basis.
 struct Case {
     basis: Box<dyn Basis>,
     registered: bool,
@@ -136,10 +139,8 @@ fn bases() -> Vec<Case> {
             });
         }
     }
-    // Families built from a capture's samples, from a synthetic one, at two sizes. The
-    // CPU engine relights lights with a position for SH only until the library's
-    // engine works through the weight table, so these meet the per-pixel references
-    // only.
+    // Families built from a capture's samples, from a synthetic one, at two sizes: the
+    // CPU engine rebuilds them from their spec like any other family.
     let dirs = relit::sphere::hemisphere_fibonacci(48);
     let values = capture_samples(&dirs, 200);
     let samples = Samples {
@@ -155,7 +156,7 @@ fn bases() -> Vec<Case> {
             let choice = BasisChoice::parse(&format!("{}:{k}", family.name())).unwrap();
             out.push(Case {
                 basis: choice.build(&dirs, Some(samples)).unwrap(),
-                registered: false,
+                registered: true,
             });
         }
     }
@@ -620,11 +621,24 @@ fn check(
         assert_close(&format!("{label} vs its table"), &got, &tabled.image);
         assert_within_table_error(&format!("{label} vs basis"), &got, &exact);
     }
-    if registered && (uniform || basis.family() == "sh" || CPU_ENGINE_RELIGHTS_ANY_BASIS) {
+    if registered {
         let want = cpu_in(img, rig, exposure, dir);
+        let cpu_reads_the_table = relit::engine::BasisEvaluator::new(basis)
+            .table_accuracy()
+            .is_some();
         if uniform {
             assert_close(&format!("{label} vs CPU engine"), &got, &want);
+        } else if cpu_reads_the_table {
+            // The same half-float table: the engines differ only by their f32 light
+            // vectors and sums.
+            let (diff, peak) = difference(&got, &want);
+            eprintln!("{label} vs CPU engine: max |GPU - CPU| = {diff:.3e} (peak {peak:.3})");
+            assert!(
+                diff <= SAME_TABLE_RELATIVE_TO_PEAK * peak,
+                "{label} vs CPU engine: {diff:e}, peak {peak}"
+            );
         } else {
+            // The CPU evaluates the basis itself (SH's recurrence), the GPU its table.
             let engine = Direct {
                 image: want,
                 table_bound: exact.table_bound,
@@ -670,7 +684,7 @@ fn every_light_type_matches_the_references_for_every_basis() {
 
 /// Environment weights come from the library (`Relighter::environment_weights`), added
 /// as a uniform light: the GPU frame equals the CPU engine's for every registered basis
-/// the library projects environments onto.
+/// (SH's exact projection, the quadrature for the others).
 #[test]
 fn environment_lights_match_the_cpu_engine() {
     let dir = resource_dir("environment");
@@ -683,16 +697,10 @@ fn environment_lights_match_the_cpu_engine() {
         let name = case.basis.name();
         for space in [MapSpace::Linear, MapSpace::Srgb] {
             let img = image(37, 23, case.basis.as_ref(), space);
-            let weights = match Relighter::new(&img)
+            let weights = Relighter::new(&img)
                 .unwrap()
                 .environment_weights(&env, &dir)
-            {
-                Ok(w) => w,
-                Err(e) => {
-                    eprintln!("{name}: no environment weights from the library yet: {e}");
-                    continue;
-                }
-            };
+                .unwrap();
             let Some(gpu) = gpu_or_skip(&img, img.meta.basis.build().unwrap(), Default::default())
             else {
                 return;

@@ -34,7 +34,7 @@
 //! viewer recomputes each pixel's surface point `P = O + d·V` exactly as the CPU engine.
 //!
 //! Environment maps are shipped as the quadrature the library integrates maps of
-//! bases other than SH with (`relit::envmap`, *One dispatch*): at most
+//! bases other than SH with (`relit::envmap::quadrature`): at most
 //! [`QUADRATURE_WIDTH`] × [`QUADRATURE_HEIGHT`] directional lights, each gathering the
 //! texels whose centres a coarse texel holds, with their summed intensity `Σ E ΔΩ`
 //! (so `∫ E dω` is kept exactly) at their energy's centroid. `data/env/N.f32` holds
@@ -46,10 +46,8 @@
 use crate::{invalid, Result};
 use relit::basis::{Basis, SphericalHarmonics, WeightTable};
 use relit::camera::CameraSpec;
-use relit::envmap::{latlong_direction, texel_solid_angle, EnvironmentLight, Window};
-use relit::image::ImageRgb;
+use relit::envmap::{EnvironmentLight, Window};
 use relit::maps::RelightableImage;
-use relit::sphere::Vec3;
 use relit::storage::{PlaneCoding, Precision};
 use serde::Serialize;
 use serde_json::json;
@@ -64,11 +62,11 @@ pub const WEB_FORMAT_VERSION: u32 = 2;
 /// channel).
 pub const MAX_K: usize = 64;
 
-/// The size of the coarse map an environment's quadrature gathers texels into (at
-/// most; smaller maps keep their texels): the library's `QUADRATURE_SIZE`
-/// (crates/relit/src/envmap/quadrature.rs), chosen there by measurement.
-pub const QUADRATURE_WIDTH: usize = 128;
-pub const QUADRATURE_HEIGHT: usize = 64;
+/// The quadrature of an environment map (its texels gathered into at most
+/// [`QUADRATURE_WIDTH`] × [`QUADRATURE_HEIGHT`] directional lights, a size chosen by
+/// measurement in `relit::envmap::quadrature`): the library's, which the CPU engine
+/// lights bases other than SH with.
+pub use relit::envmap::{environment_quadrature, QUADRATURE_HEIGHT, QUADRATURE_WIDTH};
 
 /// Largest side the viewer accepts (WebGL2 guarantees textures of 2048 and most
 /// implementations, SwiftShader included, give 8192 or more).
@@ -461,44 +459,4 @@ fn load_environment(path: &Path, index: usize) -> Result<Environment> {
             .collect(),
         preview,
     })
-}
-
-/// The directional lights standing for a lat-long map (module docs): the map's texels
-/// gathered into at most `width × height` coarse texels by their centres, each light
-/// the summed `E ΔΩ` of its texels at their energy's centroid (the coarse texel's
-/// centre when it has no energy). The algorithm of `Quadrature::with_size` in
-/// crates/relit/src/envmap/quadrature.rs, which relights maps of bases other than SH on
-/// the CPU.
-pub fn environment_quadrature(
-    map: &ImageRgb,
-    width: usize,
-    height: usize,
-) -> Vec<(Vec3, [f64; 3])> {
-    let (fw, fh) = (map.width, map.height);
-    let (cw, ch) = (width.clamp(1, fw), height.clamp(1, fh));
-    let mut out = Vec::with_capacity(cw * ch);
-    for cy in 0..ch {
-        let mut sums = vec![[0.0f64; 3]; cw];
-        let mut centroid = vec![Vec3::new(0.0, 0.0, 0.0); cw];
-        // Fine rows whose centres fall in coarse row cy: y·ch/fh == cy.
-        for y in (cy * fh).div_ceil(ch)..((cy + 1) * fh).div_ceil(ch) {
-            let solid_angle = texel_solid_angle(fw, fh, y);
-            for x in 0..fw {
-                let cx = x * cw / fw;
-                let d =
-                    latlong_direction((x as f64 + 0.5) / fw as f64, (y as f64 + 0.5) / fh as f64);
-                let i = map.get(x, y).map(|v| v as f64 * solid_angle);
-                for (s, v) in sums[cx].iter_mut().zip(i) {
-                    *s += v;
-                }
-                centroid[cx] = centroid[cx] + d * i.iter().map(|v| v.abs()).sum::<f64>();
-            }
-        }
-        for (cx, (i, c)) in sums.into_iter().zip(centroid).enumerate() {
-            let centre =
-                || latlong_direction((cx as f64 + 0.5) / cw as f64, (cy as f64 + 0.5) / ch as f64);
-            out.push((c.normalized().unwrap_or_else(centre), i));
-        }
-    }
-    out
 }

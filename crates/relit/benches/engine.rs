@@ -12,7 +12,7 @@
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use relit::basis::BasisSpec;
 use relit::camera::{CameraSpec, Pose, Projection};
-use relit::engine::{Relighter, Roi, ShEvaluator};
+use relit::engine::{BasisEvaluator, Relighter, Roi};
 use relit::image::ImageRgb;
 use relit::light::{AreaLight, AreaShape, Light, PreparedLight, ProjectorLight};
 use relit::maps::{CoefficientMaps, MapSpace, Metadata, RelightableImage};
@@ -164,7 +164,8 @@ fn sh_eval(c: &mut Criterion) {
     let mut group = c.benchmark_group("sh_eval");
     group.throughput(Throughput::Elements(n as u64));
     for bands in [4, 5] {
-        let eval = ShEvaluator::new(bands).unwrap();
+        let sh = relit::basis::SphericalHarmonics::new(bands).unwrap();
+        let eval = BasisEvaluator::new(&sh);
         let mut out = vec![0f32; eval.len() * 4096];
         group.bench_function(BenchmarkId::new("k", bands * bands), |b| {
             b.iter(|| {

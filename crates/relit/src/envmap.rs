@@ -80,6 +80,16 @@
 //!
 //! All leave band 0 (the mean radiance) untouched and decrease with `l`.
 //!
+//! # One dispatch
+//!
+//! Everything above is for the real SH basis, whose projection is exact, rotates
+//! analytically and has bands to window. Every other basis is lit through the map's
+//! quadrature ([`quadrature`]): a few thousand directional lights, `e_c = Σ_t I_{t,c}
+//! y(R ω_t)` with the rotation applied to their directions. Band windows need bands and
+//! are refused there with an error. [`EnvironmentLight::for_basis`] makes that choice once
+//! per map and basis ([`BasisEnvironment`]), and its [`BasisEnvironment::weights`] gives
+//! the weights per frame: the engines never name a basis.
+//!
 //! # Brute force
 //!
 //! To check a relit image against the captures themselves,
@@ -94,9 +104,15 @@ use crate::basis::{
     check_rotation, compose, mat3_apply, rotation_about_axis, sh_index, transpose, Basis, Mat3,
     ShRotation, SphericalHarmonics, MAT3_IDENTITY, MAX_BANDS,
 };
+
+pub mod quadrature;
+
 use crate::image::{load_linear, ImageRgb};
 use crate::sphere::Vec3;
 use crate::{Error, Result};
+pub use quadrature::{
+    environment_quadrature, quadrature_weights, QUADRATURE_HEIGHT, QUADRATURE_WIDTH,
+};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
@@ -327,6 +343,15 @@ impl EnvironmentLight {
     /// the rotation and window are applied (microseconds), so an interactive viewer
     /// projects once and re-rotates freely.
     pub fn weights_from_projection(&self, projection: &[Vec<f64>; 3]) -> Result<[Vec<f64>; 3]> {
+        Self::rotated_projection(projection, self.rotation, self.window)
+    }
+
+    /// An SH projection turned by `rotation` and windowed.
+    fn rotated_projection(
+        projection: &[Vec<f64>; 3],
+        rotation: Mat3,
+        window: Window,
+    ) -> Result<[Vec<f64>; 3]> {
         let len = projection[0].len();
         let bands = (len as f64).sqrt().round() as usize;
         if bands * bands != len || projection.iter().any(|c| c.len() != len) {
@@ -338,8 +363,8 @@ impl EnvironmentLight {
             )));
         }
         check_bands(bands)?;
-        let mut weights = rotate_channels(&ShRotation::new(self.rotation, bands)?, projection)?;
-        apply_window(&self.window, bands, &mut weights)?;
+        let mut weights = rotate_channels(&ShRotation::new(rotation, bands)?, projection)?;
+        apply_window(&window, bands, &mut weights)?;
         Ok(weights)
     }
 
@@ -446,6 +471,64 @@ impl EnvironmentLight {
                 }
             });
         Self::from_image(map)
+    }
+}
+
+/// An environment map made ready for one basis (module docs, *One dispatch*): what
+/// does not change when it turns.
+#[derive(Clone, Debug)]
+pub enum BasisEnvironment {
+    /// The exact SH projection of the map, in the light frame, unrotated, unwindowed.
+    Sh { projection: [Vec<f64>; 3] },
+    /// The map's quadrature ([`environment_quadrature`] at [`QUADRATURE_WIDTH`] ×
+    /// [`QUADRATURE_HEIGHT`]), for every other basis.
+    Quadrature(Vec<(Vec3, [f64; 3])>),
+}
+
+impl EnvironmentLight {
+    /// This map (its rotation and window aside) made ready for `basis`: SH's exact
+    /// projection, or the quadrature for a basis without bands.
+    pub fn for_basis(&self, basis: &dyn Basis) -> Result<BasisEnvironment> {
+        Ok(match SphericalHarmonics::bands_of(&basis.spec()) {
+            Some(bands) => BasisEnvironment::Sh {
+                projection: self.project(bands)?,
+            },
+            None => BasisEnvironment::Quadrature(environment_quadrature(
+                &self.map,
+                QUADRATURE_WIDTH,
+                QUADRATURE_HEIGHT,
+            )),
+        })
+    }
+}
+
+impl BasisEnvironment {
+    /// The weights per colour channel that relight maps of `basis` (the basis this was
+    /// made for) by one dot product per pixel, the environment turned by `rotation` and,
+    /// for SH, windowed. A window other than `none` on a basis without bands is an
+    /// error.
+    pub fn weights(
+        &self,
+        basis: &dyn Basis,
+        rotation: Mat3,
+        window: Window,
+    ) -> Result<[Vec<f64>; 3]> {
+        check_rotation(&rotation)?;
+        window.validate()?;
+        match self {
+            BasisEnvironment::Sh { projection } => {
+                EnvironmentLight::rotated_projection(projection, rotation, window)
+            }
+            BasisEnvironment::Quadrature(lights) => {
+                if window != Window::None {
+                    return Err(Error::invalid(format!(
+                        "band windows ({window:?}) are for bases with bands (SH); basis {} has none: use no window",
+                        basis.name()
+                    )));
+                }
+                Ok(quadrature_weights(lights, basis, &rotation))
+            }
+        }
     }
 }
 

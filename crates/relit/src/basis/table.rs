@@ -174,6 +174,21 @@ impl WeightTable {
         }
     }
 
+    /// This table with every weight rounded to a half float: what every back end reads
+    /// (the GPU and browser shaders, the CPU engine's table kernel), so that all of
+    /// them relight with the same weights. The rounding stays within the table's
+    /// measured accuracy ([`WeightTable::accuracy`] of the rounded table says by how much).
+    pub fn rounded_to_half(&self) -> WeightTable {
+        WeightTable {
+            values: self
+                .values
+                .iter()
+                .map(|&v| half::f16::from_f32(v).to_f32())
+                .collect(),
+            ..self.clone()
+        }
+    }
+
     /// Bytes the table occupies as f32.
     pub fn bytes(&self) -> usize {
         self.values.len() * 4

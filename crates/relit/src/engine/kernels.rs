@@ -22,17 +22,22 @@
 //! ([`Simd::interleave_stream`]), so that writing the frame neither reads it first nor
 //! pushes the planes out of the caches.
 //!
-//! Positional lights: `sh` evaluates the SH basis per pixel and dots it with the
-//! coefficients (or projects many light vectors first), `lights` makes each light's
-//! per-pixel vectors and weights; both in the same one-body, two-compilations form.
+//! Positional lights: `pixel_basis` evaluates the basis per pixel and dots it with the
+//! coefficients (or projects many light vectors first), by SH's recurrence (`sh`) or any
+//! basis' half-float weight table (`table`); `lights` makes each light's per-pixel
+//! vectors and weights; all in the same one-body, two-compilations form.
 
 use half::f16;
 
 mod lights;
+mod pixel_basis;
 mod sh;
+mod table;
 
 pub(crate) use lights::{AreaSamples, Cone, Falloff, Projector, Shift};
-pub(crate) use sh::{sh_bands, Rows, ShNorms};
+pub use pixel_basis::BasisEvaluator;
+pub(crate) use pixel_basis::PixelBasis;
+pub(crate) use sh::Rows;
 
 /// Pixels per block of the per-pixel (positional light) kernels: their scratch
 /// arrays, a few per block, stay in L1.

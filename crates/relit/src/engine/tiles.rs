@@ -2,12 +2,12 @@
 //! (one weight per plane, the planes streamed eight at a time) and by positional
 //! lights, per block of [`BLOCK`] pixels: each light gives every pixel one light
 //! vector and RGB weight (point, spot, projector) or one per emitter sample (area),
-//! and [`Frame::shine`] evaluates the f32 SH basis there, dots it with the block's
-//! coefficients and adds it weighted. On linear maps an area light's samples are
-//! added up in SH first (their projection, `Σ_k g_k Y(l_k)` per pixel) and dotted
-//! with the coefficients once.
+//! and [`Frame::shine`] evaluates the basis there ([`PixelBasis`]: SH's f32 recurrence
+//! or the basis' weight table), dots it with the block's coefficients and adds it
+//! weighted. On linear maps an area light's samples are added up on the basis first
+//! (their projection, `Σ_k g_k y(l_k)` per pixel) and dotted with the coefficients once.
 
-use super::kernels::{AreaSamples, Cone, Falloff, Projector, Rows, ShNorms, Shift, Simd};
+use super::kernels::{AreaSamples, Cone, Falloff, PixelBasis, Projector, Rows, Shift, Simd};
 use super::kernels::{Stored, BLOCK};
 use super::points::SurfacePoints;
 use crate::color;
@@ -135,8 +135,10 @@ pub(crate) struct Scratch {
     acc: [Vec<f32>; 3],
     /// `3k` rows of [`RUN`] decoded values (frames with positional lights).
     values: Vec<f32>,
-    /// `k` rows: the SH projection of a block's area light samples.
+    /// `k` rows: the projection of a block's area light samples on the basis.
     projection: Vec<[f32; BLOCK]>,
+    /// `k` rows: the basis at a block's light vectors (weight-table path).
+    basis_rows: Vec<[f32; BLOCK]>,
 }
 
 thread_local! {
@@ -149,6 +151,7 @@ thread_local! {
             acc: [Vec::new(), Vec::new(), Vec::new()],
             values: Vec::new(),
             projection: Vec::new(),
+            basis_rows: Vec::new(),
         })
     };
 }
@@ -164,6 +167,7 @@ impl Scratch {
             if positional {
                 s.values.resize(3 * k * RUN, 0.0);
                 s.projection.resize(k, [0.0; BLOCK]);
+                s.basis_rows.resize(k, [0.0; BLOCK]);
             }
         };
         SCRATCH.with(|cell| match cell.try_borrow_mut() {
@@ -177,6 +181,7 @@ impl Scratch {
                     acc: Default::default(),
                     values: Vec::new(),
                     projection: Vec::new(),
+                    basis_rows: Vec::new(),
                 };
                 fit(&mut s);
                 f(&mut s)
@@ -192,13 +197,13 @@ pub(crate) struct Frame<'a> {
     /// Pixels per plane.
     pub n: usize,
     pub k: usize,
-    pub bands: usize,
     pub display: bool,
     pub passes: &'a [UniformPass],
     pub lights: &'a [PositionalLight],
     /// Surface points (NaN where nothing was hit), when `lights` is not empty.
     pub points: Option<&'a SurfacePoints<'a>>,
-    pub norms: &'a ShNorms,
+    /// The basis per pixel, when `lights` is not empty.
+    pub basis: Option<&'a PixelBasis>,
     /// Write the frame with non-temporal stores (one uniform pass, nothing added after
     /// it, a frame larger than the caches).
     pub stream: bool,
@@ -282,16 +287,25 @@ impl Frame<'_> {
                 }
             }
         }
-        let Some(points) = self.points.filter(|_| !self.lights.is_empty()) else {
+        let (Some(points), Some(basis)) = (self.points, self.basis) else {
             return;
         };
+        if self.lights.is_empty() {
+            return;
+        }
         // Every plane's run is decoded (f32: copied) into the scratch rows, one
         // sequential read each, and the blocks read their values there, in L2.
         let Scratch {
             values: scratch_values,
             projection,
+            basis_rows,
             ..
         } = scratch;
+        let mut block = Block {
+            basis,
+            projection,
+            rows: basis_rows,
+        };
         for r0 in (0..len).step_by(RUN) {
             let rl = RUN.min(len - r0);
             for (j, row) in scratch_values.chunks_exact_mut(RUN).enumerate() {
@@ -308,7 +322,7 @@ impl Frame<'_> {
                     offset: b,
                 };
                 let bl = BLOCK.min(rl - b);
-                self.positional_block(p0 + r0 + b, r0 + b, bl, values, points, projection, dst);
+                self.positional_block(p0 + r0 + b, r0 + b, bl, values, points, &mut block, dst);
             }
         }
     }
@@ -322,7 +336,7 @@ impl Frame<'_> {
         bl: usize,
         values: Rows,
         points: &SurfacePoints,
-        projection: &mut [[f32; BLOCK]],
+        block: &mut Block,
         dst: &mut [f32],
     ) {
         let mut at = [[f32::NAN; BLOCK]; 3];
@@ -349,17 +363,17 @@ impl Frame<'_> {
                             *w = c * f;
                         }
                     }
-                    self.shine(&dir, &weight, values, &mut sum);
+                    self.shine(block, &dir, &weight, values, &mut sum);
                 }
                 PositionalLight::Projector(p) => {
                     self.simd.projector_block(p, &at, &mut dir, &mut weight);
                     if weight == [[0.0; BLOCK]; 3] {
                         continue;
                     }
-                    self.shine(&dir, &weight, values, &mut sum);
+                    self.shine(block, &dir, &weight, values, &mut sum);
                 }
                 PositionalLight::Area { samples, rgb } => {
-                    self.area(samples, *rgb, q0, &at, values, projection, &mut sum)
+                    self.area(block, samples, *rgb, q0, &at, values, &mut sum)
                 }
             }
         }
@@ -371,18 +385,20 @@ impl Frame<'_> {
     }
 
     /// Add one light vector per pixel, `dir`, of RGB weight `weight` to the block's
-    /// `sum`: the SH basis there dotted with the coefficients (decoded to linear for
+    /// `sum`: the basis there dotted with the coefficients (decoded to linear for
     /// display-referred maps), times the weight.
     fn shine(
         &self,
+        block: &mut Block,
         dir: &[[f32; BLOCK]; 3],
         weight: &[[f32; BLOCK]; 3],
         values: Rows,
         sum: &mut [[f32; BLOCK]; 3],
     ) {
         let mut dot = [[0f32; BLOCK]; 3];
-        self.simd
-            .sh_dot(self.bands, self.norms, dir, values, &mut dot);
+        block
+            .basis
+            .dot(self.simd, dir, values, &mut dot, block.rows);
         self.simd.add_weighted(self.display, &dot, weight, sum);
     }
 
@@ -391,12 +407,12 @@ impl Frame<'_> {
     #[allow(clippy::too_many_arguments)]
     fn area(
         &self,
+        block: &mut Block,
         light: &AreaSamples,
         rgb: [f32; 3],
         q0: usize,
         at: &[[f32; BLOCK]; 3],
         values: Rows,
-        projection: &mut [[f32; BLOCK]],
         sum: &mut [[f32; BLOCK]; 3],
     ) {
         let mut shift = Shift::new();
@@ -404,9 +420,9 @@ impl Frame<'_> {
         let mut dir = [[0f32; BLOCK]; 3];
         let mut g = [0f32; BLOCK];
         // Display-referred maps decode every sample's value: one dot per sample. On
-        // linear maps the samples are summed in SH first (`k` multiply-adds into the
-        // projection per sample instead of the dot's `3k` with the coefficients):
-        // 2.0–2.5× faster for 16 samples at 1024×256, k = 16 and 25, f32 and u8.
+        // linear maps the samples are summed on the basis first (`k` multiply-adds into
+        // the projection per sample instead of the dot's `3k` with the coefficients):
+        // 2.0–2.5× faster for 16 samples at 1024×256, k = 16 and 25, f32 and u8 (SH).
         if self.display {
             let mut weight = [[0f32; BLOCK]; 3];
             for k in 0..light.samples {
@@ -420,11 +436,11 @@ impl Frame<'_> {
                         *w = c * g;
                     }
                 }
-                self.shine(&dir, &weight, values, sum);
+                self.shine(block, &dir, &weight, values, sum);
             }
             return;
         }
-        let projection = &mut projection[..self.k];
+        let projection = &mut block.projection[..self.k];
         projection.fill([0.0; BLOCK]);
         let mut total = [0f32; BLOCK];
         for k in 0..light.samples {
@@ -433,8 +449,7 @@ impl Frame<'_> {
             if g == [0.0; BLOCK] {
                 continue;
             }
-            self.simd
-                .sh_project(self.bands, self.norms, &dir, &g, projection);
+            block.basis.project(self.simd, &dir, &g, projection);
             for (t, g) in total.iter_mut().zip(&g) {
                 *t += g;
             }
@@ -448,4 +463,14 @@ impl Frame<'_> {
         self.simd.rows_dot(projection, values, &mut dot);
         self.simd.add_weighted(false, &dot, &weight, sum);
     }
+}
+
+/// What the positional lights of one tile work with besides the coefficients: the basis
+/// per pixel and its scratch rows.
+struct Block<'s> {
+    basis: &'s PixelBasis,
+    /// `k` rows: the projection of an area light's samples.
+    projection: &'s mut [[f32; BLOCK]],
+    /// `k` rows: the basis at the light vectors (weight-table path).
+    rows: &'s mut [[f32; BLOCK]],
 }

@@ -8,13 +8,62 @@
 use super::{madd, Simd, BLOCK};
 use crate::color;
 
-/// The bands of `basis` if it is the real SH basis, whose per-pixel evaluation has the
-/// vectorised recurrence below; other bases take the weight-table path.
-pub(crate) fn sh_bands(basis: &dyn crate::basis::Basis) -> Option<usize> {
-    basis
-        .as_any()
-        .downcast_ref::<crate::basis::SphericalHarmonics>()
-        .map(|sh| sh.bands())
+/// The SH fast path of the per-pixel kernels: the real SH basis of `bands` bands by
+/// the vectorised recurrence below, exact to f32 rounding (no table).
+#[derive(Clone, Debug)]
+pub(crate) struct ShKernel {
+    bands: usize,
+    norms: ShNorms,
+}
+
+impl ShKernel {
+    /// The kernel of `basis` if it is the real SH basis; other bases take the
+    /// weight-table path.
+    pub(crate) fn of(basis: &dyn crate::basis::Basis) -> Option<Self> {
+        let sh = basis
+            .as_any()
+            .downcast_ref::<crate::basis::SphericalHarmonics>()?;
+        Self::new(sh.bands())
+    }
+
+    /// The kernel of `bands` bands (1 to 8).
+    pub(crate) fn new(bands: usize) -> Option<Self> {
+        (1..=8).contains(&bands).then(|| Self {
+            bands,
+            norms: ShNorms::new(),
+        })
+    }
+
+    pub(crate) fn len(&self) -> usize {
+        self.bands * self.bands
+    }
+
+    /// [`Simd::sh_values`].
+    pub(crate) fn values(&self, simd: Simd, dir: &[[f32; BLOCK]; 3], out: &mut [[f32; BLOCK]]) {
+        simd.sh_values(self.bands, &self.norms, dir, out)
+    }
+
+    /// [`Simd::sh_project`].
+    pub(crate) fn project(
+        &self,
+        simd: Simd,
+        dir: &[[f32; BLOCK]; 3],
+        w: &[f32; BLOCK],
+        out: &mut [[f32; BLOCK]],
+    ) {
+        simd.sh_project(self.bands, &self.norms, dir, w, out)
+    }
+
+    /// [`Simd::sh_dot`]: the recurrence feeds the dot directly, no rows in between.
+    pub(crate) fn dot(
+        &self,
+        simd: Simd,
+        dir: &[[f32; BLOCK]; 3],
+        values: Rows,
+        out: &mut [[f32; BLOCK]; 3],
+    ) {
+        simd.sh_dot(self.bands, &self.norms, dir, values, out)
+    }
 }
 
 /// Rows of [`BLOCK`] values at a stride: row `j` is `data[j·stride + offset ..][..BLOCK]`.
