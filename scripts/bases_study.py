@@ -70,7 +70,7 @@ for b in bases:
     r = json.loads(out)
     chosen = r["basis"]
     out, _ = run("bench", "--basis", chosen if ":" in chosen else b, "--case", "point",
-                 "--size", "512x128", "--no-gpu", "--quick", "--json")
+                 "--size", "512x128", "--cpu-storage", "f16", "--no-gpu", "--quick", "--json")
     bench = json.loads(out)
     rows = bench.get("rows", bench if isinstance(bench, list) else [])
     fps = next((row.get("fps") for row in rows if "point" in str(row.get("case", ""))), float("nan"))
