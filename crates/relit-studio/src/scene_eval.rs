@@ -127,7 +127,9 @@ pub struct LightResult {
 ///   relighting itself applies ([`EnvironmentLight::band_limited`]). The SH dot product
 ///   and this sum light the scene identically, so any gap between them is the fit's
 ///   (and a wrong projection, rotation, window or direction convention would show as
-///   a large one).
+///   a large one). For a basis without bands (HSH, SG, RBF, …) there is no band limit
+///   to mirror: `brute_force` is `brute_force_raw`, and only the unwindowed light is
+///   checked.
 #[derive(Clone, Debug, Serialize)]
 pub struct EnvironmentCheck {
     /// Index of the light in the rig.
@@ -381,8 +383,11 @@ fn environment_checks(
     let rgb = Light::Environment(light.clone()).rgb();
     let raw = brute_force(capture, &env.weights_for_directions(&directions)?, rgb)?;
     let brute_force_raw = compare_in(&raw, reference, mask);
+    // Windows scale SH bands; a basis without bands is relit unwindowed, and its
+    // "same lighting" brute force is the full map (there is no band limit to mirror).
     windows
         .iter()
+        .filter(|&&window| bands > 0 || window == Window::None)
         .map(|&window| {
             let mut windowed = light.clone();
             windowed.window = window;
@@ -393,8 +398,12 @@ fn environment_checks(
             )?;
             let relight_seconds = t.elapsed().as_secs_f64();
             let (w, h) = BAND_LIMITED_MAP;
-            let limited = env.clone().with_window(window)?.band_limited(bands, w, h)?;
-            let brute = brute_force(capture, &limited.weights_for_directions(&directions)?, rgb)?;
+            let brute = if bands > 0 {
+                let limited = env.clone().with_window(window)?.band_limited(bands, w, h)?;
+                brute_force(capture, &limited.weights_for_directions(&directions)?, rgb)?
+            } else {
+                raw.clone()
+            };
             let against_truth = compare_in(&relit, reference, mask);
             let brute_against_truth = compare_in(&brute, reference, mask);
             Ok(EnvironmentCheck {

@@ -168,6 +168,35 @@ fn every_light_type_against_truth() {
 }
 
 #[test]
+fn a_basis_without_bands_is_evaluated_under_every_light_type() {
+    // Spherical Gaussians have no bands: the environment light is relit unwindowed (one
+    // check, not one per window) and its brute force is the full map's. (They span the
+    // whole sphere, as the box's capture does; HSH would hold every light below the
+    // horizon at its horizon value.)
+    let (scene, camera) = small_box();
+    let renderer = Renderer::new(&scene, &camera, &RenderOptions::default(), &Silent).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let rig = scene_eval::default_rig(&camera, renderer.depth(), dir.path()).unwrap();
+    let options = SceneEvalOptions {
+        fit: FitOptions {
+            basis: relit::fit::BasisRequest::parse("sg:25").unwrap(),
+            ..FitOptions::default()
+        },
+        ..options()
+    };
+    let report =
+        scene_eval::evaluate(&scene, &camera, &rig, dir.path(), &options, &Silent, None).unwrap();
+    assert_eq!(report.lights.len(), rig.lights.len());
+    for light in &report.lights {
+        assert!(light.psnr_linear > 20.0, "{}: {:.2} dB", light.kind, light.psnr_linear);
+    }
+    assert_eq!(report.environment.len(), 1);
+    let check = &report.environment[0];
+    assert_eq!(check.brute_force.psnr_linear, check.brute_force_raw.psnr_linear);
+    assert!(check.relit.psnr_linear > 20.0, "{check:?}");
+}
+
+#[test]
 fn occlusion_behind_a_point_light_is_found_and_costs_fidelity() {
     // A lamp low in front of the box: floor points nearer the camera see it with the box
     // *behind* it, so their captured functions (directions only) record the box's shadow
