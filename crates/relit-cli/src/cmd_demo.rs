@@ -36,8 +36,8 @@ pub struct Args {
     /// Frames of each animation.
     #[arg(long, default_value_t = 12)]
     pub frames: usize,
-    /// The basis, `family:K` (`sh:25`, …).
-    #[arg(long, default_value = "sh:25", value_parser = crate::shared::parse_basis)]
+    /// The basis: `auto` (chosen per capture by validation) or `family:K` (`sh:25`, …).
+    #[arg(long, default_value = "auto", value_parser = crate::shared::parse_basis)]
     pub basis: relit::fit::BasisRequest,
     /// Print the summary as JSON.
     #[arg(long)]
@@ -178,8 +178,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     )?;
     let r = &fitted.report;
     say(format!(
-        "  fit       {:>7.2} s  ({:.0} images/s, λ = {:.0e}, peak memory {}) → {}",
+        "  fit       {:>7.2} s  ({}, {:.0} images/s, λ = {:.0e}, peak memory {}) → {}",
         r.seconds,
+        r.basis,
         r.images_per_second,
         r.lambda,
         mib(r.peak_rss_bytes),

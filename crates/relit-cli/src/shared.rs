@@ -49,7 +49,7 @@ pub fn parse_basis(s: &str) -> Result<BasisRequest, String> {
 pub struct FitArgs {
     /// The basis: `auto` (chosen per capture by validation on its own lights) or
     /// `family:K` with K coefficients per colour channel (`sh:25`, `rbf:18`, …).
-    #[arg(long, default_value = "sh:25", value_parser = parse_basis)]
+    #[arg(long, default_value = "auto", value_parser = parse_basis)]
     pub basis: BasisRequest,
     /// The most coefficients per colour channel `--basis auto` may choose.
     #[arg(long, default_value_t = relit::fit::DEFAULT_MAX_COEFFICIENTS as u16,

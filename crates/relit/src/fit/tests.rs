@@ -133,8 +133,12 @@ fn fit_then_relight_reproduces_captured_and_new_lights() {
     };
     let dirs = hemisphere_fibonacci(80);
     let capture = plane.capture(&dirs);
-    let out = fit(&capture, &FitOptions::default(), &Silent).unwrap();
-    let check = |d: Vec3| {
+    let sh25 = FitOptions {
+        basis: BasisRequest::parse("sh:25").unwrap(),
+        ..FitOptions::default()
+    };
+    let out = fit(&capture, &sh25, &Silent).unwrap();
+    let check = |out: &FitOutput, d: Vec3| {
         let truth = plane.render(d);
         let relit = crate::engine::relight(
             &out.image,
@@ -147,11 +151,19 @@ fn fit_then_relight_reproduces_captured_and_new_lights() {
     // The scene is a glossy surface whose shading has a kink at the terminator
     // (max(0, n·L)), which 25 SH coefficients round off: they follow it to ~35 dB.
     // 32 dB (~6 8-bit steps RMS) leaves margin; a broken fit gives < 20 dB.
-    let captured = check(dirs[17]);
+    let captured = check(&out, dirs[17]);
     assert!(captured > 32.0, "captured light: {captured:.2} dB");
-    let novel = check(Vec3::new(0.3, -0.4, 0.75));
+    let novel = check(&out, Vec3::new(0.3, -0.4, 0.75));
     assert!(novel > 32.0, "novel light: {novel:.2} dB");
     assert!(out.report.lambda > 0.0 && !out.report.lambda_scores.is_empty());
+    // The default chooses its basis among the candidates and does at least as well.
+    let auto = fit(&capture, &FitOptions::default(), &Silent).unwrap();
+    assert!(auto.report.candidates.len() > 5, "{:?}", auto.report.candidates);
+    assert_eq!(auto.report.basis, auto.report.candidates[0].basis);
+    for d in [dirs[17], Vec3::new(0.3, -0.4, 0.75)] {
+        let psnr = check(&auto, d);
+        assert!(psnr > 32.0, "{}: {psnr:.2} dB", auto.report.basis);
+    }
 }
 
 #[test]
