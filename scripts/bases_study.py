@@ -14,7 +14,7 @@ half-float EXR, fit seconds, point-light frames per second), writes `--json FILE
 every raw result and, with `--pictures DIR`, one held-out light's truth and relit
 images per basis (PNG). Usage:
     scripts/bases_study.py [--relit BIN] [--json FILE] [--pictures DIR] [--keep DIR]
-                           [--sizes 16,25,36,64] [--extra rbf:64,bilinear:64]
+                           [--sizes 16,25,36,64] [--extra "rbf:64 bilinear:64"] [--no-auto]
 """
 import argparse, json, pathlib, shutil, subprocess, sys, tempfile, time
 
@@ -27,6 +27,7 @@ ap.add_argument("--keep", help="keep (or reuse) the capture in this folder")
 ap.add_argument("--sizes", default="16,25,36,64")
 ap.add_argument("--extra", default="")
 ap.add_argument("--objective", default="auto")
+ap.add_argument("--no-auto", action="store_true", help="skip the two `auto` rows")
 opts = ap.parse_args()
 
 
@@ -53,8 +54,9 @@ held = [upper[round(i * (len(upper) - 1) / 23)] for i in range(24)]
 
 sizes = [int(k) for k in opts.sizes.split(",") if k]
 bases = [f"{fam}:{k}" for k in sizes for fam in ("sh", "sg")]
-bases += [("auto", 25), ("auto", 64)]
-bases += [b for b in opts.extra.split(",") if b]
+if not opts.no_auto:
+    bases += [("auto", 25), ("auto", 64)]
+bases += opts.extra.split()  # space-separated: a basis may carry options with commas
 results = {}
 print("| basis | chosen | held-out linear dB | held-out sRGB8 dB | bytes/px | fit s | point fps |")
 print("|---|---|---|---|---|---|---|")
@@ -72,7 +74,7 @@ for b in bases:
     out, _ = run("bench", "--basis", chosen if ":" in chosen else b, "--case", "point",
                  "--size", "512x128", "--cpu-storage", "f16", "--no-gpu", "--quick", "--json")
     bench = json.loads(out)
-    rows = bench.get("rows", bench if isinstance(bench, list) else [])
+    rows = bench if isinstance(bench, list) else bench.get("rows", [])
     fps = next((row.get("fps") for row in rows if "point" in str(row.get("case", ""))), float("nan"))
     results[name] = {"eval": r, "bench": bench, "wall_seconds": wall}
     print(f"| {name} | {chosen} | {r['psnr_linear_mean']:.2f} | {r['psnr_srgb8_mean']:.2f} "
