@@ -188,11 +188,19 @@ fn a_basis_without_bands_is_evaluated_under_every_light_type() {
         scene_eval::evaluate(&scene, &camera, &rig, dir.path(), &options, &Silent, None).unwrap();
     assert_eq!(report.lights.len(), rig.lights.len());
     for light in &report.lights {
-        assert!(light.psnr_linear > 20.0, "{}: {:.2} dB", light.kind, light.psnr_linear);
+        assert!(
+            light.psnr_linear > 20.0,
+            "{}: {:.2} dB",
+            light.kind,
+            light.psnr_linear
+        );
     }
     assert_eq!(report.environment.len(), 1);
     let check = &report.environment[0];
-    assert_eq!(check.brute_force.psnr_linear, check.brute_force_raw.psnr_linear);
+    assert_eq!(
+        check.brute_force.psnr_linear,
+        check.brute_force_raw.psnr_linear
+    );
     assert!(check.relit.psnr_linear > 20.0, "{check:?}");
 }
 

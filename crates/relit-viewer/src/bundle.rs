@@ -44,7 +44,7 @@
 //! (SH included: it has no SH rotation).
 
 use crate::{invalid, Result};
-use relit::basis::{Basis, SphericalHarmonics, WeightTable};
+use relit::basis::{Basis, WeightTable};
 use relit::camera::CameraSpec;
 use relit::envmap::{EnvironmentLight, Window};
 use relit::maps::RelightableImage;
@@ -274,11 +274,11 @@ fn check_image(image: &RelightableImage, basis: &dyn Basis) -> Result<()> {
     Ok(())
 }
 
-/// The band windows of environment lights, per coefficient, for SH bases (the only
-/// ones with bands); `None` for others. A Laplacian window of the rig's own λ needs the
+/// The band windows of environment lights, per coefficient, for band-limited bases
+/// ([`Basis::band_limit`]); `None` for others. A Laplacian window of the rig's own λ needs the
 /// eigenvalue `l(l+1)` of each coefficient's band (`h = 1/(1 + λ·e²)`), shipped too.
-fn sh_windows(basis: &dyn Basis) -> Result<Option<serde_json::Value>> {
-    let Some(bands) = SphericalHarmonics::bands_of(&basis.spec()) else {
+fn band_windows(basis: &dyn Basis) -> Result<Option<serde_json::Value>> {
+    let Some(bands) = basis.band_limit() else {
         return Ok(None);
     };
     // Flat index l(l+1) + m: coefficient i lies in band ⌊√i⌋.
@@ -340,7 +340,7 @@ fn info_json_with(
     }
     let camera = camera_spec(image);
     let mut basis_info = json!({ "name": basis.name(), "spec": basis.spec(), "k": k });
-    if let Some(windows) = sh_windows(basis)? {
+    if let Some(windows) = band_windows(basis)? {
         basis_info["windows"] = windows;
     }
     Ok(json!({

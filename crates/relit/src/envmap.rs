@@ -489,7 +489,7 @@ impl EnvironmentLight {
     /// This map (its rotation and window aside) made ready for `basis`: SH's exact
     /// projection, or the quadrature for a basis without bands.
     pub fn for_basis(&self, basis: &dyn Basis) -> Result<BasisEnvironment> {
-        Ok(match SphericalHarmonics::bands_of(&basis.spec()) {
+        Ok(match basis.band_limit() {
             Some(bands) => BasisEnvironment::Sh {
                 projection: self.project(bands)?,
             },

@@ -32,7 +32,7 @@ mod ptm;
 mod rbf;
 mod rotation;
 mod sg;
-mod sh;
+pub(crate) mod sh;
 mod table;
 
 pub use hsh::HemisphericalHarmonics;
@@ -96,6 +96,13 @@ pub trait Basis: Send + Sync + std::fmt::Debug {
     /// numerically ([`roughness_penalty`]); bases with a closed form override it.
     fn penalty(&self) -> Vec<f64> {
         roughness_penalty(self, 2048)
+    }
+
+    /// The number of bands `n` when the basis is exactly the functions of the sphere up
+    /// to band `n − 1` in the real-SH order, so that rotations and band windows act on
+    /// its coefficients in closed form (environment lights use it); `None` otherwise.
+    fn band_limit(&self) -> Option<usize> {
+        None
     }
 
     /// A short human label for coefficient `i` (e.g. `l2m-1`).

@@ -68,6 +68,19 @@ pub struct SphericalHarmonics {
     norm: Vec<f64>,
 }
 
+/// The factor of the real `Y_lm` (m ≥ 0) over `P_lᵐ(cos θ)·cos(mφ)`:
+/// `K_lm = sqrt((2l+1)/(4π) · (l−m)!/(l+m)!)`, times √2 for m > 0. The one definition;
+/// the SIMD kernel takes its constants from here.
+pub(crate) fn normalisation(l: usize, m: usize) -> f64 {
+    let ratio: f64 = ((l - m + 1)..=(l + m)).map(|f| 1.0 / f as f64).product();
+    let k = ((2 * l + 1) as f64 / (4.0 * PI) * ratio).sqrt();
+    if m == 0 {
+        k
+    } else {
+        std::f64::consts::SQRT_2 * k
+    }
+}
+
 impl SphericalHarmonics {
     /// Spherical harmonics of `bands` bands (1..=8).
     pub fn new(bands: usize) -> Result<Self> {
@@ -79,14 +92,7 @@ impl SphericalHarmonics {
         let mut norm = vec![0.0; MAX_BANDS * MAX_BANDS];
         for l in 0..bands {
             for m in 0..=l {
-                // K_lm = sqrt((2l+1)/(4π) · (l-m)!/(l+m)!)
-                let ratio: f64 = ((l - m + 1)..=(l + m)).map(|f| 1.0 / f as f64).product();
-                let k = ((2 * l + 1) as f64 / (4.0 * PI) * ratio).sqrt();
-                norm[l * MAX_BANDS + m] = if m == 0 {
-                    k
-                } else {
-                    std::f64::consts::SQRT_2 * k
-                };
+                norm[l * MAX_BANDS + m] = normalisation(l, m);
             }
         }
         Ok(Self { bands, norm })
@@ -95,14 +101,6 @@ impl SphericalHarmonics {
     /// The number of bands.
     pub fn bands(&self) -> usize {
         self.bands
-    }
-
-    /// The bands of `spec` if it is a spherical-harmonic basis.
-    pub fn bands_of(spec: &BasisSpec) -> Option<usize> {
-        (spec.family == "sh")
-            .then(|| spec.params.get("bands").and_then(|b| b.as_u64()))
-            .flatten()
-            .map(|b| b as usize)
     }
 }
 
@@ -119,6 +117,10 @@ impl Basis for SphericalHarmonics {
 
     fn family(&self) -> &'static str {
         "sh"
+    }
+
+    fn band_limit(&self) -> Option<usize> {
+        Some(self.bands)
     }
 
     fn as_any(&self) -> &dyn std::any::Any {

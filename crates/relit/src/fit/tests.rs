@@ -158,7 +158,11 @@ fn fit_then_relight_reproduces_captured_and_new_lights() {
     assert!(out.report.lambda > 0.0 && !out.report.lambda_scores.is_empty());
     // The default chooses its basis among the candidates and does at least as well.
     let auto = fit(&capture, &FitOptions::default(), &Silent).unwrap();
-    assert!(auto.report.candidates.len() > 5, "{:?}", auto.report.candidates);
+    assert!(
+        auto.report.candidates.len() > 5,
+        "{:?}",
+        auto.report.candidates
+    );
     assert_eq!(auto.report.basis, auto.report.candidates[0].basis);
     for d in [dirs[17], Vec3::new(0.3, -0.4, 0.75)] {
         let psnr = check(&auto, d);

@@ -100,14 +100,8 @@ impl ShNorms {
         };
         for l in 0..8usize {
             for m in 0..=l {
-                let ratio: f64 = ((l - m + 1)..=(l + m)).map(|f| 1.0 / f as f64).product();
-                let k = ((2 * l + 1) as f64 / (4.0 * std::f64::consts::PI) * ratio).sqrt();
                 let j = l * 8 + m;
-                out.k[j] = if m == 0 {
-                    k
-                } else {
-                    std::f64::consts::SQRT_2 * k
-                } as f32;
+                out.k[j] = crate::basis::sh::normalisation(l, m) as f32;
                 if l > m + 1 {
                     out.a[j] = ((2 * l - 1) as f64 / (l - m) as f64) as f32;
                     out.b[j] = ((l + m - 1) as f64 / (l - m) as f64) as f32;
