@@ -9,38 +9,91 @@ use super::{madd, Simd, BLOCK};
 use crate::color;
 
 /// The SH fast path of the per-pixel kernels: the real SH basis of `bands` bands by
-/// the vectorised recurrence below, exact to f32 rounding (no table).
+/// the vectorised recurrence below, exact to f32 rounding (no table). Hemispherical
+/// harmonics are defined as `√2·Y_lm` at the hemisphere stretched over the sphere
+/// ([`crate::basis::HemisphericalHarmonics`]), so the same recurrence serves them
+/// after that stretch ([`Warp::Hemisphere`]).
 #[derive(Clone, Debug)]
 pub(crate) struct ShKernel {
     bands: usize,
     norms: ShNorms,
+    warp: Warp,
+}
+
+/// What the kernel does to the light vectors before the recurrence.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Warp {
+    /// The real SH basis itself.
+    None,
+    /// Hemispherical harmonics: `z` clamped to `[0, 1]`, `(x, y, z)` sent to
+    /// `(a·x, a·y, 2z − 1)` with `a = 2·√(z/(1+z))`, every function times `√2`.
+    Hemisphere,
 }
 
 impl ShKernel {
-    /// The kernel of `basis` if it is the real SH basis; other bases take the
-    /// weight-table path.
+    /// The kernel of `basis` if it is the real SH basis or hemispherical harmonics;
+    /// other bases take the weight-table path.
     pub(crate) fn of(basis: &dyn crate::basis::Basis) -> Option<Self> {
-        let sh = basis
-            .as_any()
-            .downcast_ref::<crate::basis::SphericalHarmonics>()?;
-        Self::new(sh.bands())
+        let any = basis.as_any();
+        if let Some(sh) = any.downcast_ref::<crate::basis::SphericalHarmonics>() {
+            return Self::new(sh.bands(), Warp::None);
+        }
+        let hsh = any.downcast_ref::<crate::basis::HemisphericalHarmonics>()?;
+        Self::new(hsh.order(), Warp::Hemisphere)
     }
 
     /// The kernel of `bands` bands (1 to 8).
-    pub(crate) fn new(bands: usize) -> Option<Self> {
-        (1..=8).contains(&bands).then(|| Self {
-            bands,
-            norms: ShNorms::new(),
-        })
+    pub(crate) fn new(bands: usize, warp: Warp) -> Option<Self> {
+        let mut norms = ShNorms::new();
+        if warp == Warp::Hemisphere {
+            norms
+                .k
+                .iter_mut()
+                .for_each(|k| *k *= std::f32::consts::SQRT_2);
+        }
+        (1..=8)
+            .contains(&bands)
+            .then_some(Self { bands, norms, warp })
     }
 
     pub(crate) fn len(&self) -> usize {
         self.bands * self.bands
     }
 
+    /// `sh recurrence` or `hsh recurrence`.
+    pub(crate) fn name(&self) -> &'static str {
+        match self.warp {
+            Warp::None => "sh recurrence",
+            Warp::Hemisphere => "hsh recurrence",
+        }
+    }
+
+    /// The light vectors the recurrence reads: `dir` itself, or stretched into `buf`.
+    #[inline]
+    fn warped<'a>(
+        &self,
+        dir: &'a [[f32; BLOCK]; 3],
+        buf: &'a mut [[f32; BLOCK]; 3],
+    ) -> &'a [[f32; BLOCK]; 3] {
+        match self.warp {
+            Warp::None => dir,
+            Warp::Hemisphere => {
+                for p in 0..BLOCK {
+                    let z = dir[2][p].clamp(0.0, 1.0);
+                    let a = 2.0 * (z / (1.0 + z)).sqrt();
+                    buf[0][p] = a * dir[0][p];
+                    buf[1][p] = a * dir[1][p];
+                    buf[2][p] = 2.0 * z - 1.0;
+                }
+                buf
+            }
+        }
+    }
+
     /// [`Simd::sh_values`].
     pub(crate) fn values(&self, simd: Simd, dir: &[[f32; BLOCK]; 3], out: &mut [[f32; BLOCK]]) {
-        simd.sh_values(self.bands, &self.norms, dir, out)
+        let mut buf = [[0.0; BLOCK]; 3];
+        simd.sh_values(self.bands, &self.norms, self.warped(dir, &mut buf), out)
     }
 
     /// [`Simd::sh_project`].
@@ -51,7 +104,8 @@ impl ShKernel {
         w: &[f32; BLOCK],
         out: &mut [[f32; BLOCK]],
     ) {
-        simd.sh_project(self.bands, &self.norms, dir, w, out)
+        let mut buf = [[0.0; BLOCK]; 3];
+        simd.sh_project(self.bands, &self.norms, self.warped(dir, &mut buf), w, out)
     }
 
     /// [`Simd::sh_dot`]: the recurrence feeds the dot directly, no rows in between.
@@ -62,7 +116,14 @@ impl ShKernel {
         values: Rows,
         out: &mut [[f32; BLOCK]; 3],
     ) {
-        simd.sh_dot(self.bands, &self.norms, dir, values, out)
+        let mut buf = [[0.0; BLOCK]; 3];
+        simd.sh_dot(
+            self.bands,
+            &self.norms,
+            self.warped(dir, &mut buf),
+            values,
+            out,
+        )
     }
 }
 
