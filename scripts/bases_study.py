@@ -71,12 +71,18 @@ for b in bases:
                     "--objective", opts.objective, *flags, "--save", save, "--json", "-q")
     r = json.loads(out)
     chosen = r["basis"]
-    out, _ = run("bench", "--basis", chosen if ":" in chosen else b, "--case", "point",
-                 "--size", "512x128", "--cpu-storage", "f16", "--no-gpu", "--quick", "--json")
-    bench = json.loads(out)
+    try:
+        out, _ = run("bench", "--basis", chosen if ":" in chosen else b, "--case", "point",
+                     "--size", "512x128", "--cpu-storage", "f16", "--no-gpu", "--quick", "--json")
+        bench = json.loads(out)
+    except SystemExit as e:  # a failed bench leaves the row without a speed, not the study
+        log(str(e))
+        bench = []
     rows = bench if isinstance(bench, list) else bench.get("rows", [])
     fps = next((row.get("fps") for row in rows if "point" in str(row.get("case", ""))), float("nan"))
     results[name] = {"eval": r, "bench": bench, "wall_seconds": wall}
+    if opts.json:  # after every row: a long study stopped midway keeps what it measured
+        pathlib.Path(opts.json).write_text(json.dumps(results, indent=1))
     print(f"| {name} | {chosen} | {r['psnr_linear_mean']:.2f} | {r['psnr_srgb8_mean']:.2f} "
           f"| {r['bytes_per_pixel']:.1f} | {r['fit_seconds']:.1f} | {fps:.0f} |", flush=True)
     if opts.pictures:

@@ -22,8 +22,8 @@
 //!   pixels per second (`pixels_per_s`); no coefficient is read.
 //!
 //! Families built from a capture's samples (`rbf`, `bilinear`) are built here from a
-//! synthetic capture: 48 directions over the upper hemisphere, 200 pixel series each a
-//! mixture of eight smooth lobes (as the GPU tests build them).
+//! synthetic capture: 2K directions (48 at least) over the upper hemisphere, 200 pixel
+//! series each a mixture of eight smooth lobes (as the GPU tests build them).
 //!
 //! Positional cases also report `basis_evals_per_s`: the (pixel, light vector) pairs of
 //! non-zero weight per frame (counted once with the lights' own per-pixel definition,
@@ -549,7 +549,8 @@ fn bench_basis(name: &str) -> anyhow::Result<Box<dyn Basis>> {
     if !choice.needs_samples() {
         return Ok(choice.build(&[], None)?);
     }
-    let dirs = relit::sphere::hemisphere_fibonacci(48);
+    // Twice as many lights as components, 48 at least (a PCA to K needs K lights).
+    let dirs = relit::sphere::hemisphere_fibonacci((2 * choice.k).max(48));
     let lobes = relit::sphere::fibonacci(8);
     let series = 200;
     let mut values = Vec::with_capacity(series * dirs.len());
