@@ -4,11 +4,11 @@
 //!
 //! Kernel: `φ(ω, μ) = exp(−(1 − ω·μ) / σ²)`, a Gaussian of the chord distance
 //! (`|ω − μ|² = 2(1 − ω·μ)`) of width `σ` radians. The default `σ` is the mean angular
-//! distance from a centre to its nearest neighbour times `width` (option, default 1):
-//! neighbouring kernels overlap at `e^{−1/2}`, enough to interpolate smoothly without
+//! distance from a centre to its nearest neighbour times `width` (option, default 2):
+//! a kernel keeps `e^{−1/8}` of its peak at its neighbour, smooth enough to interpolate without
 //! flattening a shadow edge across several lights. Captures with more than
-//! [`MAX_CENTRES`] lights use that many centres spread over them (farthest-point
-//! order), fitted by least squares rather than interpolation. Far from every captured
+//! [`MAX_CENTRES`] lights (option `centres`) use that many centres spread over them
+//! (farthest-point order), fitted by least squares rather than interpolation. Far from every captured
 //! light (below the horizon of a dome) the functions fall to zero.
 //!
 //! Stored: the centres, `σ`, and the `K × C` kernel weights of each function.
@@ -47,7 +47,7 @@ impl Family for RbfFamily {
     }
 
     fn option_keys(&self) -> &'static [&'static str] {
-        &["width", "pca", "ridge"]
+        &["width", "pca", "ridge", "centres"]
     }
 
     fn build(&self, k: usize, context: &BuildContext) -> Result<Box<dyn Basis>> {
@@ -64,7 +64,11 @@ impl Family for RbfFamily {
             return Err(Error::invalid("rbf width must be positive"));
         }
         let space = PcaSpace::parse(&context.option("pca", "srgb".to_string())?)?;
-        let centres = spread(dirs, MAX_CENTRES);
+        let most: usize = context.option("centres", MAX_CENTRES)?;
+        if most == 0 {
+            return Err(Error::invalid("rbf needs at least one centre"));
+        }
+        let centres = spread(dirs, most);
         let sigma = width * mean_nearest_angle(&centres);
         let c = centres.len();
         let mut phi = vec![0.0; n * c];
