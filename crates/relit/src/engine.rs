@@ -1212,6 +1212,12 @@ mod tests {
                 };
                 let recurrence = matches!(basis.family(), "sh" | "hsh");
                 assert_eq!(eps == 0.0, recurrence, "{name}");
+                if basis.planar_grid().is_some() {
+                    // Its own grid: the basis up to half-float rounding (2⁻¹¹ relative).
+                    assert_eq!(r.pixel_path(), "planar grid", "{name}");
+                    let accuracy = r.pixel_basis().table_accuracy().expect("a grid");
+                    assert!(accuracy.relative_max < 1e-3, "{name}: {accuracy:?}");
+                }
                 let mut worst = 0f64;
                 for (light, lights) in rig_lights(&r) {
                     let got = r.relight_prepared(&lights, 0.5).unwrap();

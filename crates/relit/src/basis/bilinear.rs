@@ -202,6 +202,14 @@ impl Basis for Bilinear {
         }
     }
 
+    fn planar_grid(&self) -> Option<(usize, Vec<f64>)> {
+        let (k, c) = (self.len(), self.grid * self.grid);
+        let nodes = (0..c)
+            .flat_map(|node| (0..k).map(move |i| self.values[i * c + node]))
+            .collect();
+        Some((self.grid, nodes))
+    }
+
     fn as_any(&self) -> &dyn std::any::Any {
         self
     }

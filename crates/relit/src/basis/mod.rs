@@ -33,7 +33,7 @@ mod rbf;
 mod rotation;
 mod sg;
 pub(crate) mod sh;
-mod table;
+pub(crate) mod table;
 
 pub use hsh::HemisphericalHarmonics;
 pub use ptm::PolynomialTextureMap;
@@ -102,6 +102,15 @@ pub trait Basis: Send + Sync + std::fmt::Debug {
     /// to band `n − 1` in the real-SH order, so that rotations and band windows act on
     /// its coefficients in closed form (environment lights use it); `None` otherwise.
     fn band_limit(&self) -> Option<usize> {
+        None
+    }
+
+    /// `(G, nodes)` when the basis is exactly the bilinear blend of weights at the nodes
+    /// of a `G × G` grid over the light vector's `(x, y) ∈ [−1, 1]²` (light vectors below
+    /// the horizon taken at the horizon, `(x, y)` normalised): `nodes` holds `len()`
+    /// weights per node, node `(i, j)` at `(j·G + i)·len()`. The CPU engine then reads
+    /// that grid (exact and small) instead of an octahedral weight table.
+    fn planar_grid(&self) -> Option<(usize, Vec<f64>)> {
         None
     }
 

@@ -58,6 +58,34 @@ pub struct TableAccuracy {
     pub relative_max: f64,
 }
 
+/// How closely `sample` (any tabulation of `basis`, `resolution` cells a side) follows
+/// the basis on 4096 Fibonacci directions.
+pub(crate) fn measure_accuracy(
+    basis: &dyn Basis,
+    resolution: usize,
+    mut sample: impl FnMut(Vec3, &mut [f32]),
+) -> TableAccuracy {
+    let k = basis.len();
+    let (mut direct, mut table) = (vec![0.0; k], vec![0f32; k]);
+    let (mut sq_err, mut sq, mut max_err, mut max) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+    for d in crate::sphere::fibonacci(4096) {
+        basis.eval(d, &mut direct);
+        sample(d, &mut table);
+        for (a, &b) in direct.iter().zip(&table) {
+            let e = (b as f64 - a).abs();
+            sq_err += e * e;
+            sq += a * a;
+            max_err = max_err.max(e);
+            max = max.max(a.abs());
+        }
+    }
+    TableAccuracy {
+        resolution,
+        relative_rms: (sq_err / sq.max(1e-300)).sqrt(),
+        relative_max: max_err / max.max(1e-300),
+    }
+}
+
 /// `k` weights at each vertex of an `N×N` octahedral grid.
 #[derive(Clone, Debug, PartialEq)]
 pub struct WeightTable {
@@ -117,25 +145,7 @@ impl WeightTable {
 
     /// The table's error against direct evaluation of `basis`.
     pub fn accuracy(&self, basis: &dyn Basis) -> TableAccuracy {
-        let k = self.k;
-        let (mut direct, mut table) = (vec![0.0; k], vec![0f32; k]);
-        let (mut sq_err, mut sq, mut max_err, mut max) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
-        for d in crate::sphere::fibonacci(4096) {
-            basis.eval(d, &mut direct);
-            self.sample(d, &mut table);
-            for (a, &b) in direct.iter().zip(&table) {
-                let e = (b as f64 - a).abs();
-                sq_err += e * e;
-                sq += a * a;
-                max_err = max_err.max(e);
-                max = max.max(a.abs());
-            }
-        }
-        TableAccuracy {
-            resolution: self.resolution,
-            relative_rms: (sq_err / sq.max(1e-300)).sqrt(),
-            relative_max: max_err / max.max(1e-300),
-        }
+        measure_accuracy(basis, self.resolution, |d, out| self.sample(d, out))
     }
 
     /// The four vertices around `dir` and their bilinear weights.

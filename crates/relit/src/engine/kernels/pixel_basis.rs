@@ -1,11 +1,12 @@
 //! The basis at per-pixel light vectors, whatever the basis: SH by its vectorised
 //! recurrence (`sh`, exact to f32 rounding: the fast path), every other basis from its
 //! half-float weight table (`table`, within the table's measured error, the weights
-//! the GPU and the browser viewer read). The positional lights of the engine ask
+//! the GPU and the browser viewer read), or from its own planar grid where it is one
+//! (`bilinear`: exact up to half-float rounding). The positional lights of the engine ask
 //! [`PixelBasis`] only, and never name a basis.
 
 use super::sh::ShKernel;
-use super::table::TableKernel;
+use super::table::{Layout, TableKernel};
 use super::{Rows, Simd, BLOCK};
 use crate::basis::{Basis, TableAccuracy};
 
@@ -45,11 +46,15 @@ impl PixelBasis {
         }
     }
 
-    /// `sh recurrence`, `hsh recurrence` or `weight table`.
+    /// `sh recurrence`, `hsh recurrence`, `weight table` (octahedral, as the GPU's) or
+    /// `planar grid` (the basis' own).
     pub(crate) fn name(&self) -> &'static str {
         match self {
             PixelBasis::Sh(b) => b.name(),
-            PixelBasis::Table(_) => "weight table",
+            PixelBasis::Table(b) => match b.layout() {
+                Layout::Octahedral => "weight table",
+                Layout::Planar => "planar grid",
+            },
         }
     }
 

@@ -14,12 +14,15 @@
 //! into the block's rows.
 
 use super::{Rows, Simd, BLOCK};
+use crate::basis::table::measure_accuracy;
 use crate::basis::{Basis, TableAccuracy, WeightTable};
 use half::f16;
 
 /// A basis' weight table in half floats, laid out for the block kernels.
 #[derive(Clone, Debug)]
 pub(crate) struct TableKernel {
+    /// How a light vector finds its cell.
+    layout: Layout,
     /// Cells per side `N` (the table has `(N+1)²` vertices).
     resolution: usize,
     k: usize,
@@ -30,31 +33,77 @@ pub(crate) struct TableKernel {
     accuracy: TableAccuracy,
 }
 
+/// Where the table's vertices lie on the sphere of light vectors.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Layout {
+    /// The octahedral map of every back end ([`WeightTable`]).
+    Octahedral,
+    /// The basis' own grid over the light vector's `(x, y)` ([`Basis::planar_grid`]):
+    /// the basis exactly, up to half-float rounding.
+    Planar,
+}
+
 impl TableKernel {
-    /// The table [`WeightTable::for_basis`] picks for `basis`, rounded to half floats as
-    /// every back end holds it, with its measured accuracy (of the rounded table).
+    /// For a basis that is a planar grid, that grid; for any other, the table
+    /// [`WeightTable::for_basis`] picks, rounded to half floats as every back end holds
+    /// it. Either with its measured accuracy (of the rounded values).
     pub(crate) fn for_basis(basis: &dyn Basis) -> Self {
+        if let Some((grid, nodes)) = basis.planar_grid().filter(|(g, _)| *g >= 2) {
+            let nodes: Vec<f32> = nodes.iter().map(|&v| v as f32).collect();
+            let mut kernel = Self::new(Layout::Planar, grid - 1, basis.len(), &nodes, None);
+            let simd = Simd::detect();
+            kernel.accuracy = measure_accuracy(basis, grid - 1, |d, out| {
+                let mut dir = [[0f32; BLOCK]; 3];
+                (dir[0][0], dir[1][0], dir[2][0]) = (d.x as f32, d.y as f32, d.z as f32);
+                let mut rows = vec![[0f32; BLOCK]; out.len()];
+                kernel.values(simd, &dir, &mut rows);
+                out.iter_mut().zip(&rows).for_each(|(o, r)| *o = r[0]);
+            });
+            return kernel;
+        }
         let (table, _) = WeightTable::for_basis(basis);
         let table = table.rounded_to_half();
         let accuracy = table.accuracy(basis);
-        Self::new(&table, accuracy)
+        Self::new(
+            Layout::Octahedral,
+            table.resolution,
+            table.k,
+            &table.values,
+            Some(accuracy),
+        )
     }
 
-    fn new(table: &WeightTable, accuracy: TableAccuracy) -> Self {
-        let k = table.k;
+    /// `values`: `k` weights per vertex, `(resolution + 1)²` vertices.
+    fn new(
+        layout: Layout,
+        resolution: usize,
+        k: usize,
+        values: &[f32],
+        accuracy: Option<TableAccuracy>,
+    ) -> Self {
         let stride = k.div_ceil(8) * 8;
-        let mut bits = Vec::with_capacity(table.values.len() / k.max(1) * stride);
-        for vertex in table.values.chunks_exact(k) {
+        let mut bits = Vec::with_capacity(values.len() / k.max(1) * stride);
+        for vertex in values.chunks_exact(k) {
             bits.extend(vertex.iter().map(|&v| f16::from_f32(v).to_bits()));
             bits.resize(bits.len() + stride - k, 0);
         }
         Self {
-            resolution: table.resolution,
+            layout,
+            resolution,
             k,
             stride,
             bits,
-            accuracy,
+            accuracy: accuracy.unwrap_or(TableAccuracy {
+                resolution,
+                relative_rms: 0.0,
+                relative_max: 0.0,
+            }),
         }
+    }
+
+    /// How a light vector finds its cell.
+    pub(crate) fn layout(&self) -> Layout {
+        self.layout
     }
 
     pub(crate) fn len(&self) -> usize {
@@ -107,6 +156,16 @@ impl TableKernel {
             vertex: [0; BLOCK],
             weight: [[0.0; BLOCK]; 4],
         };
+        if self.layout == Layout::Planar {
+            #[cfg(target_arch = "x86_64")]
+            if simd.avx2() {
+                // SAFETY: `Simd::detect` found avx2, fma and f16c on this CPU.
+                unsafe { planar_corners_avx2(self.resolution, dir, w, &mut c) };
+                return c;
+            }
+            planar_corners(self.resolution, dir, w, &mut c);
+            return c;
+        }
         #[cfg(target_arch = "x86_64")]
         if simd.avx2() {
             // SAFETY: `Simd::detect` found avx2, fma and f16c on this CPU.
@@ -170,6 +229,53 @@ fn corners_body(n: usize, dir: &[[f32; BLOCK]; 3], w: Option<&[f32; BLOCK]>, c: 
         c.weight[2][p] = scale * ((1.0 - fx) * fy);
         c.weight[3][p] = scale * (fx * fy);
     }
+}
+
+/// The cell of each light vector on a planar grid of `n` cells a side over
+/// `(x, y) ∈ [−1, 1]²`, as [`Basis::planar_grid`] defines it: below the horizon `(x, y)`
+/// is normalised; a zero (or non-finite) vector gets no weight.
+#[inline(always)]
+fn planar_corners(n: usize, dir: &[[f32; BLOCK]; 3], w: Option<&[f32; BLOCK]>, c: &mut Corners) {
+    let nf = n as f32;
+    let side = (n + 1) as u32;
+    for p in 0..BLOCK {
+        let (x, y, z) = (dir[0][p], dir[1][p], dir[2][p]);
+        let s = x.abs() + y.abs() + z.abs();
+        let valid = s > 0.0 && s < f32::INFINITY;
+        let r = (x * x + y * y).sqrt();
+        // Selects, not branches, so that the loop vectorises.
+        let inv = if z < 0.0 && r > 0.0 { 1.0 / r } else { 1.0 };
+        let u = ((x * inv + 1.0) * 0.5 * nf).clamp(0.0, nf);
+        let v = ((y * inv + 1.0) * 0.5 * nf).clamp(0.0, nf);
+        let u = if valid { u } else { 0.0 };
+        let v = if valid { v } else { 0.0 };
+        let i = u.floor().min(nf - 1.0);
+        let j = v.floor().min(nf - 1.0);
+        let (fx, fy) = (u - i, v - j);
+        c.vertex[p] = j as u32 * side + i as u32;
+        let scale = match w {
+            Some(w) if valid => w[p],
+            Some(_) => 0.0,
+            None if valid => 1.0,
+            None => 0.0,
+        };
+        c.weight[0][p] = scale * ((1.0 - fx) * (1.0 - fy));
+        c.weight[1][p] = scale * (fx * (1.0 - fy));
+        c.weight[2][p] = scale * ((1.0 - fx) * fy);
+        c.weight[3][p] = scale * (fx * fy);
+    }
+}
+
+/// [`planar_corners`] in 8-lane code.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,f16c")]
+unsafe fn planar_corners_avx2(
+    n: usize,
+    dir: &[[f32; BLOCK]; 3],
+    w: Option<&[f32; BLOCK]>,
+    c: &mut Corners,
+) {
+    planar_corners(n, dir, w, c)
 }
 
 /// [`corners_body`] in 8-lane code (the floors become `vroundps`, not calls to libm).
