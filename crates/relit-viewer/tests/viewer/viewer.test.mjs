@@ -858,43 +858,31 @@ try {
   });
 
   await section('other-basis', async () => {
-    // A file of a basis other than SH: the viewer relights it from the weight table in
-    // info.json like any other. The first of the families planned (issue 13) that this
-    // relit knows; skipped, and said so, while it knows none but sh.
-    const exr = path.join(work, 'other.exr');
-    let basis = null;
-    for (const b of ['hsh:16', 'ptm:6', 'bilinear:16', 'rbf:16', 'sg:16']) {
-      try {
-        execFileSync(relit, ['fit', path.join(work, 'cap-pl', 'capture.json'), '--basis', b, '--objective', 'linear', '-o', exr], { stdio: ['ignore', 'pipe', 'pipe'] });
-        basis = b;
-        break;
-      } catch (err) { log(`other basis: ${b} is not available (${String(err.stderr || err.message).trim().split('\n').pop()})`); }
-    }
-    if (!basis) {
-      results.checks['a file of another basis'] = { ok: true, detail: 'skipped: this relit knows no basis but sh' };
-      log('SKIP a file of another basis: this relit knows no basis but sh');
-      return;
-    }
-    await open(exr, ENVS, [192, 128]);
-    expect(`the viewer names the basis (${basis})`, current.info.basis.name === basis, current.info.basis.name);
-    await setRig({ lights: [{ type: 'directional', direction: [-0.4, 0.6, 0.7], color: [1, 0.9, 0.8], intensity: 1.2 }, { type: 'directional', direction: [0.5, 0.2, 0.8], intensity: 0.4 }] });
-    await check(`${basis} directional`);
-    // Lights with a position and environments: the viewer's frame against `relit relight`
-    // (the CPU engine relights them on every basis).
+    // Every family other than SH: the viewer relights each from the weight table in
+    // info.json, knowing no basis, and its frames match `relit relight` (the CPU engine,
+    // which evaluates each basis itself or from its own tables) for every light type.
     const rigs = {
       point: [{ type: 'point', position: [0, 1, 1], intensity: 2 }],
       spot: [{ type: 'spot', position: [0.2, 1.2, 0.8], direction: [0, -0.6, -1], cone_deg: 30, softness_deg: 6, intensity: 3 }],
       area: [{ type: 'area', shape: { rect: { center: [0, 1.4, 0.5], u: [0.3, 0, 0], v: [0, 0, 0.25] } }, intensity: 3, samples: 16 }],
       environment: [{ type: 'environment', map: 'sky.hdr', yaw_deg: 30, pitch_deg: -10, intensity: 0.5 }],
     };
-    for (const [name, lights] of Object.entries(rigs)) {
-      await setRig({ lights });
-      await check(`${basis} ${name}`);
+    for (const basis of ['hsh:16', 'ptm:6', 'bilinear:16', 'rbf:16', 'sg:16']) {
+      const exr = path.join(work, `other-${basis.replace(':', '-')}.exr`);
+      run('fit', path.join(work, 'cap-pl', 'capture.json'), '--basis', basis, '--objective', 'linear', '-o', exr);
+      await open(exr, ENVS, [192, 128]);
+      expect(`the viewer names the basis (${basis})`, current.info.basis.name === basis, current.info.basis.name);
+      await setRig({ lights: [{ type: 'directional', direction: [-0.4, 0.6, 0.7], color: [1, 0.9, 0.8], intensity: 1.2 }, { type: 'directional', direction: [0.5, 0.2, 0.8], intensity: 0.4 }] });
+      await check(`${basis} directional`);
+      for (const [name, lights] of Object.entries(rigs)) {
+        await setRig({ lights });
+        await check(`${basis} ${name}`);
+      }
+      await setRig({ lights: rigs.environment });
+      const win = card(0).locator('select[data-field="window"]');
+      const hint = await card(0).locator('[data-hint="window"]').textContent().catch(() => '');
+      expect(`no band windows for ${basis} (no bands), and the panel says why`, await win.isDisabled() && hint.includes(basis), hint);
     }
-    await setRig({ lights: rigs.environment });
-    const win = card(0).locator('select[data-field="window"]');
-    const hint = await card(0).locator('[data-hint="window"]').textContent().catch(() => '');
-    expect('no band windows for a basis without bands, and the panel says why', await win.isDisabled() && hint.includes(basis), hint);
   });
 } finally {
   await browser.close();
