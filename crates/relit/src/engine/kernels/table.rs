@@ -194,6 +194,24 @@ struct Corners {
     weight: [[f32; BLOCK]; 4],
 }
 
+impl Corners {
+    /// Pixel `p`'s bilinear weights at `(fx, fy)` in its cell, times `w[p]` when given;
+    /// all 0 when its light vector is not `valid` (zero or not finite).
+    #[inline(always)]
+    fn set_weights(&mut self, p: usize, valid: bool, w: Option<&[f32; BLOCK]>, fx: f32, fy: f32) {
+        let scale = match w {
+            Some(w) if valid => w[p],
+            Some(_) => 0.0,
+            None if valid => 1.0,
+            None => 0.0,
+        };
+        self.weight[0][p] = scale * ((1.0 - fx) * (1.0 - fy));
+        self.weight[1][p] = scale * (fx * (1.0 - fy));
+        self.weight[2][p] = scale * ((1.0 - fx) * fy);
+        self.weight[3][p] = scale * (fx * fy);
+    }
+}
+
 /// `WeightTable::corners` in f32 for a block (vectorises: no branches, only selects).
 #[inline(always)]
 fn corners_body(n: usize, dir: &[[f32; BLOCK]; 3], w: Option<&[f32; BLOCK]>, c: &mut Corners) {
@@ -218,16 +236,7 @@ fn corners_body(n: usize, dir: &[[f32; BLOCK]; 3], w: Option<&[f32; BLOCK]>, c: 
         let j = v.floor().clamp(0.0, nf - 1.0);
         let (fx, fy) = (u - i, v - j);
         c.vertex[p] = j as u32 * side + i as u32;
-        let scale = match w {
-            Some(w) if valid => w[p],
-            Some(_) => 0.0,
-            None if valid => 1.0,
-            None => 0.0,
-        };
-        c.weight[0][p] = scale * ((1.0 - fx) * (1.0 - fy));
-        c.weight[1][p] = scale * (fx * (1.0 - fy));
-        c.weight[2][p] = scale * ((1.0 - fx) * fy);
-        c.weight[3][p] = scale * (fx * fy);
+        c.set_weights(p, valid, w, fx, fy);
     }
 }
 
@@ -253,16 +262,7 @@ fn planar_corners(n: usize, dir: &[[f32; BLOCK]; 3], w: Option<&[f32; BLOCK]>, c
         let j = v.floor().min(nf - 1.0);
         let (fx, fy) = (u - i, v - j);
         c.vertex[p] = j as u32 * side + i as u32;
-        let scale = match w {
-            Some(w) if valid => w[p],
-            Some(_) => 0.0,
-            None if valid => 1.0,
-            None => 0.0,
-        };
-        c.weight[0][p] = scale * ((1.0 - fx) * (1.0 - fy));
-        c.weight[1][p] = scale * (fx * (1.0 - fy));
-        c.weight[2][p] = scale * ((1.0 - fx) * fy);
-        c.weight[3][p] = scale * (fx * fy);
+        c.set_weights(p, valid, w, fx, fy);
     }
 }
 
