@@ -214,6 +214,8 @@ impl Corners {
 
 /// `WeightTable::corners` in f32 for a block (vectorises: no branches, only selects).
 #[inline(always)]
+// Lane p of three coordinate rows and of the outputs: an index loop vectorises.
+#[allow(clippy::needless_range_loop)]
 fn corners_body(n: usize, dir: &[[f32; BLOCK]; 3], w: Option<&[f32; BLOCK]>, c: &mut Corners) {
     let nf = n as f32;
     let side = (n + 1) as u32;
@@ -244,6 +246,8 @@ fn corners_body(n: usize, dir: &[[f32; BLOCK]; 3], w: Option<&[f32; BLOCK]>, c: 
 /// `(x, y) ∈ [−1, 1]²`, as [`Basis::planar_grid`] defines it: below the horizon `(x, y)`
 /// is normalised; a zero (or non-finite) vector gets no weight.
 #[inline(always)]
+// Lane p of three coordinate rows and of the outputs: an index loop vectorises.
+#[allow(clippy::needless_range_loop)]
 fn planar_corners(n: usize, dir: &[[f32; BLOCK]; 3], w: Option<&[f32; BLOCK]>, c: &mut Corners) {
     let nf = n as f32;
     let side = (n + 1) as u32;
