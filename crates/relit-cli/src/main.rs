@@ -5,6 +5,7 @@
 mod cmd_bench;
 mod cmd_capture;
 mod cmd_demo;
+mod cmd_doctor;
 mod cmd_eval;
 mod cmd_export_web;
 mod cmd_fit;
@@ -46,6 +47,9 @@ enum Command {
     View(cmd_view::Args),
     /// Write the viewer and a file's data as a static folder for any web server.
     ExportWeb(cmd_export_web::Args),
+    /// Show what this machine can do (CPU kernels, GPU adapters, browser for the viewer
+    /// test) and what to install for what it cannot.
+    Doctor(cmd_doctor::Args),
 }
 
 /// Mesa's Vulkan drivers initialise Wayland support when wgpu asks for the
@@ -93,6 +97,7 @@ fn main() {
         Command::Bench(args) => cmd_bench::run(args),
         Command::View(args) => cmd_view::run(args),
         Command::ExportWeb(args) => cmd_export_web::run(args),
+        Command::Doctor(args) => cmd_doctor::run(args),
     };
     if let Err(err) = result {
         eprintln!("relit: error: {err}");

@@ -444,3 +444,43 @@ fn capture_eval_figures_match_the_saved_images() {
         );
     }
 }
+
+/// `relit doctor` reports the CPU kernels and every GPU adapter as JSON, and with
+/// nothing on `PATH` says that the viewer's browser test cannot run and what to install.
+#[test]
+fn doctor_reports_what_the_machine_can_do_and_what_is_missing() {
+    let report: serde_json::Value = serde_json::from_str(&ok(&["doctor", "--json"])).unwrap();
+    let kernels = report["cpu"]["kernels"].as_str().unwrap();
+    assert!(
+        ["avx2+fma+f16c", "portable"].contains(&kernels),
+        "{kernels}"
+    );
+    assert!(report["cpu"]["threads"].as_u64().unwrap() >= 1);
+    let adapters = report["gpu"]["adapters"].as_array().unwrap();
+    // The adapter relit would use is one of those found, or there is none and a reason.
+    match report["gpu"]["chosen"].as_object() {
+        Some(chosen) => assert!(
+            adapters
+                .iter()
+                .any(|a| a["name"] == chosen["name"] && a["backend"] == chosen["backend"]),
+            "{report}"
+        ),
+        None => assert!(report["gpu"]["error"].is_string(), "{report}"),
+    }
+    assert_eq!(
+        report["can"]["gpu_engine"],
+        report["gpu"]["chosen"].is_object()
+    );
+
+    let out = Command::new(env!("CARGO_BIN_EXE_relit"))
+        .args(["doctor", "--json"])
+        .env("PATH", "")
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["can"]["viewer_browser_test"], false);
+    assert!(report["tools"]["chromium"].is_null());
+    let advice = report["advice"].to_string();
+    assert!(advice.contains("chromium, nodejs, npm"), "{advice}");
+}

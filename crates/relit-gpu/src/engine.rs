@@ -178,6 +178,16 @@ pub fn probe() -> Result<AdapterSummary> {
     Ok(AdapterSummary::from(&adapter.get_info()))
 }
 
+/// Every adapter wgpu finds on this machine, on any backend (what `probe` chooses from).
+pub fn adapters() -> Vec<AdapterSummary> {
+    let instance =
+        wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+    pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()))
+        .iter()
+        .map(|a| AdapterSummary::from(&a.get_info()))
+        .collect()
+}
+
 fn request_adapter(instance: &wgpu::Instance) -> Result<wgpu::Adapter> {
     let options = wgpu::RequestAdapterOptions {
         power_preference: wgpu::PowerPreference::HighPerformance,

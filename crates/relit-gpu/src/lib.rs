@@ -36,7 +36,7 @@ mod lighting;
 mod roi;
 mod storage;
 
-pub use engine::{probe, AdapterSummary, GpuOptions, GpuRelighter};
+pub use engine::{adapters, probe, AdapterSummary, GpuOptions, GpuRelighter};
 pub use error::{GpuError, Result};
 pub use lighting::{Lighting, MAX_AREAS, MAX_PASSES, MAX_POSITIONAL, MAX_PROJECTORS};
 pub use roi::Roi;

@@ -40,6 +40,11 @@ pub use bounds::{fma_peak, fma_throughput, FmaPeak};
 
 use crate::storage::{CompactPlanes, Planes, Precision};
 pub use kernels::BasisEvaluator;
+
+/// The kernels the CPU engine runs on this machine: `avx2+fma+f16c` or `portable`.
+pub fn cpu_kernels() -> &'static str {
+    kernels::Simd::detect().name()
+}
 use kernels::{PixelBasis, Simd};
 use points::SurfacePoints;
 use tiles::{Frame, PositionalLight, Scratch, UniformPass, TILE};
