@@ -33,6 +33,57 @@ pub struct ObjModel {
 /// The albedo of surfaces whose material is unknown.
 const NEUTRAL_GREY: f32 = 0.6;
 
+/// The checks `tobj` makes without saying where, made first with the line: every
+/// vertex position finite, every face's vertex index within the vertices defined so far
+/// (1-based, or negative counting back), so that a broken model is refused naming its
+/// line rather than loaded with a hole or a degenerate triangle.
+fn check_lines(path: &Path, reader: &mut impl std::io::BufRead) -> Result<()> {
+    let at =
+        |line: usize, what: String| parse_error(format!("{}: line {line}: {what}", path.display()));
+    let mut vertices = 0i64;
+    let mut text = String::new();
+    let mut line = 0;
+    loop {
+        text.clear();
+        match reader.read_line(&mut text) {
+            Ok(0) => return Ok(()),
+            Ok(_) => line += 1,
+            // Not text: tobj reports it.
+            Err(_) => return Ok(()),
+        }
+        let mut words = text.split_whitespace();
+        match words.next() {
+            Some("v") => {
+                let xyz: Vec<f64> = words.take(3).filter_map(|w| w.parse().ok()).collect();
+                if xyz.len() < 3 || !xyz.iter().all(|c| c.is_finite()) {
+                    return Err(at(
+                        line,
+                        format!("a vertex needs three finite numbers: `{}`", text.trim()),
+                    ));
+                }
+                vertices += 1;
+            }
+            Some("f") => {
+                for corner in words {
+                    let index = corner.split('/').next().unwrap_or("");
+                    let ok = match index.parse::<i64>() {
+                        Ok(i) if i > 0 => i <= vertices,
+                        Ok(i) if i < 0 => -i <= vertices,
+                        _ => false,
+                    };
+                    if !ok {
+                        return Err(at(
+                            line,
+                            format!("face vertex `{corner}` is not one of the {vertices} vertices defined so far"),
+                        ));
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+}
+
 /// Load an OBJ file and its materials.
 pub fn load(path: &Path) -> Result<ObjModel> {
     let options = tobj::LoadOptions {
@@ -44,6 +95,11 @@ pub fn load(path: &Path) -> Result<ObjModel> {
         |e: tobj::LoadError| parse_error(format!("cannot load OBJ {}: {e}", path.display()));
     let file =
         std::fs::File::open(path).map_err(|_| cannot_load(tobj::LoadError::OpenFileFailed))?;
+    check_lines(path, &mut std::io::BufReader::new(&file))?;
+    use std::io::Seek;
+    let mut file = file;
+    file.rewind()
+        .map_err(|_| cannot_load(tobj::LoadError::ReadError))?;
     let folder = path.parent().unwrap_or(Path::new("."));
     // `tobj::load_obj`, with the MTL files it opens written down.
     let mtl_files = std::cell::RefCell::new(Vec::new());
