@@ -11,41 +11,22 @@
 //! not stop) and a full disk (needs a mount); writers go through one temporary file
 //! renamed into place (`no_clobber.rs` checks a failing command leaves nothing).
 
-use relit::sphere::{hemisphere_fibonacci, Vec3};
+mod common;
+
+use common::snapshot;
+use relit::sphere::Vec3;
 use relit::synth::BumpyPlane;
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-/// A folder with a valid capture (`cap/dirs.lp`, 12 PNGs of 24×16, `cap/capture.json`
-/// is not written: `.lp` is the capture), fitted maps `scene.exr`, a valid rig
-/// `rig.json`, an environment map `sky.hdr`, an OBJ `model.obj` and a studio scene
-/// `scene.json`: each case breaks one of them (or adds a broken file).
+/// A folder with a valid capture (`cap/dirs.lp`, 12 PNGs of 24×16), fitted maps
+/// `scene.exr`, a picture `sky.exr`, a valid rig `rig.json`, an OBJ `model.obj` and a
+/// studio scene `scene.json`: each case breaks one of them (or adds a broken file).
 fn fixture() -> tempfile::TempDir {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    std::fs::create_dir(d.join("cap")).unwrap();
-    let plane = BumpyPlane {
-        width: 24,
-        height: 16,
-    };
-    let dirs = hemisphere_fibonacci(12);
-    plane.write_lp_capture(&d.join("cap"), &dirs).unwrap();
-    let options = relit::fit::FitOptions {
-        basis: relit::fit::BasisRequest::parse("sh:4").unwrap(),
-        lambda: relit::fit::Lambda::Fixed(1e-3),
-        ..Default::default()
-    };
-    let fitted =
-        relit::fit::fit(&plane.capture(&dirs), &options, &relit::progress::Silent).unwrap();
-    relit::codec::exr::write(
-        &d.join("scene.exr"),
-        &fitted.image,
-        relit::storage::Precision::F16,
-    )
-    .unwrap();
-    let sky = plane.render(Vec3::new(0.2, 0.3, 0.9));
-    relit::image::save(&d.join("sky.exr"), &sky, 0.0).unwrap();
+    let plane = common::capture_and_fit(d);
+    relit::image::save(&d.join("sky.exr"), &common::picture(&plane), 0.0).unwrap();
     std::fs::write(
         d.join("rig.json"),
         r#"{"lights":[{"type":"directional","direction":[0,0,1]}]}"#,
@@ -64,25 +45,6 @@ fn fixture() -> tempfile::TempDir {
     )
     .unwrap();
     dir
-}
-
-/// Every file under `dir` with its bytes.
-fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
-    let mut files = BTreeMap::new();
-    let mut pending = vec![dir.to_path_buf()];
-    while let Some(folder) = pending.pop() {
-        for entry in std::fs::read_dir(&folder).unwrap() {
-            let path = entry.unwrap().path();
-            let rel = path.strip_prefix(dir).unwrap().to_path_buf();
-            if path.is_dir() {
-                files.insert(rel, b"<folder>".to_vec());
-                pending.push(path);
-            } else {
-                files.insert(rel, std::fs::read(&path).unwrap());
-            }
-        }
-    }
-    files
 }
 
 /// One case: break the fixture with `setup`, run `args` in it, and expect a refusal whose

@@ -3,8 +3,9 @@
 //! spelling, a hard link, a symbolic link either way, and an output folder that holds
 //! an input; each must exit 1 naming both paths and leave every file as it was.
 
-use relit::sphere::{hemisphere_fibonacci, Vec3};
-use relit::synth::BumpyPlane;
+mod common;
+
+use common::snapshot;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -16,31 +17,6 @@ fn relit_in(dir: &Path, args: &[&str]) -> Output {
         .current_dir(dir)
         .output()
         .expect("the relit binary runs")
-}
-
-/// Every file and link under `dir` with its bytes (a link: where it points), hidden
-/// files included: a comparison before and after finds changed inputs, new outputs and
-/// left-over temporary files alike.
-fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
-    let mut files = BTreeMap::new();
-    let mut pending = vec![dir.to_path_buf()];
-    while let Some(folder) = pending.pop() {
-        for entry in std::fs::read_dir(&folder).unwrap() {
-            let path = entry.unwrap().path();
-            let meta = std::fs::symlink_metadata(&path).unwrap();
-            let rel = path.strip_prefix(dir).unwrap().to_path_buf();
-            if meta.file_type().is_symlink() {
-                let target = std::fs::read_link(&path).unwrap();
-                files.insert(rel, format!("-> {}", target.display()).into_bytes());
-            } else if meta.is_dir() {
-                files.insert(rel, b"<folder>".to_vec());
-                pending.push(path);
-            } else {
-                files.insert(rel, std::fs::read(&path).unwrap());
-            }
-        }
-    }
-    files
 }
 
 /// Runs `args` in `dir` and checks the refusal: exit code 1, a message naming each of
@@ -137,30 +113,12 @@ impl Fixture {
     fn new() -> Fixture {
         let dir = tempfile::tempdir().unwrap();
         let d = dir.path();
-        for sub in ["cap", "rig", "env", "studio"] {
+        for sub in ["rig", "env", "studio"] {
             std::fs::create_dir(d.join(sub)).unwrap();
         }
-        let plane = BumpyPlane {
-            width: 24,
-            height: 16,
-        };
-        let dirs = hemisphere_fibonacci(12);
-        plane.write_lp_capture(&d.join("cap"), &dirs).unwrap();
-        let options = relit::fit::FitOptions {
-            basis: relit::fit::BasisRequest::parse("sh:4").unwrap(),
-            lambda: relit::fit::Lambda::Fixed(1e-3),
-            ..Default::default()
-        };
-        let fitted =
-            relit::fit::fit(&plane.capture(&dirs), &options, &relit::progress::Silent).unwrap();
-        relit::codec::exr::write(
-            &d.join("scene.exr"),
-            &fitted.image,
-            relit::storage::Precision::F16,
-        )
-        .unwrap();
+        let plane = common::capture_and_fit(d);
 
-        let small = plane.render(Vec3::new(0.2, 0.3, 0.9));
+        let small = common::picture(&plane);
         relit::image::save(&d.join("rig/slide.png"), &small, 0.0).unwrap();
         relit::image::save(&d.join("rig/sky.exr"), &small, 0.0).unwrap();
         relit::image::save(&d.join("env/sky.exr"), &small, 0.0).unwrap();
