@@ -20,6 +20,13 @@ if command -v apt-get >/dev/null 2>&1 && ! dpkg -s mesa-vulkan-drivers >/dev/nul
     echo "could not install mesa-vulkan-drivers: the GPU tests will skip" >&2
 fi
 
+# Tests that cannot run here (no GPU adapter, no ../shared/data, no Node) say why in
+# this log (relit::skip); the list is printed at the end. RELIT_NO_SKIPS=1 makes each
+# such skip a failure instead.
+skip_log="$PWD/target/test-skips.txt"
+mkdir -p target && : >"$skip_log"
+export RELIT_SKIP_LOG="$skip_log"
+
 # Release mode: the real-data tests fit whole captures and are 5-10x faster optimised.
 cargo test --workspace --release --locked "$@"
 
@@ -27,10 +34,19 @@ cargo test --workspace --release --locked "$@"
 # SwiftShader WebGL2, driven by Playwright; compares the canvas with `relit relight`.
 # Needs chromium, node and npm (installed with apt-get when missing) and playwright-core
 # (npm, into the git-ignored target/viewer-node). Set RELIT_SKIP_VIEWER_TEST=1 to skip.
+# A skipped viewer test is logged like any other skip (and fails with RELIT_NO_SKIPS=1).
+viewer_skip() {
+  echo "viewer test: SKIPPED — $1" >&2
+  echo "viewer test (scripts/test.sh): $1" >>"$skip_log"
+  if [ "${RELIT_NO_SKIPS:-0}" = "1" ]; then
+    echo "viewer test: failing instead (RELIT_NO_SKIPS=1)" >&2
+    return 1
+  fi
+}
 viewer_test() {
   if [ "${RELIT_SKIP_VIEWER_TEST:-0}" = "1" ]; then
-    echo "viewer test: skipped (RELIT_SKIP_VIEWER_TEST=1)" >&2
-    return 0
+    viewer_skip "RELIT_SKIP_VIEWER_TEST=1"
+    return
   fi
   local sudo=""
   [ "$(id -u)" -ne 0 ] && sudo="sudo -n"
@@ -47,16 +63,16 @@ viewer_test() {
   fi
   for tool in chromium node npm; do
     if ! command -v "$tool" >/dev/null 2>&1; then
-      echo "viewer test: SKIPPED — $tool is not installed and could not be installed" >&2
-      return 0
+      viewer_skip "$tool is not installed and could not be installed"
+      return
     fi
   done
   if [ ! -d target/viewer-node/node_modules/playwright-core ]; then
     mkdir -p target/viewer-node
     if ! (cd target/viewer-node && { [ -f package.json ] || echo '{"private":true}' >package.json; } &&
       npm install --no-audit --no-fund --silent playwright-core >&2); then
-      echo "viewer test: SKIPPED — npm could not install playwright-core (no registry access?)" >&2
-      return 0
+      viewer_skip "npm could not install playwright-core (no registry access?)"
+      return
     fi
   fi
   cargo build --release --locked -p relit-cli
@@ -64,3 +80,10 @@ viewer_test() {
     --out target/viewer-test --playwright target/viewer-node --chromium "$(command -v chromium)"
 }
 viewer_test
+
+if [ -s "$skip_log" ]; then
+  echo "tests skipped ($(sort -u "$skip_log" | wc -l)), because something they need is missing here:" >&2
+  sort -u "$skip_log" | sed 's/^/  /' >&2
+else
+  echo "no test skipped" >&2
+fi

@@ -91,7 +91,7 @@ fn region_storage_and_gpu_frames_agree_with_the_full_cpu_frame() {
         assert!(max_abs(&load(Path::new(&p("u8.exr"))), &full) < 0.05 * peak);
 
         if let Err(why) = relit_gpu::probe() {
-            eprintln!("skipping relit relight --gpu: {why}");
+            relit::skip::skipping(&format!("relit relight --gpu: {why}"));
             continue;
         }
         let out = relit(&[
@@ -124,7 +124,9 @@ fn region_storage_and_gpu_frames_agree_with_the_full_cpu_frame() {
 #[test]
 fn gpu_frames_with_projector_and_area_lights_match_the_cpu() {
     if let Err(why) = relit_gpu::probe() {
-        eprintln!("skipping relit relight --gpu with projector and area lights: {why}");
+        relit::skip::skipping(&format!(
+            "relit relight --gpu with projector and area lights: {why}"
+        ));
         return;
     }
     let dir = tempfile::tempdir().unwrap();

@@ -583,7 +583,7 @@ fn gpu_or_skip(
     match GpuRelighter::with_basis(img, basis, options) {
         Ok(g) => Some(g),
         Err(GpuError::NoAdapter(why)) => {
-            eprintln!("skipping GPU test: {why}");
+            relit::skip::skipping(&format!("no GPU adapter: {why}"));
             None
         }
         Err(e) => panic!("GPU engine failed: {e}"),

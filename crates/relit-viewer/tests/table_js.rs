@@ -56,7 +56,7 @@ fn node(script: &str, input: &Value) -> Option<Value> {
     let out = match Command::new("node").arg(&module).output() {
         Ok(out) => out,
         Err(e) => {
-            eprintln!("skipping the JavaScript checks: cannot run node ({e})");
+            relit::skip::skipping(&format!("the JavaScript checks: cannot run node ({e})"));
             return None;
         }
     };

@@ -52,6 +52,8 @@ pub mod maps;
 pub mod memory;
 pub mod metrics;
 pub mod progress;
+#[doc(hidden)]
+pub mod skip;
 pub mod sphere;
 pub mod storage;
 pub mod synth;
