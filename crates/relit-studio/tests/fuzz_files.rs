@@ -1,0 +1,155 @@
+//! Fuzzing of the readers that take a file: fitted EXR maps, environment maps (Radiance
+//! HDR), OBJ models and capture manifests. Same harness as `fuzz.rs` (a deterministic
+//! mutation fuzzer on stable), each mutant written to a file in a temporary folder and
+//! read back; a reader may return any error but must not panic. The writes make these
+//! targets slower, so the test run feeds each 300 mutants; `RELIT_FUZZ_FILE_EXECS=N`
+//! sets the count for a long run.
+
+use relit::sphere::hemisphere_fibonacci;
+use relit::synth::BumpyPlane;
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::Path;
+use std::time::Instant;
+
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
+    }
+
+    fn below(&mut self, n: usize) -> usize {
+        (self.next() % n.max(1) as u64) as usize
+    }
+}
+
+/// Binary-minded mutations: bit flips, bytes set to boundary values, 32-bit words set
+/// to sizes a header might declare, deletions, duplications, truncation.
+fn mutate(seed: &[u8], rng: &mut Rng) -> Vec<u8> {
+    let mut v = seed.to_vec();
+    for _ in 0..1 + rng.below(4) {
+        let at = rng.below(v.len().max(1));
+        match rng.below(6) {
+            0 if !v.is_empty() => v[at] ^= 1 << rng.below(8),
+            1 if !v.is_empty() => v[at] = [0u8, 1, 0x7f, 0x80, 0xff][rng.below(5)],
+            2 if v.len() >= at + 4 => {
+                let word: u32 =
+                    [0, 1, 0x7fff_ffff, 0x8000_0000, 0xffff_ffff, 1 << 30, 65_536][rng.below(7)];
+                v[at..at + 4].copy_from_slice(&word.to_le_bytes());
+            }
+            3 => {
+                let end = (at + 1 + rng.below(64)).min(v.len());
+                v.drain(at.min(end)..end);
+            }
+            4 => {
+                let end = (at + 1 + rng.below(64)).min(v.len());
+                let part = v[at.min(end)..end].to_vec();
+                v.splice(at..at, part);
+            }
+            _ => v.truncate(at),
+        }
+    }
+    v
+}
+
+fn execs() -> usize {
+    std::env::var("RELIT_FUZZ_FILE_EXECS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(300)
+}
+
+/// Write each mutant of `seed` to `dir/name` and call `read` on it.
+fn fuzz(dir: &Path, name: &str, seed: &[u8], read: fn(&Path)) -> Vec<String> {
+    let mut rng = Rng(0xD1B5_4A32_D192_ED03 ^ name.len() as u64);
+    let path = dir.join(name);
+    let (n, start) = (execs(), Instant::now());
+    let mut crashes = Vec::new();
+    for i in 0..=n {
+        let input = if i == 0 {
+            seed.to_vec()
+        } else {
+            mutate(seed, &mut rng)
+        };
+        std::fs::write(&path, &input).unwrap();
+        if catch_unwind(AssertUnwindSafe(|| read(&path))).is_err() {
+            let kept = dir.join(format!("crash-{i}-{name}"));
+            std::fs::copy(&path, &kept).unwrap();
+            crashes.push(format!("{name}: mutant {i} ({} bytes)", input.len()));
+            if crashes.len() >= 5 {
+                break;
+            }
+        }
+    }
+    eprintln!(
+        "fuzz {name}: 1 seed + {n} mutants in {:.1} s, {} panics",
+        start.elapsed().as_secs_f64(),
+        crashes.len()
+    );
+    crashes
+}
+
+#[test]
+fn no_file_reader_panics_on_mutated_files() {
+    let hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(|_| {}));
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+
+    // Seeds, made the way relit makes them.
+    let plane = BumpyPlane {
+        width: 12,
+        height: 8,
+    };
+    let dirs = hemisphere_fibonacci(8);
+    plane.write_lp_capture(d, &dirs).unwrap();
+    let options = relit::fit::FitOptions {
+        basis: relit::fit::BasisRequest::parse("sh:4").unwrap(),
+        lambda: relit::fit::Lambda::Fixed(1e-3),
+        ..Default::default()
+    };
+    let fitted =
+        relit::fit::fit(&plane.capture(&dirs), &options, &relit::progress::Silent).unwrap();
+    let seed_exr = d.join("seed.exr");
+    relit::codec::exr::write(&seed_exr, &fitted.image, relit::storage::Precision::F16).unwrap();
+    let exr = std::fs::read(&seed_exr).unwrap();
+    // A 4×2 Radiance HDR, flat (uncompressed) RGBE scanlines.
+    let mut hdr = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 2 +X 4\n".to_vec();
+    for p in 0..8u8 {
+        hdr.extend_from_slice(&[100 + p, 120, 140, 128]);
+    }
+    let obj = b"v -0.5 0 0\nv 0.5 0 0\nv 0 1 0\nv 0 0 1\nvt 0 0\nvn 0 0 1\nf 1/1/1 2/1/1 3/1/1\nf 1 3 4\n".to_vec();
+    let lp = std::fs::read_to_string(d.join("dirs.lp")).unwrap();
+    let manifest = serde_json::json!({
+        "images": lp.lines().skip(1).map(|line| {
+            let mut parts: Vec<&str> = line.rsplitn(4, ' ').collect();
+            parts.reverse();
+            serde_json::json!({ "file": parts[0].trim_matches('"'), "direction": [
+                parts[1].parse::<f64>().unwrap(), parts[2].parse::<f64>().unwrap(), parts[3].parse::<f64>().unwrap()] })
+        }).collect::<Vec<_>>()
+    });
+    let manifest = serde_json::to_vec_pretty(&manifest).unwrap();
+
+    let mut crashes = Vec::new();
+    crashes.extend(fuzz(d, "maps.exr", &exr, |p| {
+        let _ = relit::codec::exr::read(p);
+    }));
+    crashes.extend(fuzz(d, "sky.hdr", &hdr, |p| {
+        let _ = relit::envmap::EnvironmentLight::load(p);
+    }));
+    crashes.extend(fuzz(d, "model.obj", &obj, |p| {
+        let _ = relit_studio::obj::load(p);
+    }));
+    crashes.extend(fuzz(d, "capture.json", &manifest, |p| {
+        let _ = relit::capture::Capture::open(p);
+    }));
+    std::panic::set_hook(hook);
+    assert!(
+        crashes.is_empty(),
+        "readers panicked on:\n{}",
+        crashes.join("\n")
+    );
+}
