@@ -3,7 +3,8 @@
 //! mutation fuzzer on stable), each mutant written to a file in a temporary folder and
 //! read back; a reader may return any error but must not panic. The writes make these
 //! targets slower, so the test run feeds each 300 mutants; `RELIT_FUZZ_FILE_EXECS=N`
-//! sets the count for a long run.
+//! sets the count for a long run. A mutant that panics is kept in Cargo's
+//! `CARGO_TARGET_TMPDIR` and named in the failure.
 
 use relit::sphere::hemisphere_fibonacci;
 use relit::synth::BumpyPlane;
@@ -76,9 +77,15 @@ fn fuzz(dir: &Path, name: &str, seed: &[u8], read: fn(&Path)) -> Vec<String> {
         };
         std::fs::write(&path, &input).unwrap();
         if catch_unwind(AssertUnwindSafe(|| read(&path))).is_err() {
-            let kept = dir.join(format!("crash-{i}-{name}"));
-            std::fs::copy(&path, &kept).unwrap();
-            crashes.push(format!("{name}: mutant {i} ({} bytes)", input.len()));
+            // Kept past the temporary folder, to become a regression test.
+            let kept =
+                Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("fuzz-crash-{i}-{name}"));
+            std::fs::write(&kept, &input).unwrap();
+            crashes.push(format!(
+                "{name}: mutant {i} ({} bytes), kept as {}",
+                input.len(),
+                kept.display()
+            ));
             if crashes.len() >= 5 {
                 break;
             }
