@@ -18,6 +18,9 @@
 //! (parsed and, for analytic families, built), stored basis specs (JSON, rebuilt), light
 //! plans (`grid:`/`fibonacci:`/`hemisphere:`), `list:` direction files, image sizes.
 
+mod common;
+
+use common::Rng;
 use relit::basis::{BasisChoice, BasisSpec};
 use relit::light::Light;
 use relit::light::RigFile;
@@ -25,22 +28,6 @@ use relit_studio::plan::{parse_list, LightPlan};
 use relit_studio::setup::parse_size;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::time::Instant;
-
-/// xorshift64*: deterministic, so a failure reproduces with the same count.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
-    }
-
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n.max(1) as u64) as usize
-    }
-}
 
 const TOKENS: &[&str] = &[
     "nan",

@@ -6,26 +6,14 @@
 //! sets the count for a long run. A mutant that panics is kept in Cargo's
 //! `CARGO_TARGET_TMPDIR` and named in the failure.
 
+mod common;
+
+use common::Rng;
 use relit::sphere::hemisphere_fibonacci;
 use relit::synth::BumpyPlane;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::Path;
 use std::time::Instant;
-
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
-    }
-
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n.max(1) as u64) as usize
-    }
-}
 
 /// Binary-minded mutations: bit flips, bytes set to boundary values, 32-bit words set
 /// to sizes a header might declare, deletions, duplications, truncation.
