@@ -227,7 +227,7 @@ pub fn evaluate(
     capture.camera = Some(CameraSpec::from(camera));
     let fitted = fit::fit(&capture, &options.fit, progress)?;
     let relighter = Relighter::new(&fitted.image)?;
-    let bands = fitted.image.meta.basis.build()?.band_limit().unwrap_or(0);
+    let bands = relighter.basis().band_limit().unwrap_or(0);
     let truth = Renderer::new(scene, camera, &options.render, progress)?;
     let mask = truth.mask().to_vec();
     let relight_options = RelightOptions {

@@ -319,6 +319,11 @@ impl<'a> Relighter<'a> {
             .get_or_init(|| PixelBasis::new(self.basis.as_ref()))
     }
 
+    /// The basis the maps are relit in (built once, from the file's description).
+    pub fn basis(&self) -> &dyn Basis {
+        self.basis.as_ref()
+    }
+
     /// How lights with a position evaluate the basis: `sh recurrence`, `hsh recurrence` or `weight
     /// table` (building the table if needed).
     pub fn pixel_path(&self) -> &'static str {

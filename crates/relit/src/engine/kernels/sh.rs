@@ -68,32 +68,29 @@ impl ShKernel {
         }
     }
 
-    /// The light vectors the recurrence reads: `dir` itself, or stretched into `buf`.
+    /// `f` of the light vectors the recurrence reads: `dir` itself, or (HSH) `dir`
+    /// stretched over the sphere into a buffer that only this case fills.
     #[inline]
-    fn warped<'a>(
-        &self,
-        dir: &'a [[f32; BLOCK]; 3],
-        buf: &'a mut [[f32; BLOCK]; 3],
-    ) -> &'a [[f32; BLOCK]; 3] {
+    fn with_dirs<R>(&self, dir: &[[f32; BLOCK]; 3], f: impl FnOnce(&[[f32; BLOCK]; 3]) -> R) -> R {
         match self.warp {
-            Warp::None => dir,
+            Warp::None => f(dir),
             Warp::Hemisphere => {
+                let mut stretched = [[0.0; BLOCK]; 3];
                 for p in 0..BLOCK {
                     let z = dir[2][p].clamp(0.0, 1.0);
                     let a = 2.0 * (z / (1.0 + z)).sqrt();
-                    buf[0][p] = a * dir[0][p];
-                    buf[1][p] = a * dir[1][p];
-                    buf[2][p] = 2.0 * z - 1.0;
+                    stretched[0][p] = a * dir[0][p];
+                    stretched[1][p] = a * dir[1][p];
+                    stretched[2][p] = 2.0 * z - 1.0;
                 }
-                buf
+                f(&stretched)
             }
         }
     }
 
     /// [`Simd::sh_values`].
     pub(crate) fn values(&self, simd: Simd, dir: &[[f32; BLOCK]; 3], out: &mut [[f32; BLOCK]]) {
-        let mut buf = [[0.0; BLOCK]; 3];
-        simd.sh_values(self.bands, &self.norms, self.warped(dir, &mut buf), out)
+        self.with_dirs(dir, |d| simd.sh_values(self.bands, &self.norms, d, out))
     }
 
     /// [`Simd::sh_project`].
@@ -104,8 +101,7 @@ impl ShKernel {
         w: &[f32; BLOCK],
         out: &mut [[f32; BLOCK]],
     ) {
-        let mut buf = [[0.0; BLOCK]; 3];
-        simd.sh_project(self.bands, &self.norms, self.warped(dir, &mut buf), w, out)
+        self.with_dirs(dir, |d| simd.sh_project(self.bands, &self.norms, d, w, out))
     }
 
     /// [`Simd::sh_dot`]: the recurrence feeds the dot directly, no rows in between.
@@ -116,14 +112,9 @@ impl ShKernel {
         values: Rows,
         out: &mut [[f32; BLOCK]; 3],
     ) {
-        let mut buf = [[0.0; BLOCK]; 3];
-        simd.sh_dot(
-            self.bands,
-            &self.norms,
-            self.warped(dir, &mut buf),
-            values,
-            out,
-        )
+        self.with_dirs(dir, |d| {
+            simd.sh_dot(self.bands, &self.norms, d, values, out)
+        })
     }
 }
 
