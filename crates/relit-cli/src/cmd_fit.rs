@@ -1,6 +1,6 @@
 //! `relit fit`: capture in, relightable EXR out.
 
-use crate::shared::{mib, refuse_overwriting_inputs, Bars, FitArgs};
+use crate::shared::{mib, refuse_overwriting_inputs, Bars, CompressArgs, FitArgs};
 use anyhow::Context;
 use relit::capture::Capture;
 use relit::codec::exr;
@@ -12,11 +12,13 @@ use std::path::PathBuf;
 pub struct Args {
     /// The capture: an RTI `.lp` file or a relit manifest `.json`.
     pub capture: PathBuf,
-    /// The relightable EXR to write.
+    /// The relightable file to write: OpenEXR, or compressed when it ends in `.rlz`.
     #[arg(short, long)]
     pub output: PathBuf,
     #[command(flatten)]
     pub fit: FitArgs,
+    #[command(flatten)]
+    pub compress: CompressArgs,
     /// Precision of the stored maps: f16 (alias half) or f32 (alias float).
     #[arg(long, default_value = "f16")]
     pub storage: Precision,
@@ -53,8 +55,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let bars = Bars::new(args.quiet || args.json);
     let output = relit::fit::fit(&capture, &options, &bars)?;
-    exr::write(&args.output, &output.image, args.storage)
-        .with_context(|| format!("writing {}", args.output.display()))?;
+    match relit::codec::FileForm::for_output(&args.output) {
+        relit::codec::FileForm::Exr => exr::write(&args.output, &output.image, args.storage),
+        relit::codec::FileForm::Compressed => {
+            let settings = relit::compress::Settings {
+                directions: Some(capture.directions()),
+                ..args.compress.settings()
+            };
+            relit::codec::packed::write(&args.output, &output.image, &settings).map(|_| ())
+        }
+    }
+    .with_context(|| format!("writing {}", args.output.display()))?;
     let bytes = std::fs::metadata(&args.output)
         .map(|m| m.len())
         .unwrap_or(0);

@@ -1,11 +1,11 @@
 //! `relit info`: what a relightable file holds.
 
-use relit::codec::exr;
+use relit::codec::{self, exr, FileForm};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// A relightable EXR written by `relit fit`.
+    /// A relightable file (EXR or compressed .rlz).
     pub file: PathBuf,
     /// Print as JSON.
     #[arg(long)]
@@ -13,15 +13,33 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let image = exr::read(&args.file)?;
+    let image = codec::read(&args.file)?;
     let meta = &image.meta;
     let bytes = std::fs::metadata(&args.file)?.len();
-    let attributes = exr::read_metadata_summary(&args.file)?;
-    let storage = attributes
-        .iter()
-        .find(|(k, _)| k == "relit.storage")
-        .map(|(_, v)| v.clone())
-        .unwrap_or_default();
+    let storage = match FileForm::of(&args.file)? {
+        FileForm::Exr => exr::read_metadata_summary(&args.file)?
+            .into_iter()
+            .find(|(k, _)| k == "relit.storage")
+            .map(|(_, v)| format!("OpenEXR {v}"))
+            .unwrap_or_default(),
+        FileForm::Compressed => {
+            let header = codec::packed::read_packed(&args.file)?.header;
+            let functions = header.layout.channels().0;
+            let counts: Vec<String> = functions
+                .iter()
+                .map(|f| header.planes.iter().filter(|p| p.channel == *f).count().to_string())
+                .collect();
+            let levels = header.planes.iter().map(|p| p.quantizer.levels).max().unwrap_or(0);
+            format!(
+                "compressed: {} layout, {} components, {} planes of ≤ {levels} levels, {} tiles of {}²",
+                header.layout.name(),
+                counts.join("/"),
+                header.planes.len(),
+                header.codec.name(),
+                header.tile
+            )
+        }
+    };
     if args.json {
         let value = serde_json::json!({
             "file": args.file.display().to_string(),
@@ -38,6 +56,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "fit": meta.fit,
             "file_bytes": bytes,
             "bytes_per_pixel": bytes as f64 / (image.width() * image.height()) as f64,
+            "bits_per_pixel": 8.0 * bytes as f64 / (image.width() * image.height()) as f64,
         });
         println!("{}", serde_json::to_string_pretty(&value)?);
         return Ok(());
@@ -51,9 +70,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     println!("  color space   {}", meta.color_space.name());
     println!(
-        "  storage       {storage}, {} ({:.1} bytes/pixel)",
+        "  storage       {storage}, {} ({:.1} bits/pixel)",
         relit::memory::mib(bytes),
-        bytes as f64 / (image.width() * image.height()) as f64
+        8.0 * bytes as f64 / (image.width() * image.height()) as f64
     );
     println!("  light frame   {}", meta.light_frame);
     println!(

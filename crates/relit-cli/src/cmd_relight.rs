@@ -2,7 +2,6 @@
 
 use crate::shared::{refuse_overwriting_inputs, rig_inputs, Bars};
 use anyhow::{bail, Context};
-use relit::codec::exr;
 use relit::engine::{RelightOptions, Relighter, Roi};
 use relit::fsutil::{Output, StagedFolder};
 use relit::image::ImageRgb;
@@ -207,10 +206,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // held (--compare and --gpu need them).
     let storage = args.storage;
     let (image, compact) = if storage != Precision::F32 && !args.gpu && !args.compare {
-        let (image, planes) = exr::read_compact(&args.file, storage)?;
+        let (image, planes) = relit::codec::read_compact(&args.file, storage)?;
         (image, Some(planes))
     } else {
-        (exr::read(&args.file)?, None)
+        (relit::codec::read(&args.file)?, None)
     };
     let roi = match &args.roi {
         Some(s) => {

@@ -28,7 +28,7 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<()> {
     args.storage
         .require(&relit_viewer::PRECISIONS, "--storage (the viewer)")?;
-    let image = relit::codec::exr::read(&args.file)?;
+    let image = relit::codec::read(&args.file)?;
     let options = BundleOptions {
         precision: args.storage,
         environments: args.envs.clone(),

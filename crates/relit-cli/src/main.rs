@@ -4,6 +4,7 @@
 
 mod cmd_bench;
 mod cmd_capture;
+mod cmd_convert;
 mod cmd_demo;
 mod cmd_doctor;
 mod cmd_eval;
@@ -33,6 +34,8 @@ enum Command {
     Relight(cmd_relight::Args),
     /// Show what a relightable file holds.
     Info(cmd_info::Args),
+    /// Convert between the lossless EXR and the compressed .rlz file.
+    Convert(cmd_convert::Args),
     /// Measure fidelity: hold out captured lights, fit the rest, compare.
     Eval(cmd_eval::Args),
     /// Run the whole pipeline on a built-in scene: capture, fit, relight, compare.
@@ -90,6 +93,7 @@ fn main() {
         Command::Fit(args) => cmd_fit::run(args),
         Command::Relight(args) => cmd_relight::run(args),
         Command::Info(args) => cmd_info::run(args),
+        Command::Convert(args) => cmd_convert::run(args),
         Command::Eval(args) => cmd_eval::run(args),
         Command::Demo(args) => cmd_demo::run(args),
         Command::Capture(args) => cmd_capture::run(args),

@@ -110,6 +110,45 @@ impl FitArgs {
     }
 }
 
+/// How a compressed (`.rlz`) output is made (`relit::compress`).
+#[derive(Args, Debug, Clone)]
+pub struct CompressArgs {
+    /// Colour layout of a compressed file: rgb, ycc (fewer chroma components) or lrgb
+    /// (one luminance function × RGB albedo).
+    #[arg(long, default_value = "rgb", value_parser = |s: &str| relit::compress::Layout::parse(s).map_err(|e| e.to_string()))]
+    pub layout: relit::compress::Layout,
+    /// Principal components per function (K′); default all K.
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=64))]
+    pub components: Option<u16>,
+    /// Components of ycc's chroma functions (default a third of K′).
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=64))]
+    pub chroma: Option<u16>,
+    /// Quantisation: the first plane's range in 2^bits − 1 steps (zstd planes; JPEG
+    /// planes are 8-bit).
+    #[arg(long, default_value_t = 12, value_parser = clap::value_parser!(u32).range(2..=16))]
+    pub bits: u32,
+    /// Plane codec: zstd[:level] (lossless codes) or jpeg[:quality].
+    #[arg(long, default_value = "zstd:12", value_parser = |s: &str| relit::compress::TileCodec::parse(s).map_err(|e| e.to_string()))]
+    pub codec: relit::compress::TileCodec,
+    /// Tile side in pixels.
+    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(16..=4096))]
+    pub tile: u32,
+}
+
+impl CompressArgs {
+    pub fn settings(&self) -> relit::compress::Settings {
+        relit::compress::Settings {
+            layout: self.layout,
+            components: self.components.map(usize::from),
+            chroma: self.chroma.map(usize::from),
+            bits: self.bits,
+            codec: self.codec,
+            tile: self.tile as usize,
+            directions: None,
+        }
+    }
+}
+
 /// Progress bars on standard error (hidden when it is not a terminal or when quiet).
 pub struct Bars {
     bar: Mutex<Option<ProgressBar>>,

@@ -25,7 +25,7 @@ pub fn export_web(input: &Path, dir: &Path, options: &BundleOptions) -> Result<E
         .chain(options.environments.iter().map(|p| p.as_path()))
         .collect();
     check_outputs(&inputs, &[Output::folder(dir)])?;
-    let image = relit::codec::exr::read(input)?;
+    let image = relit::codec::read(input)?;
     let mut options = options.clone();
     if options.source_name.is_empty() {
         options.source_name = input

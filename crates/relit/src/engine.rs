@@ -1180,21 +1180,30 @@ mod tests {
             values: &values,
             n: dirs.len(),
         };
-        FAMILIES
+        let mut out: Vec<Box<dyn crate::basis::Basis>> = FAMILIES
             .iter()
-            .map(|family| {
+            .filter_map(|family| {
                 let sizes = family.sizes(64);
-                let k = sizes
-                    .iter()
-                    .copied()
-                    .min_by_key(|&k| k.abs_diff(16))
-                    .unwrap();
-                BasisChoice::parse(&format!("{}:{k}", family.name()))
-                    .unwrap()
-                    .build(&dirs, Some(samples))
-                    .unwrap()
+                let k = sizes.iter().copied().min_by_key(|&k| k.abs_diff(16))?;
+                let choice = BasisChoice::parse(&format!("{}:{k}", family.name())).unwrap();
+                Some(choice.build(&dirs, Some(samples)).unwrap())
             })
-            .collect()
+            .collect();
+        // The family that compression makes rather than fits: combinations of a
+        // table-driven and of a recurrence basis.
+        for inner in ["rbf:16", "sh:16"] {
+            let inner = BasisChoice::parse(inner)
+                .unwrap()
+                .build(&dirs, Some(samples))
+                .unwrap();
+            let matrix = (0..9 * 16)
+                .map(|i| ((i * 37 % 11) as f64 - 5.0) / 7.0)
+                .collect();
+            out.push(Box::new(
+                crate::basis::Projected::new(inner, matrix).unwrap(),
+            ));
+        }
+        out
     }
 
     /// Every registered family, every light type, linear and display-referred maps: the

@@ -39,6 +39,7 @@ pub mod camera;
 pub mod capture;
 pub mod codec;
 pub mod color;
+pub mod compress;
 pub mod engine;
 pub mod envmap;
 pub mod error;

@@ -19,6 +19,7 @@
 //! | `sg:K` | spherical Gaussian lobes of one sharpness plus a constant, K = 4, 9, …, 64 ([`sg`]) |
 //! | `rbf:K` | Gaussian RBF interpolation over the captured lights, PCA to K ([`rbf`]) |
 //! | `bilinear:K` | samples on a grid over the hemisphere, bilinear, PCA to K ([`bilinear`]) |
+//! | `projected` | K′ fixed combinations of another basis, made by compression ([`Projected`]) |
 //!
 //! A basis is named `family:K` (K coefficients per colour channel), optionally with
 //! family options: `sg:25:centres=hemisphere,sharpness=8`. [`BasisSpec`] is what a file
@@ -28,6 +29,7 @@
 mod bilinear;
 mod hsh;
 mod pca;
+mod projected;
 mod ptm;
 mod rbf;
 mod rotation;
@@ -36,6 +38,7 @@ pub(crate) mod sh;
 pub(crate) mod table;
 
 pub use hsh::HemisphericalHarmonics;
+pub use projected::Projected;
 pub use ptm::PolynomialTextureMap;
 pub use rotation::{
     check_rotation, compose, mat3_apply, rotation_about_axis, rotation_from_yaw_pitch_roll,
@@ -260,7 +263,12 @@ pub static FAMILIES: &[&dyn Family] = &[
     &sg::FAMILY,
     &rbf::FAMILY,
     &bilinear::FAMILY,
+    &projected::FAMILY,
 ];
+
+/// The most functions of a basis that a [`Projected`] basis combines (every family
+/// offers at most 64).
+pub const MAX_PROJECTED_INNER: usize = 64;
 
 /// The family called `name`.
 pub fn family(name: &str) -> Result<&'static dyn Family> {

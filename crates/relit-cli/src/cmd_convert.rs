@@ -1,0 +1,86 @@
+//! `relit convert`: between the lossless OpenEXR file and the compressed `.rlz` file.
+
+use crate::shared::{refuse_overwriting_inputs, CompressArgs};
+use anyhow::Context;
+use relit::codec::{self, FileForm};
+use relit::fsutil::Output;
+use relit::storage::Precision;
+use std::path::PathBuf;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// A relightable file (EXR or .rlz).
+    pub input: PathBuf,
+    /// The file to write: `.rlz` compresses, any other name writes OpenEXR.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    #[command(flatten)]
+    pub compress: CompressArgs,
+    /// Precision of an EXR output's maps: f16 or f32.
+    #[arg(long, default_value = "f16")]
+    pub storage: Precision,
+    /// Print the summary as JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    refuse_overwriting_inputs(
+        std::slice::from_ref(&args.input),
+        &[Output::file(&args.output)],
+    )?;
+    let start = std::time::Instant::now();
+    let image = codec::read(&args.input)?;
+    let (w, h) = (image.width(), image.height());
+    let form = FileForm::for_output(&args.output);
+    let description = match form {
+        FileForm::Compressed => {
+            let settings = args.compress.settings();
+            codec::packed::write(&args.output, &image, &settings)
+                .with_context(|| format!("writing {}", args.output.display()))?;
+            settings.describe()
+        }
+        FileForm::Exr => {
+            args.storage
+                .require(&[Precision::F32, Precision::F16], "--storage (OpenEXR)")?;
+            codec::exr::write(&args.output, &image, args.storage)
+                .with_context(|| format!("writing {}", args.output.display()))?;
+            format!("OpenEXR {}", args.storage)
+        }
+    };
+    let seconds = start.elapsed().as_secs_f64();
+    let bytes_in = std::fs::metadata(&args.input)?.len();
+    let bytes_out = std::fs::metadata(&args.output)?.len();
+    let written = codec::read(&args.output)?;
+    let basis = written.meta.basis.build()?;
+    let bits_per_pixel = |b: u64| 8.0 * b as f64 / (w * h) as f64;
+    if args.json {
+        let value = serde_json::json!({
+            "input": args.input.display().to_string(),
+            "output": args.output.display().to_string(),
+            "settings": description,
+            "basis": basis.name(),
+            "coefficients": written.maps.k,
+            "input_bytes": bytes_in,
+            "output_bytes": bytes_out,
+            "input_bits_per_pixel": bits_per_pixel(bytes_in),
+            "output_bits_per_pixel": bits_per_pixel(bytes_out),
+            "ratio": bytes_in as f64 / bytes_out.max(1) as f64,
+            "seconds": seconds,
+        });
+        println!("{}", serde_json::to_string_pretty(&value)?);
+    } else {
+        println!(
+            "wrote {} ({description}, basis {}): {} → {} bytes, {:.1} → {:.1} bits/pixel ({:.1}×), {:.2} s",
+            args.output.display(),
+            basis.name(),
+            bytes_in,
+            bytes_out,
+            bits_per_pixel(bytes_in),
+            bits_per_pixel(bytes_out),
+            bytes_in as f64 / bytes_out.max(1) as f64,
+            seconds
+        );
+    }
+    Ok(())
+}

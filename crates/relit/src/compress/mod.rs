@@ -1,0 +1,639 @@
+//! Compression of relightable images: the stages between fitted maps and the bytes of
+//! the compressed file ([`crate::codec::packed`]), each undone by any reader.
+//!
+//! 1. **Colour layout** ([`Layout`]): `rgb`, `ycc` (fewer chroma components) or
+//!    `lrgb` (one luminance function × an RGB albedo).
+//! 2. **Principal components across pixels** ([`projection`]): `K′` planes per
+//!    function instead of `K`, found in the metric of the relit image. The stored
+//!    basis becomes [`crate::basis::Projected`], so a frame costs `K′` multiply-adds a
+//!    pixel and every engine reads the planes as they are.
+//! 3. **Quantisation** ([`planes::Quantizer`]): one step for every function plane
+//!    (their errors weigh the same after step 2), from `bits` over the first plane's
+//!    range; the stored numbers mean `offset + scale · q` as everywhere in relit.
+//! 4. **Entropy coding** per tile ([`TileCodec`]): zstd of prediction residuals
+//!    (lossless for the codes) or JPEG (lossy, what a browser decodes).
+//!
+//! [`pack`] runs them; [`unpack`] undoes them into ordinary maps.
+
+pub mod layout;
+pub mod planes;
+pub mod projection;
+
+pub use layout::Layout;
+pub use planes::{Quantizer, TileCodec};
+
+use crate::basis::{Basis, BasisSpec, Projected};
+use crate::camera::{CameraSpec, Projection};
+use crate::maps::{CoefficientMaps, FitInfo, MapSpace, Metadata, RelightableImage};
+use crate::sphere::Vec3;
+use crate::{Error, Result};
+use rayon::prelude::*;
+
+/// Pixels the principal components are found on (a regular subsample beyond).
+const PCA_PIXELS: usize = 1 << 16;
+
+/// Tile sides a file may use.
+pub const TILE_SIDES: std::ops::RangeInclusive<usize> = 16..=4096;
+
+/// What [`pack`] does.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Settings {
+    pub layout: Layout,
+    /// Components per function (`K′`); `None` keeps all `K` (a rotation: lossless
+    /// before quantisation, and it decorrelates the planes).
+    pub components: Option<usize>,
+    /// Components of the chroma functions of `ycc` (default: a third of `K′`, at
+    /// least 1).
+    pub chroma: Option<usize>,
+    /// Quantisation: the first plane's range in `2^bits − 1` steps (2–16). JPEG planes
+    /// are always 8-bit, each over its own range.
+    pub bits: u32,
+    pub codec: TileCodec,
+    /// Tile side in pixels.
+    pub tile: usize,
+    /// The capture's light directions, to weigh the components by the lights the maps
+    /// will be seen under; `None` uses the basis' domain.
+    pub directions: Option<Vec<Vec3>>,
+}
+
+impl Default for Settings {
+    /// Near-lossless: all components, 12 bits, zstd.
+    fn default() -> Self {
+        Settings {
+            layout: Layout::Rgb,
+            components: None,
+            chroma: None,
+            bits: 12,
+            codec: TileCodec::Zstd { level: 12 },
+            tile: 512,
+            directions: None,
+        }
+    }
+}
+
+impl Settings {
+    /// A short description (`ycc k9/3 b10 zstd:12`).
+    pub fn describe(&self) -> String {
+        let k = self.components.map_or("all".to_string(), |k| k.to_string());
+        let chroma = match (self.layout, self.chroma) {
+            (Layout::Ycc, Some(c)) => format!("/{c}"),
+            _ => String::new(),
+        };
+        let bits = match self.codec {
+            TileCodec::Jpeg { .. } => String::new(),
+            _ => format!(" b{}", self.bits),
+        };
+        format!("{} k{k}{chroma}{bits} {}", self.layout.name(), self.codec.name())
+    }
+}
+
+/// One stored plane: which channel and component, and its quantiser.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct PlaneEntry {
+    pub channel: String,
+    pub index: usize,
+    #[serde(flatten)]
+    pub quantizer: Quantizer,
+}
+
+/// Everything in a compressed file but its tiles.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Header {
+    pub format_version: u32,
+    pub width: usize,
+    pub height: usize,
+    pub tile: usize,
+    pub layout: Layout,
+    pub codec: TileCodec,
+    pub basis: BasisSpec,
+    pub color_space: MapSpace,
+    pub light_frame: String,
+    pub projection: Projection,
+    pub camera: Option<CameraSpec>,
+    pub fit: Option<FitInfo>,
+    pub planes: Vec<PlaneEntry>,
+    /// Whether depth follows the planes (f32, lossless).
+    pub depth: bool,
+}
+
+impl Header {
+    /// Tiles across and down.
+    pub fn tiles(&self) -> (usize, usize) {
+        (self.width.div_ceil(self.tile), self.height.div_ceil(self.tile))
+    }
+
+    /// The pixel rectangle `(x0, y0, w, h)` of tile `t` (raster order).
+    pub fn tile_rect(&self, t: usize) -> (usize, usize, usize, usize) {
+        let (across, _) = self.tiles();
+        let (x0, y0) = ((t % across) * self.tile, (t / across) * self.tile);
+        (
+            x0,
+            y0,
+            self.tile.min(self.width - x0),
+            self.tile.min(self.height - y0),
+        )
+    }
+
+    /// The sections the tiles take: every plane's tiles, then depth's.
+    pub fn sections(&self) -> usize {
+        let (a, d) = self.tiles();
+        (self.planes.len() + self.depth as usize) * a * d
+    }
+
+    /// The function channels and their component counts, then the per-pixel planes,
+    /// checked against the layout; the number of functions `K′` of the basis.
+    fn check(&self) -> Result<usize> {
+        let bad = |why: String| Error::parse(format!("compressed file: {why}"));
+        if self.width == 0 || self.height == 0 || self.width > 1 << 16 || self.height > 1 << 16 {
+            return Err(bad(format!("bad size {}×{}", self.width, self.height)));
+        }
+        if !TILE_SIDES.contains(&self.tile) {
+            return Err(bad(format!("bad tile side {}", self.tile)));
+        }
+        let (functions, per_pixel) = self.layout.channels();
+        let mut counts = vec![0usize; functions.len()];
+        let mut expected: Vec<(String, usize)> = Vec::new();
+        for p in &self.planes {
+            if let Some(f) = functions.iter().position(|&c| c == p.channel) {
+                expected.push((p.channel.clone(), counts[f]));
+                counts[f] += 1;
+            } else if per_pixel.contains(&p.channel.as_str()) {
+                expected.push((p.channel.clone(), 0));
+            } else {
+                return Err(bad(format!("plane of unknown channel `{}`", p.channel)));
+            }
+            let q = &p.quantizer;
+            if q.levels == 0 || q.levels > self.codec.max_levels() {
+                return Err(bad(format!("plane with {} levels", q.levels)));
+            }
+            if !(q.coding.scale.is_finite() && q.coding.offset.is_finite() && q.coding.scale >= 0.0) {
+                return Err(bad("plane with a non-finite coding".into()));
+            }
+        }
+        if self
+            .planes
+            .iter()
+            .zip(&expected)
+            .any(|(p, (c, i))| p.channel != *c || p.index != *i)
+        {
+            return Err(bad("planes out of order".into()));
+        }
+        let present = |c: &str| self.planes.iter().filter(|p| p.channel == c).count();
+        if per_pixel.iter().any(|c| present(c) != 1) {
+            return Err(bad(format!("needs one plane each of {per_pixel:?}")));
+        }
+        let k = counts[0];
+        if k == 0 || counts.iter().any(|&c| c > k) {
+            return Err(bad(format!("bad component counts {counts:?}")));
+        }
+        Ok(k)
+    }
+
+    pub fn metadata(&self) -> Metadata {
+        Metadata {
+            format_version: self.format_version,
+            basis: self.basis.clone(),
+            color_space: self.color_space,
+            light_frame: self.light_frame.clone(),
+            projection: self.projection.clone(),
+            camera: self.camera.clone(),
+            fit: self.fit.clone(),
+        }
+    }
+}
+
+/// A compressed image in memory: the header and its sections (tiles of each plane in
+/// raster order, plane after plane, then depth's tiles).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Packed {
+    pub header: Header,
+    pub sections: Vec<Vec<u8>>,
+}
+
+impl Packed {
+    /// Bytes of the sections.
+    pub fn payload_bytes(&self) -> usize {
+        self.sections.iter().map(Vec::len).sum()
+    }
+}
+
+/// The basis stored as an inner basis and a map onto it: `(inner, P)` with `P` the
+/// identity for a basis that is not projected.
+fn inner_and_map(spec: &BasisSpec) -> Result<(Box<dyn Basis>, Vec<f64>)> {
+    let basis = spec.build()?;
+    if let Some(p) = basis.as_any().downcast_ref::<Projected>() {
+        let inner = p.inner().spec().build()?;
+        return Ok((inner, p.matrix().to_vec()));
+    }
+    let k = basis.len();
+    let mut identity = vec![0.0; k * k];
+    (0..k).for_each(|i| identity[i * k + i] = 1.0);
+    Ok((basis, identity))
+}
+
+/// Compress `image` with `settings`.
+pub fn pack(image: &RelightableImage, settings: &Settings) -> Result<Packed> {
+    if !(2..=16).contains(&settings.bits) {
+        return Err(Error::invalid(format!("bits must be 2–16, not {}", settings.bits)));
+    }
+    if !TILE_SIDES.contains(&settings.tile) {
+        return Err(Error::invalid(format!(
+            "tile side must be {}–{}, not {}",
+            TILE_SIDES.start(),
+            TILE_SIDES.end(),
+            settings.tile
+        )));
+    }
+    let maps = &image.maps;
+    let (n, k) = (maps.pixels(), maps.k);
+    let basis = image.meta.basis.build()?;
+    if basis.len() != k {
+        return Err(Error::invalid("the maps and their basis disagree on K"));
+    }
+    let components = settings.components.unwrap_or(k);
+    if components == 0 || components > k {
+        return Err(Error::invalid(format!(
+            "{components} components of a {}-coefficient basis: choose 1 to {k}",
+            k
+        )));
+    }
+    let chroma = settings
+        .chroma
+        .unwrap_or(components.div_ceil(3))
+        .clamp(1, components);
+    let layout = settings.layout;
+    let (functions, per_pixel) = layout.channels();
+
+    // Layout: the function channels' coefficient planes (plane i·F + f), per-pixel
+    // planes (albedo) apart.
+    let rgb_at = |i: usize, p: usize| -> [f32; 3] {
+        [maps.plane(i, 0)[p], maps.plane(i, 1)[p], maps.plane(i, 2)[p]]
+    };
+    let gram = projection::gram(basis.as_ref(), settings.directions.as_deref());
+    let fcount = functions.len();
+    let function_value = |i: usize, f: usize, p: usize| -> f32 {
+        match layout {
+            Layout::Rgb => maps.plane(i, f)[p],
+            Layout::Ycc => layout::ycc(rgb_at(i, p))[f],
+            Layout::Lrgb => layout::luma(rgb_at(i, p)),
+        }
+    };
+    // Principal components of the first function channel (R, G and B alike for rgb).
+    let step = (n / PCA_PIXELS).max(1);
+    let sampled: Vec<usize> = (0..n).step_by(step).collect();
+    let pca_channels = if layout == Layout::Rgb { 3 } else { 1 };
+    let vectors: Vec<f64> = sampled
+        .par_iter()
+        .flat_map_iter(|&p| {
+            (0..pca_channels)
+                .flat_map(move |f| (0..k).map(move |i| function_value(i, f, p) as f64))
+        })
+        .collect();
+    let principal = projection::principal(&gram, &vectors, k, components)?;
+    let counts: Vec<usize> = (0..fcount)
+        .map(|f| if layout == Layout::Ycc && f > 0 { chroma } else { components })
+        .collect();
+
+    // Project every pixel: plane (f, j) of components.
+    let mut projected: Vec<Vec<f32>> = counts
+        .iter()
+        .flat_map(|&c| (0..c).map(|_| vec![0.0f32; n]))
+        .collect();
+    let starts: Vec<usize> = counts
+        .iter()
+        .scan(0, |s, &c| {
+            let at = *s;
+            *s += c;
+            Some(at)
+        })
+        .collect();
+    const CHUNK: usize = 4096;
+    {
+        let mut chunks: Vec<Vec<&mut [f32]>> = Vec::new();
+        let mut iters: Vec<_> = projected.iter_mut().map(|p| p.chunks_mut(CHUNK)).collect();
+        for _ in 0..n.div_ceil(CHUNK) {
+            chunks.push(iters.iter_mut().map(|it| it.next().expect("same length")).collect());
+        }
+        chunks.into_par_iter().enumerate().for_each(|(chunk, mut outs)| {
+            let mut c = vec![0.0f32; k];
+            let mut y = vec![0.0f32; components];
+            for local in 0..outs[0].len() {
+                let p = chunk * CHUNK + local;
+                for (f, &count) in counts.iter().enumerate() {
+                    for (i, ci) in c.iter_mut().enumerate() {
+                        *ci = function_value(i, f, p);
+                    }
+                    principal.apply(&c, &mut y[..count]);
+                    for j in 0..count {
+                        outs[starts[f] + j][local] = y[j];
+                    }
+                }
+            }
+        });
+    }
+    // Per-pixel albedo of lrgb: the least-squares scale of each channel's function onto
+    // the luminance function, in the relit image's metric.
+    let mut albedo: Vec<Vec<f32>> = Vec::new();
+    if layout == Layout::Lrgb {
+        albedo = (0..3)
+            .map(|ch| {
+                (0..n)
+                    .into_par_iter()
+                    .map(|p| {
+                        let l: Vec<f64> = (0..k).map(|i| function_value(i, 0, p) as f64).collect();
+                        let c: Vec<f64> = (0..k).map(|i| maps.plane(i, ch)[p] as f64).collect();
+                        let g = |a: &[f64], b: &[f64]| -> f64 {
+                            (0..k)
+                                .map(|i| a[i] * (0..k).map(|j| gram[i * k + j] * b[j]).sum::<f64>())
+                                .sum()
+                        };
+                        let ll = g(&l, &l);
+                        if ll > 1e-20 {
+                            (g(&c, &l) / ll) as f32
+                        } else {
+                            1.0
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+    }
+
+    // Quantisers.
+    let range = |v: &[f32]| crate::storage::FiniteRange::of(v.iter().copied());
+    let max_levels = settings.codec.max_levels();
+    let steps = ((1u64 << settings.bits) - 1) as f32;
+    let mut entries: Vec<(PlaneEntry, &[f32])> = Vec::new();
+    let function_step = {
+        let r = range(&projected[0]);
+        ((r.hi - r.lo) / steps).max(f32::MIN_POSITIVE)
+    };
+    for (f, &count) in counts.iter().enumerate() {
+        for j in 0..count {
+            let plane = &projected[starts[f] + j];
+            let quantizer = plane_quantizer(plane, settings.codec, function_step, max_levels);
+            entries.push((
+                PlaneEntry {
+                    channel: functions[f].to_string(),
+                    index: j,
+                    quantizer,
+                },
+                plane,
+            ));
+        }
+    }
+    for (a, name) in albedo.iter().zip(per_pixel) {
+        let r = range(a);
+        let step = ((r.hi - r.lo) / steps).max(f32::MIN_POSITIVE);
+        let quantizer = plane_quantizer(a, settings.codec, step, max_levels);
+        entries.push((
+            PlaneEntry {
+                channel: name.to_string(),
+                index: 0,
+                quantizer,
+            },
+            a,
+        ));
+    }
+
+    // The basis the planes relight with: P of the components composed with the map
+    // the input basis already had.
+    let (inner, prior) = inner_and_map(&image.meta.basis)?;
+    let inner_k = inner.len();
+    let mut matrix = vec![0.0; components * inner_k];
+    for j in 0..components {
+        for i in 0..inner_k {
+            matrix[j * inner_k + i] = (0..k)
+                .map(|m| principal.basis_map[j * k + m] * prior[m * inner_k + i])
+                .sum();
+        }
+    }
+    let projected_basis = Projected::new(inner, matrix)?;
+
+    let header = Header {
+        format_version: crate::maps::FORMAT_VERSION,
+        width: maps.width,
+        height: maps.height,
+        tile: settings.tile,
+        layout,
+        codec: settings.codec,
+        basis: projected_basis.spec(),
+        color_space: image.meta.color_space,
+        light_frame: image.meta.light_frame.clone(),
+        projection: image.meta.projection.clone(),
+        camera: image.meta.camera.clone(),
+        fit: image.meta.fit.clone(),
+        planes: entries.iter().map(|(e, _)| e.clone()).collect(),
+        depth: image.depth.is_some(),
+    };
+    let (across, down) = header.tiles();
+    let tiles = across * down;
+    let mut jobs: Vec<(usize, usize)> = Vec::new();
+    for p in 0..entries.len() {
+        for t in 0..tiles {
+            jobs.push((p, t));
+        }
+    }
+    let mut sections: Vec<Vec<u8>> = jobs
+        .par_iter()
+        .map(|&(p, t)| {
+            let (entry, plane) = &entries[p];
+            let (x0, y0, w, h) = header.tile_rect(t);
+            let q = &entry.quantizer;
+            let mut codes = Vec::with_capacity(w * h);
+            for y in y0..y0 + h {
+                let row = &plane[y * maps.width + x0..y * maps.width + x0 + w];
+                codes.extend(row.iter().map(|&v| q.code(v)));
+            }
+            planes::encode_tile(&codes, w, h, q.width(), settings.codec)
+        })
+        .collect::<Result<_>>()?;
+    if let Some(depth) = &image.depth {
+        let more: Vec<Vec<u8>> = (0..tiles)
+            .into_par_iter()
+            .map(|t| {
+                let (x0, y0, w, h) = header.tile_rect(t);
+                let mut values = Vec::with_capacity(w * h);
+                for y in y0..y0 + h {
+                    values.extend_from_slice(&depth[y * maps.width + x0..y * maps.width + x0 + w]);
+                }
+                encode_floats(&values)
+            })
+            .collect::<Result<_>>()?;
+        sections.extend(more);
+    }
+    Ok(Packed { header, sections })
+}
+
+/// The quantiser of one plane: the shared step for zstd, the plane's own range
+/// (0.01 %–99.99 % of its values, outliers clamped) in 256 codes for JPEG.
+fn plane_quantizer(plane: &[f32], codec: TileCodec, step: f32, max_levels: u32) -> Quantizer {
+    let r = crate::storage::FiniteRange::of(plane.iter().copied());
+    match codec {
+        TileCodec::Zstd { .. } => Quantizer::spanning(r.lo, r.hi, step, max_levels),
+        TileCodec::Jpeg { .. } => {
+            let (lo, hi) = percentiles(plane, 1e-4);
+            Quantizer::spanning(lo, hi, 0.0, 256)
+        }
+    }
+}
+
+/// The `q` and `1 − q` quantiles of the finite values (by a sorted subsample).
+fn percentiles(plane: &[f32], q: f64) -> (f32, f32) {
+    let step = (plane.len() / 200_000).max(1);
+    let mut v: Vec<f32> = plane.iter().step_by(step).copied().filter(|v| v.is_finite()).collect();
+    if v.is_empty() {
+        return (0.0, 0.0);
+    }
+    v.sort_by(f32::total_cmp);
+    let at = |f: f64| v[((v.len() - 1) as f64 * f).round() as usize];
+    (at(q), at(1.0 - q))
+}
+
+/// f32 values, byte planes apart (sign/exponent bytes compress well together), zstd.
+fn encode_floats(values: &[f32]) -> Result<Vec<u8>> {
+    let n = values.len();
+    let mut shuffled = vec![0u8; 4 * n];
+    for (i, v) in values.iter().enumerate() {
+        for (b, byte) in v.to_le_bytes().into_iter().enumerate() {
+            shuffled[b * n + i] = byte;
+        }
+    }
+    zstd::bulk::compress(&shuffled, 9).map_err(|e| Error::new(crate::ErrorKind::Io, format!("zstd: {e}")))
+}
+
+fn decode_floats(bytes: &[u8], n: usize) -> Result<Vec<f32>> {
+    use std::io::Read;
+    let mut raw = Vec::new();
+    zstd::stream::read::Decoder::new(bytes)
+        .and_then(|d| d.take(4 * n as u64 + 1).read_to_end(&mut raw))
+        .map_err(|e| Error::parse(format!("a depth tile does not decompress: {e}")))?;
+    if raw.len() != 4 * n {
+        return Err(Error::parse("a depth tile has the wrong size"));
+    }
+    Ok((0..n)
+        .map(|i| f32::from_le_bytes([raw[i], raw[n + i], raw[2 * n + i], raw[3 * n + i]]))
+        .collect())
+}
+
+/// Undo [`pack`]: ordinary maps in the stored (projected) basis, RGB.
+pub fn unpack(packed: &Packed) -> Result<RelightableImage> {
+    let header = &packed.header;
+    let kp = header.check()?;
+    let basis = header.basis.build()?;
+    if basis.len() != kp {
+        return Err(Error::parse(format!(
+            "compressed file: the basis has {} functions, the planes {kp}",
+            basis.len()
+        )));
+    }
+    if packed.sections.len() != header.sections() {
+        return Err(Error::parse("compressed file: wrong number of sections"));
+    }
+    let (w, h) = (header.width, header.height);
+    let n = w * h;
+    let (across, down) = header.tiles();
+    let tiles = across * down;
+    // Decode every tile first: memory grows with what the file really holds.
+    let decoded: Vec<Vec<u16>> = (0..header.planes.len() * tiles)
+        .into_par_iter()
+        .map(|s| {
+            let (p, t) = (s / tiles, s % tiles);
+            let q = &header.planes[p].quantizer;
+            let (_, _, tw, th) = header.tile_rect(t);
+            let mut codes = vec![0u16; tw * th];
+            planes::decode_tile(&packed.sections[s], tw, th, q.width(), q.levels, header.codec, &mut codes)?;
+            Ok(codes)
+        })
+        .collect::<Result<_>>()?;
+    let depth = if header.depth {
+        let base = header.planes.len() * tiles;
+        let parts: Vec<Vec<f32>> = (0..tiles)
+            .into_par_iter()
+            .map(|t| {
+                let (_, _, tw, th) = header.tile_rect(t);
+                decode_floats(&packed.sections[base + t], tw * th)
+            })
+            .collect::<Result<_>>()?;
+        let mut depth = vec![0.0f32; n];
+        for (t, part) in parts.iter().enumerate() {
+            let (x0, y0, tw, th) = header.tile_rect(t);
+            for y in 0..th {
+                depth[(y0 + y) * w + x0..(y0 + y) * w + x0 + tw].copy_from_slice(&part[y * tw..(y + 1) * tw]);
+            }
+        }
+        Some(depth)
+    } else {
+        None
+    };
+    // Dequantised stored planes.
+    let plane_values = |p: usize, out: &mut [f32]| {
+        let coding = header.planes[p].quantizer.coding;
+        for t in 0..tiles {
+            let (x0, y0, tw, th) = header.tile_rect(t);
+            let codes = &decoded[p * tiles + t];
+            for y in 0..th {
+                let row = &mut out[(y0 + y) * w + x0..(y0 + y) * w + x0 + tw];
+                for (o, &q) in row.iter_mut().zip(&codes[y * tw..(y + 1) * tw]) {
+                    *o = coding.decode(q as f32);
+                }
+            }
+        }
+    };
+    let mut maps = CoefficientMaps::zeros(w, h, kp);
+    let (functions, _) = header.layout.channels();
+    let index_of = |channel: &str, j: usize| {
+        header
+            .planes
+            .iter()
+            .position(|e| e.channel == channel && e.index == j)
+    };
+    match header.layout {
+        Layout::Rgb | Layout::Ycc => {
+            for j in 0..kp {
+                for (f, name) in functions.iter().enumerate() {
+                    if let Some(p) = index_of(name, j) {
+                        plane_values(p, maps.plane_mut(j, f));
+                    }
+                }
+            }
+            if header.layout == Layout::Ycc {
+                let (pixels, data) = (n, &mut maps.data);
+                data.par_chunks_mut(3 * pixels).for_each(|coefficient| {
+                    let (y, rest) = coefficient.split_at_mut(pixels);
+                    let (co, cg) = rest.split_at_mut(pixels);
+                    for p in 0..pixels {
+                        let [r, g, b] = layout::rgb_of_ycc([y[p], co[p], cg[p]]);
+                        (y[p], co[p], cg[p]) = (r, g, b);
+                    }
+                });
+            }
+        }
+        Layout::Lrgb => {
+            let mut albedo = vec![vec![0.0f32; n]; 3];
+            for (c, a) in albedo.iter_mut().enumerate() {
+                let p = index_of(["aR", "aG", "aB"][c], 0).expect("checked");
+                plane_values(p, a);
+            }
+            let mut l = vec![0.0f32; n];
+            for j in 0..kp {
+                plane_values(index_of("L", j).expect("checked"), &mut l);
+                for (c, a) in albedo.iter().enumerate() {
+                    maps.plane_mut(j, c)
+                        .iter_mut()
+                        .zip(&l)
+                        .zip(a)
+                        .for_each(|((o, &l), &a)| *o = l * a);
+                }
+            }
+        }
+    }
+    Ok(RelightableImage {
+        meta: header.metadata(),
+        maps,
+        depth,
+    })
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,191 @@
+use super::*;
+use crate::basis::BasisChoice;
+use crate::codec::packed;
+use crate::engine::{RelightOptions, Relighter};
+use crate::light::{Light, LightRig};
+
+/// A relightable image whose pixels are mixtures of a few SH functions (as a real
+/// capture's pixels crowd into few directions), with depth.
+fn image(basis: &str, w: usize, h: usize) -> RelightableImage {
+    let dirs = crate::sphere::hemisphere_fibonacci(48);
+    let b = BasisChoice::parse(basis).unwrap().build(&dirs, None).unwrap();
+    let k = b.len();
+    let mut maps = CoefficientMaps::zeros(w, h, k);
+    let atoms: Vec<Vec<f32>> = (0..4)
+        .map(|a| (0..k).map(|i| (((i + 3 * a) * 7919 % 23) as f32 / 23.0 - 0.3) / (1.0 + i as f32)).collect())
+        .collect();
+    for p in 0..w * h {
+        let (x, y) = ((p % w) as f32 / w as f32, (p / w) as f32 / h as f32);
+        let mix = [1.0, x, y * y, (x * 6.0).sin() * 0.3];
+        for c in 0..3 {
+            let tint = [1.0, 0.8 + 0.2 * x, 0.6][c];
+            for i in 0..k {
+                let v: f32 = (0..4).map(|a| mix[a] * atoms[a][i]).sum();
+                maps.plane_mut(i, c)[p] = tint * v;
+            }
+        }
+    }
+    let mut meta = Metadata::new(
+        b.spec(),
+        MapSpace::Linear,
+        Projection::Cylindrical { fov_y_deg: Some(60.0) },
+    );
+    meta.fit = None;
+    RelightableImage {
+        meta,
+        maps,
+        depth: Some((0..w * h).map(|p| 1.0 + p as f32 * 0.01).collect()),
+    }
+}
+
+/// Relit frames of both images under a few directional lights; the largest error
+/// relative to the frame's peak.
+fn relit_error(a: &RelightableImage, b: &RelightableImage) -> f32 {
+    let ra = Relighter::new(a).unwrap();
+    let rb = Relighter::new(b).unwrap();
+    let options = RelightOptions::default();
+    let mut worst = 0.0f32;
+    for d in crate::sphere::hemisphere_fibonacci(5) {
+        let rig = LightRig::new(vec![Light::directional(d, [1.0, 1.0, 1.0])]);
+        let fa = ra.relight(&rig, &options).unwrap();
+        let fb = rb.relight(&rig, &options).unwrap();
+        let peak = fa.data.iter().fold(0.0f32, |m, v| m.max(v.abs())).max(1e-6);
+        let err = fa.data.iter().zip(&fb.data).fold(0.0f32, |m, (x, y)| m.max((x - y).abs()));
+        worst = worst.max(err / peak);
+    }
+    worst
+}
+
+fn round_trip(img: &RelightableImage, settings: &Settings) -> (RelightableImage, usize) {
+    let packed = pack(img, settings).unwrap();
+    let bytes = packed::to_bytes(&packed).unwrap();
+    let again = packed::from_bytes(&bytes, "test").unwrap();
+    assert!(again == packed, "the file reads back what was written");
+    (unpack(&again).unwrap(), bytes.len())
+}
+
+#[test]
+fn all_components_at_16_bits_relight_like_the_maps() {
+    for basis in ["sh:16", "sg:9"] {
+        let img = image(basis, 40, 23);
+        let settings = Settings {
+            bits: 16,
+            tile: 16,
+            ..Settings::default()
+        };
+        let (back, _) = round_trip(&img, &settings);
+        assert_eq!(back.depth, img.depth, "depth is lossless");
+        assert_eq!(back.maps.k, img.maps.k);
+        let e = relit_error(&img, &back);
+        assert!(e < 1e-3, "{basis}: {e}");
+    }
+}
+
+#[test]
+fn four_components_hold_pixels_of_four_atoms() {
+    // Every pixel mixes four atoms per channel (tinted): rgb needs 4 components, and
+    // so does lrgb's luminance when the tint is one scale per channel.
+    for layout in Layout::ALL {
+        let img = image("sh:25", 33, 17);
+        let settings = Settings {
+            layout,
+            components: Some(4),
+            chroma: Some(4),
+            bits: 14,
+            tile: 32,
+            ..Settings::default()
+        };
+        let (back, bytes) = round_trip(&img, &settings);
+        assert_eq!(back.maps.k, 4);
+        let e = relit_error(&img, &back);
+        assert!(e < 2e-3, "{layout:?}: {e}");
+        assert!(bytes < img.maps.bytes() / 4, "{layout:?}: {bytes} bytes");
+    }
+}
+
+#[test]
+fn fewer_bits_and_jpeg_cost_accuracy_not_correctness() {
+    let img = image("sh:16", 64, 48);
+    let mut last = 0.0;
+    for bits in [12, 8, 5] {
+        let settings = Settings {
+            components: Some(6),
+            bits,
+            ..Settings::default()
+        };
+        let e = relit_error(&img, &round_trip(&img, &settings).0);
+        // About a step of the first plane's range per component (relative to the
+        // frame's peak, not the plane's range: a little more).
+        let bound = 6.0 / ((1u32 << bits) - 1) as f32;
+        assert!(e >= last * 0.9 && e < bound, "{bits} bits: {e} (bound {bound})");
+        last = e;
+    }
+    let jpeg = Settings {
+        layout: Layout::Ycc,
+        components: Some(6),
+        codec: TileCodec::Jpeg { quality: 95 },
+        ..Settings::default()
+    };
+    let e = relit_error(&img, &round_trip(&img, &jpeg).0);
+    assert!(e < 0.05, "jpeg: {e}");
+}
+
+#[test]
+fn a_compressed_image_compresses_again_without_nesting() {
+    let img = image("sh:16", 20, 20);
+    let first = unpack(&pack(&img, &Settings { components: Some(8), bits: 16, ..Settings::default() }).unwrap()).unwrap();
+    let second = unpack(&pack(&first, &Settings { components: Some(5), bits: 16, ..Settings::default() }).unwrap()).unwrap();
+    assert_eq!(second.maps.k, 5);
+    let basis = second.meta.basis.build().unwrap();
+    let p = basis.as_any().downcast_ref::<Projected>().unwrap();
+    assert_eq!(p.inner().name(), "sh:16");
+    assert!(relit_error(&img, &second) < 2e-3);
+}
+
+#[test]
+fn bad_settings_are_refused() {
+    let img = image("sh:9", 8, 8);
+    for s in [
+        Settings { bits: 1, ..Settings::default() },
+        Settings { bits: 17, ..Settings::default() },
+        Settings { tile: 8, ..Settings::default() },
+        Settings { components: Some(0), ..Settings::default() },
+        Settings { components: Some(10), ..Settings::default() },
+    ] {
+        assert!(pack(&img, &s).is_err(), "{s:?}");
+    }
+}
+
+#[test]
+fn damaged_files_are_refused_not_misread() {
+    let img = image("sh:9", 30, 20);
+    let packed = pack(&img, &Settings { tile: 16, ..Settings::default() }).unwrap();
+    let bytes = packed::to_bytes(&packed).unwrap();
+    // Every truncation, and a flipped bit anywhere, is an error.
+    for len in [0, 7, 8, 15, 20, bytes.len() / 2, bytes.len() - 1] {
+        assert!(packed::from_bytes(&bytes[..len], "t").is_err(), "truncated to {len}");
+    }
+    for at in (0..bytes.len()).step_by(bytes.len() / 97 + 1) {
+        let mut b = bytes.clone();
+        b[at] ^= 0x10;
+        assert!(packed::from_bytes(&b, "t").is_err(), "flip at {at}");
+    }
+    let mut longer = bytes.clone();
+    longer.push(0);
+    assert!(packed::from_bytes(&longer, "t").is_err());
+}
+
+#[test]
+fn a_header_that_claims_a_huge_image_is_refused_before_allocating() {
+    let img = image("sh:4", 16, 16);
+    let mut packed = pack(&img, &Settings { tile: 16, ..Settings::default() }).unwrap();
+    packed.header.width = 1 << 16;
+    packed.header.height = 1 << 16;
+    let bytes = packed::to_bytes(&packed).unwrap();
+    let err = packed::from_bytes(&bytes, "t").unwrap_err().to_string();
+    assert!(err.contains("sections"), "{err}");
+    // Sections consistent with the size but a header beyond the limits.
+    packed.header.width = (1 << 16) + 1;
+    packed.sections = vec![Vec::new(); packed.header.sections()];
+    assert!(unpack(&packed).is_err());
+}
