@@ -1,7 +1,9 @@
 //! `relit eval`: fidelity against held-out captured lights, or (`--scene`) against the
 //! studio's ray-traced truth under every light type.
 
-use crate::shared::{mib, refuse_overwriting_inputs, rig_inputs, scene_inputs, Bars, FitArgs};
+use crate::shared::{
+    mib, refuse_overwriting_inputs, rig_inputs, scene_inputs, Bars, CompressArgs, FitArgs,
+};
 use relit::capture::Capture;
 use relit::eval::{evaluate_with, EvalOptions, Holdout};
 use relit::storage::Precision;
@@ -52,6 +54,12 @@ pub struct Args {
     /// float).
     #[arg(long, default_value = "f16")]
     pub storage: Precision,
+    /// Store each fit as a compressed .rlz (settings below) instead of EXR: the file is
+    /// written, read back and relit, and bits/pixel is its size on disk.
+    #[arg(long)]
+    pub compressed: bool,
+    #[command(flatten)]
+    pub compress: CompressArgs,
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
@@ -93,6 +101,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .require(&[Precision::F32, Precision::F16], "--storage (OpenEXR)")?,
         joint: args.joint,
         mask,
+        compress: args.compressed.then(|| args.compress.settings()),
     };
     let bars = Bars::new(args.quiet || args.json);
     let staged = args.save.as_deref().map(StagedFolder::new).transpose()?;

@@ -27,9 +27,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let functions = header.layout.channels().0;
             let counts: Vec<String> = functions
                 .iter()
-                .map(|f| header.planes.iter().filter(|p| p.channel == *f).count().to_string())
+                .map(|f| {
+                    header
+                        .planes
+                        .iter()
+                        .filter(|p| p.channel == *f)
+                        .count()
+                        .to_string()
+                })
                 .collect();
-            let levels = header.planes.iter().map(|p| p.quantizer.levels).max().unwrap_or(0);
+            let levels = header
+                .planes
+                .iter()
+                .map(|p| p.quantizer.levels)
+                .max()
+                .unwrap_or(0);
             format!(
                 "compressed: {} layout, {} components, {} planes of ≤ {levels} levels, {} tiles of {}²",
                 header.layout.name(),

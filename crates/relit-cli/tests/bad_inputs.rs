@@ -113,6 +113,17 @@ fn huge_window(d: &Path) {
     write(d, "huge.exr", bytes);
 }
 
+/// A valid compressed file of the fixture's maps.
+fn rlz_bytes(d: &Path) -> Vec<u8> {
+    let image = relit::codec::read(&d.join("scene.exr")).unwrap();
+    let settings = relit::compress::Settings {
+        components: Some(3),
+        tile: 16,
+        ..Default::default()
+    };
+    relit::codec::packed::to_bytes(&relit::compress::pack(&image, &settings).unwrap()).unwrap()
+}
+
 const CASES: &[Case] = &[
     // ---- .lp captures (fit) ----
     Case {
@@ -350,6 +361,56 @@ const CASES: &[Case] = &[
         setup: |d| write(d, "bad.exr", "not an exr"),
         args: &["export-web", "bad.exr", "site"],
         needles: &["bad.exr"],
+    },
+    // ---- compressed files (.rlz) ----
+    Case {
+        name: "compressed file truncated",
+        setup: |d| {
+            let b = rlz_bytes(d);
+            write(d, "bad.rlz", &b[..b.len() * 2 / 3])
+        },
+        args: &["info", "bad.rlz"],
+        needles: &["bad.rlz", "truncated"],
+    },
+    Case {
+        name: "compressed file with one bit flipped in a tile",
+        setup: |d| {
+            let mut b = rlz_bytes(d);
+            let at = b.len() - 10;
+            b[at] ^= 0x04;
+            write(d, "bad.rlz", &b)
+        },
+        args: &[
+            "relight",
+            "bad.rlz",
+            "--light",
+            "dir:0,0,1",
+            "-o",
+            "out.png",
+        ],
+        needles: &["bad.rlz", "checksum"],
+    },
+    Case {
+        name: "compressed header claiming 65536×65536 pixels",
+        setup: |d| {
+            let image = relit::codec::read(&d.join("scene.exr")).unwrap();
+            let mut packed = relit::compress::pack(&image, &Default::default()).unwrap();
+            packed.header.width = 1 << 16;
+            packed.header.height = 1 << 16;
+            write(
+                d,
+                "bad.rlz",
+                relit::codec::packed::to_bytes(&packed).unwrap(),
+            )
+        },
+        args: &["convert", "bad.rlz", "-o", "out.exr"],
+        needles: &["bad.rlz", "sections"],
+    },
+    Case {
+        name: "convert onto its own input",
+        setup: |_| {},
+        args: &["convert", "scene.exr", "-o", "scene.exr"],
+        needles: &["scene.exr"],
     },
     Case {
         name: "output equal to input",

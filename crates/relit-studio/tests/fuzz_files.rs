@@ -1,4 +1,5 @@
-//! Fuzzing of the readers that take a file: fitted EXR maps, environment maps (Radiance
+//! Fuzzing of the readers that take a file: fitted EXR maps, the compressed `.rlz` file
+//! (whole, and its header and tiles behind the checksums), environment maps (Radiance
 //! HDR), OBJ models and capture manifests. Same harness as `fuzz.rs` (a deterministic
 //! mutation fuzzer on stable), each mutant written to a file in a temporary folder and
 //! read back; a reader may return any error but must not panic. The writes make these
@@ -131,6 +132,59 @@ fn no_file_reader_panics_on_mutated_files() {
     let mut crashes = Vec::new();
     crashes.extend(fuzz(d, "maps.exr", &exr, |p| {
         let _ = relit::codec::exr::read(p);
+    }));
+    // The compressed file: whole files (checksums stop most mutants early), and behind
+    // the checksums its header JSON and a zstd tile, decoded as the reader would.
+    let zstd_settings = relit::compress::Settings {
+        components: Some(3),
+        tile: 16,
+        ..Default::default()
+    };
+    let jpeg_settings = relit::compress::Settings {
+        layout: relit::compress::Layout::Ycc,
+        codec: relit::compress::TileCodec::Jpeg { quality: 80 },
+        ..zstd_settings.clone()
+    };
+    let packed = relit::compress::pack(&fitted.image, &zstd_settings).unwrap();
+    let rlz = relit::codec::packed::to_bytes(&packed).unwrap();
+    let rlz_jpeg = relit::codec::packed::to_bytes(
+        &relit::compress::pack(&fitted.image, &jpeg_settings).unwrap(),
+    )
+    .unwrap();
+    crashes.extend(fuzz(d, "maps.rlz", &rlz, |p| {
+        let _ = relit::codec::read(p);
+    }));
+    crashes.extend(fuzz(d, "maps-jpeg.rlz", &rlz_jpeg, |p| {
+        let _ = relit::codec::read(p);
+    }));
+    std::fs::write(d.join("sections.bin"), packed.sections.concat()).unwrap();
+    let header_json = serde_json::to_vec(&packed.header).unwrap();
+    crashes.extend(fuzz(d, "header.json", &header_json, |p| {
+        let Ok(header) =
+            serde_json::from_slice::<relit::compress::Header>(&std::fs::read(p).unwrap())
+        else {
+            return;
+        };
+        // The seed's sections, reused whatever the mutated header says they are.
+        let all = std::fs::read(p.with_file_name("sections.bin")).unwrap();
+        let count = header.sections().min(4096);
+        let size = all.len() / count.max(1);
+        let sections = (0..count)
+            .map(|i| all[i * size..(i + 1) * size].to_vec())
+            .collect();
+        let _ = relit::compress::unpack(&relit::compress::Packed { header, sections });
+    }));
+    let q = &packed.header.planes[0].quantizer;
+    assert_eq!(
+        (q.width(), packed.header.tile),
+        (2, 16),
+        "the tile seed's shape"
+    );
+    crashes.extend(fuzz(d, "tile.zst", &packed.sections[0], |p| {
+        let bytes = std::fs::read(p).unwrap();
+        let mut codes = vec![0u16; 12 * 8];
+        let codec = relit::compress::TileCodec::Zstd { level: 3 };
+        let _ = relit::compress::planes::decode_tile(&bytes, 12, 8, 2, 1 << 16, codec, &mut codes);
     }));
     crashes.extend(fuzz(d, "sky.hdr", &hdr, |p| {
         let _ = relit::envmap::EnvironmentLight::load(p);

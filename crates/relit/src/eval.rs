@@ -119,6 +119,9 @@ pub struct EvalOptions {
     pub joint: bool,
     /// Mask (> 0.5 inside) for the linear PSNR; overrides the capture's own mask.
     pub mask: Option<Vec<f32>>,
+    /// Store each fit as a compressed `.rlz` file with these settings instead of EXR:
+    /// the file is written, read back and relit, and its size on disk is the figure.
+    pub compress: Option<crate::compress::Settings>,
 }
 
 /// The result for one held-out image.
@@ -202,6 +205,7 @@ pub fn evaluate_with(
     let mut bases: Vec<String> = Vec::new();
     let mut coefficients = 0;
     let mut candidates = Vec::new();
+    let mut file_bytes: Vec<f64> = Vec::new();
     for group in &groups {
         let train: Vec<usize> = (0..n).filter(|i| !group.contains(i)).collect();
         let mut fitted = fit::fit(&capture.subset(&train), &options.fit, progress)?;
@@ -216,13 +220,23 @@ pub fn evaluate_with(
         if !chosen.contains(&fitted.report.objective.name()) {
             chosen.push(fitted.report.objective.name());
         }
-        if bytes_per_pixel.is_nan() {
-            bytes_per_pixel = stored_bytes(&fitted.image, options.storage)? as f64
-                / (capture.width * capture.height) as f64;
-        }
-        let n = fitted.image.maps.pixels().max(1);
-        for plane in fitted.image.maps.data.chunks_mut(n) {
-            options.storage.round_trip(plane);
+        if let Some(settings) = &options.compress {
+            let settings = crate::compress::Settings {
+                directions: Some(capture.subset(&train).directions()),
+                ..settings.clone()
+            };
+            let (image, bytes) = compressed_round_trip(&fitted.image, &settings)?;
+            fitted.image = image;
+            file_bytes.push(bytes as f64);
+        } else {
+            if bytes_per_pixel.is_nan() {
+                bytes_per_pixel = stored_bytes(&fitted.image, options.storage)? as f64
+                    / (capture.width * capture.height) as f64;
+            }
+            let n = fitted.image.maps.pixels().max(1);
+            for plane in fitted.image.maps.data.chunks_mut(n) {
+                options.storage.round_trip(plane);
+            }
         }
         for &index in group {
             let light = &capture.lights[index];
@@ -247,6 +261,11 @@ pub fn evaluate_with(
             results.push(result);
         }
     }
+    if !file_bytes.is_empty() {
+        bytes_per_pixel = file_bytes.iter().sum::<f64>()
+            / file_bytes.len() as f64
+            / (capture.width * capture.height) as f64;
+    }
     let mean = |f: &dyn Fn(&HoldoutResult) -> f64| {
         results.iter().map(f).sum::<f64>() / results.len() as f64
     };
@@ -265,7 +284,10 @@ pub fn evaluate_with(
             _ => chosen.join(", "),
         },
         color_space: options.fit.color_space.name().into(),
-        storage: options.storage.name().into(),
+        storage: match &options.compress {
+            Some(settings) => format!("rlz {}", settings.describe()),
+            None => options.storage.name().into(),
+        },
         protocol: if options.joint {
             "joint".into()
         } else {
@@ -290,6 +312,22 @@ fn stored_bytes(image: &crate::maps::RelightableImage, storage: Precision) -> Re
     Ok(std::fs::metadata(&path)
         .map_err(|e| Error::io(&path, "measure", e))?
         .len())
+}
+
+/// Write `image` compressed to a temporary `.rlz`, read it back: the image a reader
+/// of that file relights, and the file's size on disk.
+fn compressed_round_trip(
+    image: &crate::maps::RelightableImage,
+    settings: &crate::compress::Settings,
+) -> Result<(crate::maps::RelightableImage, u64)> {
+    let dir = tempfile::tempdir()
+        .map_err(|e| Error::io(std::path::Path::new("."), "create a temporary folder in", e))?;
+    let path = dir.path().join("maps.rlz");
+    crate::codec::packed::write(&path, image, settings)?;
+    let bytes = std::fs::metadata(&path)
+        .map_err(|e| Error::io(&path, "measure", e))?
+        .len();
+    Ok((crate::codec::read(&path)?, bytes))
 }
 
 /// The protocol's two figures of `test` against `reference`: (8-bit sRGB PSNR over the

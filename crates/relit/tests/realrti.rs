@@ -40,6 +40,7 @@ fn item1_beats_the_best_peer_figure() {
         storage: relit::storage::Precision::F16,
         joint: false,
         mask: None,
+        compress: None,
     };
     let report = evaluate(&capture, &options, &relit::progress::Silent).unwrap();
     let indices: Vec<usize> = report.holdouts.iter().map(|h| h.index).collect();
@@ -76,6 +77,7 @@ fn the_default_fit_never_loses_to_a_linear_fit_on_a_real_capture() {
             storage: relit::storage::Precision::F16,
             joint: true,
             mask: None,
+            compress: None,
         };
         evaluate(&capture, &options, &relit::progress::Silent).unwrap()
     };

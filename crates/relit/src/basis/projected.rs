@@ -44,8 +44,13 @@ impl Family for ProjectedFamily {
         params: &serde_json::Map<String, serde_json::Value>,
     ) -> Result<Box<dyn Basis>> {
         let bad = |why: &str| Error::parse(format!("a `projected` basis {why}"));
-        if let Some(key) = params.keys().find(|k| !["basis", "matrix"].contains(&k.as_str())) {
-            return Err(bad(&format!("has only `basis` and `matrix`, found `{key}`")));
+        if let Some(key) = params
+            .keys()
+            .find(|k| !["basis", "matrix"].contains(&k.as_str()))
+        {
+            return Err(bad(&format!(
+                "has only `basis` and `matrix`, found `{key}`"
+            )));
         }
         let inner: BasisSpec = params
             .get("basis")
@@ -75,7 +80,8 @@ impl Projected {
     /// `b′_j = Σ_i matrix[j·K + i] b_i` for the `K` functions of `inner`.
     pub fn new(inner: Box<dyn Basis>, matrix: Vec<f64>) -> Result<Self> {
         let k = inner.len();
-        if k == 0 || k > MAX_PROJECTED_INNER || matrix.is_empty() || matrix.len() % k != 0 {
+        if k == 0 || k > MAX_PROJECTED_INNER || matrix.is_empty() || !matrix.len().is_multiple_of(k)
+        {
             return Err(Error::parse(format!(
                 "a projected basis needs K′ × {k} matrix values (K ≤ {MAX_PROJECTED_INNER}), got {}",
                 matrix.len()
@@ -156,9 +162,7 @@ impl Basis for Projected {
         let mut out = vec![0.0; kp * kp];
         for a in 0..kp {
             for b in 0..kp {
-                out[a * kp + b] = (0..k)
-                    .map(|i| pr[a * k + i] * self.matrix[b * k + i])
-                    .sum();
+                out[a * kp + b] = (0..k).map(|i| pr[a * k + i] * self.matrix[b * k + i]).sum();
             }
         }
         out
@@ -190,7 +194,10 @@ mod tests {
     use crate::basis::BasisChoice;
 
     fn projected_sh() -> Projected {
-        let inner = BasisChoice::parse("sh:9").unwrap().build(&[], None).unwrap();
+        let inner = BasisChoice::parse("sh:9")
+            .unwrap()
+            .build(&[], None)
+            .unwrap();
         // Two combinations: the constant, and l1 y plus half of l2.
         let mut m = vec![0.0; 2 * 9];
         m[0] = 1.0;

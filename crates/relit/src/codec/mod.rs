@@ -52,7 +52,10 @@ pub fn read(path: &Path) -> Result<RelightableImage> {
 
 /// Read a relightable file of either form into compact planes (see
 /// [`exr::read_compact`]): the returned image's `maps.data` is empty.
-pub fn read_compact(path: &Path, precision: Precision) -> Result<(RelightableImage, CompactPlanes)> {
+pub fn read_compact(
+    path: &Path,
+    precision: Precision,
+) -> Result<(RelightableImage, CompactPlanes)> {
     match FileForm::of(path)? {
         FileForm::Exr => exr::read_compact(path, precision),
         FileForm::Compressed => {

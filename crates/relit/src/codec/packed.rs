@@ -75,7 +75,12 @@ pub fn from_bytes(bytes: &[u8], name: &str) -> Result<Packed> {
         let end = at
             .checked_add(len)
             .filter(|&e| e <= bytes.len())
-            .ok_or_else(|| bad(format!("truncated in the {what} (file of {} bytes)", bytes.len())))?;
+            .ok_or_else(|| {
+                bad(format!(
+                    "truncated in the {what} (file of {} bytes)",
+                    bytes.len()
+                ))
+            })?;
         let out = &bytes[at..end];
         at = end;
         Ok(out)
@@ -100,8 +105,7 @@ pub fn from_bytes(bytes: &[u8], name: &str) -> Result<Packed> {
     zstd::stream::read::Decoder::new(header_bytes)
         .and_then(|d| d.take(MAX_HEADER_JSON).read_to_end(&mut json))
         .map_err(|e| bad(format!("the header does not decompress: {e}")))?;
-    let header: Header = serde_json::from_slice(&json)
-        .map_err(|e| bad(format!("header: {e}")))?;
+    let header: Header = serde_json::from_slice(&json).map_err(|e| bad(format!("header: {e}")))?;
     let sections = u32_at(take(4, "section count")?) as usize;
     if sections != header.sections() {
         return Err(bad(format!(
@@ -124,10 +128,16 @@ pub fn from_bytes(bytes: &[u8], name: &str) -> Result<Packed> {
         let offset = u64::from_le_bytes(entry[0..8].try_into().expect("8 bytes"));
         let len = u64::from_le_bytes(entry[8..16].try_into().expect("8 bytes"));
         let crc = u32_at(&entry[16..20]);
-        let end = offset.checked_add(len).filter(|&e| e <= bytes.len() as u64);
-        if offset != expected || end.is_none() {
+        if offset != expected {
+            return Err(bad(format!("section {s} is out of order")));
+        }
+        if offset
+            .checked_add(len)
+            .is_none_or(|e| e > bytes.len() as u64)
+        {
             return Err(bad(format!(
-                "section {s} lies outside the file or out of order"
+                "truncated: section {s} ends past the file's {} bytes",
+                bytes.len()
             )));
         }
         let section = &bytes[offset as usize..(offset + len) as usize];
@@ -151,8 +161,12 @@ pub fn from_bytes(bytes: &[u8], name: &str) -> Result<Packed> {
 
 /// Whether the file at `path` starts with [`MAGIC`].
 pub fn is_packed(path: &Path) -> Result<bool> {
-    let mut f = std::fs::File::open(path)
-        .map_err(|e| Error::new(ErrorKind::Io, format!("cannot open {}: {e}", path.display())))?;
+    let mut f = std::fs::File::open(path).map_err(|e| {
+        Error::new(
+            ErrorKind::Io,
+            format!("cannot open {}: {e}", path.display()),
+        )
+    })?;
     let mut head = [0u8; 8];
     let mut got = 0;
     while got < 8 {
@@ -172,8 +186,12 @@ pub fn is_packed(path: &Path) -> Result<bool> {
 
 /// Read a compressed file into its packed form.
 pub fn read_packed(path: &Path) -> Result<Packed> {
-    let bytes = std::fs::read(path)
-        .map_err(|e| Error::new(ErrorKind::Io, format!("cannot read {}: {e}", path.display())))?;
+    let bytes = std::fs::read(path).map_err(|e| {
+        Error::new(
+            ErrorKind::Io,
+            format!("cannot read {}: {e}", path.display()),
+        )
+    })?;
     from_bytes(&bytes, &path.display().to_string())
 }
 
@@ -187,13 +205,21 @@ pub fn read(path: &Path) -> Result<RelightableImage> {
 pub fn write_packed(path: &Path, packed: &Packed) -> Result<()> {
     let bytes = to_bytes(packed)?;
     write_atomically(path, |out| {
-        out.write_all(&bytes)
-            .map_err(|e| Error::new(ErrorKind::Io, format!("cannot write {}: {e}", path.display())))
+        out.write_all(&bytes).map_err(|e| {
+            Error::new(
+                ErrorKind::Io,
+                format!("cannot write {}: {e}", path.display()),
+            )
+        })
     })
 }
 
 /// Compress `image` with `settings` and write it; returns the packed form.
-pub fn write(path: &Path, image: &RelightableImage, settings: &compress::Settings) -> Result<Packed> {
+pub fn write(
+    path: &Path,
+    image: &RelightableImage,
+    settings: &compress::Settings,
+) -> Result<Packed> {
     let packed = compress::pack(image, settings)?;
     write_packed(path, &packed)?;
     Ok(packed)

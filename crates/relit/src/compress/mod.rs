@@ -83,7 +83,11 @@ impl Settings {
             TileCodec::Jpeg { .. } => String::new(),
             _ => format!(" b{}", self.bits),
         };
-        format!("{} k{k}{chroma}{bits} {}", self.layout.name(), self.codec.name())
+        format!(
+            "{} k{k}{chroma}{bits} {}",
+            self.layout.name(),
+            self.codec.name()
+        )
     }
 }
 
@@ -119,7 +123,10 @@ pub struct Header {
 impl Header {
     /// Tiles across and down.
     pub fn tiles(&self) -> (usize, usize) {
-        (self.width.div_ceil(self.tile), self.height.div_ceil(self.tile))
+        (
+            self.width.div_ceil(self.tile),
+            self.height.div_ceil(self.tile),
+        )
     }
 
     /// The pixel rectangle `(x0, y0, w, h)` of tile `t` (raster order).
@@ -166,7 +173,8 @@ impl Header {
             if q.levels == 0 || q.levels > self.codec.max_levels() {
                 return Err(bad(format!("plane with {} levels", q.levels)));
             }
-            if !(q.coding.scale.is_finite() && q.coding.offset.is_finite() && q.coding.scale >= 0.0) {
+            if !(q.coding.scale.is_finite() && q.coding.offset.is_finite() && q.coding.scale >= 0.0)
+            {
                 return Err(bad("plane with a non-finite coding".into()));
             }
         }
@@ -234,7 +242,10 @@ fn inner_and_map(spec: &BasisSpec) -> Result<(Box<dyn Basis>, Vec<f64>)> {
 /// Compress `image` with `settings`.
 pub fn pack(image: &RelightableImage, settings: &Settings) -> Result<Packed> {
     if !(2..=16).contains(&settings.bits) {
-        return Err(Error::invalid(format!("bits must be 2–16, not {}", settings.bits)));
+        return Err(Error::invalid(format!(
+            "bits must be 2–16, not {}",
+            settings.bits
+        )));
     }
     if !TILE_SIDES.contains(&settings.tile) {
         return Err(Error::invalid(format!(
@@ -267,7 +278,11 @@ pub fn pack(image: &RelightableImage, settings: &Settings) -> Result<Packed> {
     // Layout: the function channels' coefficient planes (plane i·F + f), per-pixel
     // planes (albedo) apart.
     let rgb_at = |i: usize, p: usize| -> [f32; 3] {
-        [maps.plane(i, 0)[p], maps.plane(i, 1)[p], maps.plane(i, 2)[p]]
+        [
+            maps.plane(i, 0)[p],
+            maps.plane(i, 1)[p],
+            maps.plane(i, 2)[p],
+        ]
     };
     let gram = projection::gram(basis.as_ref(), settings.directions.as_deref());
     let fcount = functions.len();
@@ -285,13 +300,18 @@ pub fn pack(image: &RelightableImage, settings: &Settings) -> Result<Packed> {
     let vectors: Vec<f64> = sampled
         .par_iter()
         .flat_map_iter(|&p| {
-            (0..pca_channels)
-                .flat_map(move |f| (0..k).map(move |i| function_value(i, f, p) as f64))
+            (0..pca_channels).flat_map(move |f| (0..k).map(move |i| function_value(i, f, p) as f64))
         })
         .collect();
     let principal = projection::principal(&gram, &vectors, k, components)?;
     let counts: Vec<usize> = (0..fcount)
-        .map(|f| if layout == Layout::Ycc && f > 0 { chroma } else { components })
+        .map(|f| {
+            if layout == Layout::Ycc && f > 0 {
+                chroma
+            } else {
+                components
+            }
+        })
         .collect();
 
     // Project every pixel: plane (f, j) of components.
@@ -312,24 +332,32 @@ pub fn pack(image: &RelightableImage, settings: &Settings) -> Result<Packed> {
         let mut chunks: Vec<Vec<&mut [f32]>> = Vec::new();
         let mut iters: Vec<_> = projected.iter_mut().map(|p| p.chunks_mut(CHUNK)).collect();
         for _ in 0..n.div_ceil(CHUNK) {
-            chunks.push(iters.iter_mut().map(|it| it.next().expect("same length")).collect());
+            chunks.push(
+                iters
+                    .iter_mut()
+                    .map(|it| it.next().expect("same length"))
+                    .collect(),
+            );
         }
-        chunks.into_par_iter().enumerate().for_each(|(chunk, mut outs)| {
-            let mut c = vec![0.0f32; k];
-            let mut y = vec![0.0f32; components];
-            for local in 0..outs[0].len() {
-                let p = chunk * CHUNK + local;
-                for (f, &count) in counts.iter().enumerate() {
-                    for (i, ci) in c.iter_mut().enumerate() {
-                        *ci = function_value(i, f, p);
-                    }
-                    principal.apply(&c, &mut y[..count]);
-                    for j in 0..count {
-                        outs[starts[f] + j][local] = y[j];
+        chunks
+            .into_par_iter()
+            .enumerate()
+            .for_each(|(chunk, mut outs)| {
+                let mut c = vec![0.0f32; k];
+                let mut y = vec![0.0f32; components];
+                for local in 0..outs[0].len() {
+                    let p = chunk * CHUNK + local;
+                    for (f, &count) in counts.iter().enumerate() {
+                        for (i, ci) in c.iter_mut().enumerate() {
+                            *ci = function_value(i, f, p);
+                        }
+                        principal.apply(&c, &mut y[..count]);
+                        for j in 0..count {
+                            outs[starts[f] + j][local] = y[j];
+                        }
                     }
                 }
-            }
-        });
+            });
     }
     // Per-pixel albedo of lrgb: the least-squares scale of each channel's function onto
     // the luminance function, in the relit image's metric.
@@ -481,7 +509,12 @@ fn plane_quantizer(plane: &[f32], codec: TileCodec, step: f32, max_levels: u32) 
 /// The `q` and `1 − q` quantiles of the finite values (by a sorted subsample).
 fn percentiles(plane: &[f32], q: f64) -> (f32, f32) {
     let step = (plane.len() / 200_000).max(1);
-    let mut v: Vec<f32> = plane.iter().step_by(step).copied().filter(|v| v.is_finite()).collect();
+    let mut v: Vec<f32> = plane
+        .iter()
+        .step_by(step)
+        .copied()
+        .filter(|v| v.is_finite())
+        .collect();
     if v.is_empty() {
         return (0.0, 0.0);
     }
@@ -499,7 +532,8 @@ fn encode_floats(values: &[f32]) -> Result<Vec<u8>> {
             shuffled[b * n + i] = byte;
         }
     }
-    zstd::bulk::compress(&shuffled, 9).map_err(|e| Error::new(crate::ErrorKind::Io, format!("zstd: {e}")))
+    zstd::bulk::compress(&shuffled, 9)
+        .map_err(|e| Error::new(crate::ErrorKind::Io, format!("zstd: {e}")))
 }
 
 fn decode_floats(bytes: &[u8], n: usize) -> Result<Vec<f32>> {
@@ -542,7 +576,15 @@ pub fn unpack(packed: &Packed) -> Result<RelightableImage> {
             let q = &header.planes[p].quantizer;
             let (_, _, tw, th) = header.tile_rect(t);
             let mut codes = vec![0u16; tw * th];
-            planes::decode_tile(&packed.sections[s], tw, th, q.width(), q.levels, header.codec, &mut codes)?;
+            planes::decode_tile(
+                &packed.sections[s],
+                tw,
+                th,
+                q.width(),
+                q.levels,
+                header.codec,
+                &mut codes,
+            )?;
             Ok(codes)
         })
         .collect::<Result<_>>()?;
@@ -559,7 +601,8 @@ pub fn unpack(packed: &Packed) -> Result<RelightableImage> {
         for (t, part) in parts.iter().enumerate() {
             let (x0, y0, tw, th) = header.tile_rect(t);
             for y in 0..th {
-                depth[(y0 + y) * w + x0..(y0 + y) * w + x0 + tw].copy_from_slice(&part[y * tw..(y + 1) * tw]);
+                depth[(y0 + y) * w + x0..(y0 + y) * w + x0 + tw]
+                    .copy_from_slice(&part[y * tw..(y + 1) * tw]);
             }
         }
         Some(depth)

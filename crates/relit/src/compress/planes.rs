@@ -154,7 +154,13 @@ fn predictions(codes: &[u16], w: usize, i: usize) -> i32 {
 }
 
 /// Encode a `w × h` tile of codes (`width` bytes each) with `codec`.
-pub fn encode_tile(codes: &[u16], w: usize, h: usize, width: usize, codec: TileCodec) -> Result<Vec<u8>> {
+pub fn encode_tile(
+    codes: &[u16],
+    w: usize,
+    h: usize,
+    width: usize,
+    codec: TileCodec,
+) -> Result<Vec<u8>> {
     debug_assert_eq!(codes.len(), w * h);
     match codec {
         TileCodec::Zstd { level } => {
@@ -273,13 +279,32 @@ mod tests {
                 levels,
             };
             let codes = ramp(37, 19, levels);
-            let bytes = encode_tile(&codes, 37, 19, q.width(), TileCodec::Zstd { level: 3 }).unwrap();
+            let bytes =
+                encode_tile(&codes, 37, 19, q.width(), TileCodec::Zstd { level: 3 }).unwrap();
             let mut back = vec![0u16; codes.len()];
-            decode_tile(&bytes, 37, 19, q.width(), levels, TileCodec::Zstd { level: 3 }, &mut back).unwrap();
+            decode_tile(
+                &bytes,
+                37,
+                19,
+                q.width(),
+                levels,
+                TileCodec::Zstd { level: 3 },
+                &mut back,
+            )
+            .unwrap();
             assert_eq!(back, codes, "{levels} levels");
             // The wrong size or too few levels are refused.
             let mut small = vec![0u16; 36 * 19];
-            assert!(decode_tile(&bytes, 36, 19, q.width(), levels, TileCodec::Zstd { level: 3 }, &mut small).is_err());
+            assert!(decode_tile(
+                &bytes,
+                36,
+                19,
+                q.width(),
+                levels,
+                TileCodec::Zstd { level: 3 },
+                &mut small
+            )
+            .is_err());
         }
     }
 
@@ -290,7 +315,11 @@ mod tests {
         let bytes = encode_tile(&codes, 64, 40, 1, codec).unwrap();
         let mut back = vec![0u16; codes.len()];
         decode_tile(&bytes, 64, 40, 1, 256, codec, &mut back).unwrap();
-        let rms = (codes.iter().zip(&back).map(|(&a, &b)| (a as f64 - b as f64).powi(2)).sum::<f64>()
+        let rms = (codes
+            .iter()
+            .zip(&back)
+            .map(|(&a, &b)| (a as f64 - b as f64).powi(2))
+            .sum::<f64>()
             / codes.len() as f64)
             .sqrt();
         assert!(rms < 6.0, "rms {rms}");
@@ -315,11 +344,20 @@ mod tests {
 
     #[test]
     fn codec_names_parse() {
-        assert_eq!(TileCodec::parse("zstd").unwrap(), TileCodec::Zstd { level: 12 });
-        assert_eq!(TileCodec::parse("jpeg:80").unwrap(), TileCodec::Jpeg { quality: 80 });
+        assert_eq!(
+            TileCodec::parse("zstd").unwrap(),
+            TileCodec::Zstd { level: 12 }
+        );
+        assert_eq!(
+            TileCodec::parse("jpeg:80").unwrap(),
+            TileCodec::Jpeg { quality: 80 }
+        );
         assert!(TileCodec::parse("jpeg:0").is_err());
         assert!(TileCodec::parse("png").is_err());
-        for c in [TileCodec::Zstd { level: 5 }, TileCodec::Jpeg { quality: 70 }] {
+        for c in [
+            TileCodec::Zstd { level: 5 },
+            TileCodec::Jpeg { quality: 70 },
+        ] {
             assert_eq!(TileCodec::parse(&c.name()).unwrap(), c);
         }
     }

@@ -124,10 +124,15 @@ mod tests {
     #[test]
     fn all_components_reproduce_every_relit_value() {
         // A non-orthogonal basis (SG lobes overlap): the metric matters.
-        let basis = BasisChoice::parse("sg:9").unwrap().build(&[], None).unwrap();
+        let basis = BasisChoice::parse("sg:9")
+            .unwrap()
+            .build(&[], None)
+            .unwrap();
         let k = basis.len();
         let g = gram(basis.as_ref(), None);
-        let vectors: Vec<f64> = (0..40 * k).map(|i| ((i * 7919) % 101) as f64 / 50.0 - 1.0).collect();
+        let vectors: Vec<f64> = (0..40 * k)
+            .map(|i| ((i * 7919) % 101) as f64 / 50.0 - 1.0)
+            .collect();
         let p = principal(&g, &vectors, k, k).unwrap();
         for c in vectors.chunks_exact(k).take(5) {
             let c32: Vec<f32> = c.iter().map(|&v| v as f32).collect();
@@ -142,14 +147,20 @@ mod tests {
                         pw * y[j] as f64
                     })
                     .sum();
-                assert!((truth - mapped).abs() < 1e-4 * (1.0 + truth.abs()), "{truth} vs {mapped}");
+                assert!(
+                    (truth - mapped).abs() < 1e-4 * (1.0 + truth.abs()),
+                    "{truth} vs {mapped}"
+                );
             }
         }
     }
 
     #[test]
     fn vectors_in_a_plane_need_two_components() {
-        let basis = BasisChoice::parse("sh:9").unwrap().build(&[], None).unwrap();
+        let basis = BasisChoice::parse("sh:9")
+            .unwrap()
+            .build(&[], None)
+            .unwrap();
         let k = basis.len();
         let g = gram(basis.as_ref(), None);
         let (a, b): (Vec<f64>, Vec<f64>) = (0..k)

@@ -1,3 +1,6 @@
+// Index loops over coefficients read more plainly than iterator chains here.
+#![allow(clippy::needless_range_loop)]
+
 use super::*;
 use crate::basis::BasisChoice;
 use crate::codec::packed;
@@ -8,11 +11,18 @@ use crate::light::{Light, LightRig};
 /// capture's pixels crowd into few directions), with depth.
 fn image(basis: &str, w: usize, h: usize) -> RelightableImage {
     let dirs = crate::sphere::hemisphere_fibonacci(48);
-    let b = BasisChoice::parse(basis).unwrap().build(&dirs, None).unwrap();
+    let b = BasisChoice::parse(basis)
+        .unwrap()
+        .build(&dirs, None)
+        .unwrap();
     let k = b.len();
     let mut maps = CoefficientMaps::zeros(w, h, k);
     let atoms: Vec<Vec<f32>> = (0..4)
-        .map(|a| (0..k).map(|i| (((i + 3 * a) * 7919 % 23) as f32 / 23.0 - 0.3) / (1.0 + i as f32)).collect())
+        .map(|a| {
+            (0..k)
+                .map(|i| (((i + 3 * a) * 7919 % 23) as f32 / 23.0 - 0.3) / (1.0 + i as f32))
+                .collect()
+        })
         .collect();
     for p in 0..w * h {
         let (x, y) = ((p % w) as f32 / w as f32, (p / w) as f32 / h as f32);
@@ -28,7 +38,9 @@ fn image(basis: &str, w: usize, h: usize) -> RelightableImage {
     let mut meta = Metadata::new(
         b.spec(),
         MapSpace::Linear,
-        Projection::Cylindrical { fov_y_deg: Some(60.0) },
+        Projection::Cylindrical {
+            fov_y_deg: Some(60.0),
+        },
     );
     meta.fit = None;
     RelightableImage {
@@ -50,7 +62,11 @@ fn relit_error(a: &RelightableImage, b: &RelightableImage) -> f32 {
         let fa = ra.relight(&rig, &options).unwrap();
         let fb = rb.relight(&rig, &options).unwrap();
         let peak = fa.data.iter().fold(0.0f32, |m, v| m.max(v.abs())).max(1e-6);
-        let err = fa.data.iter().zip(&fb.data).fold(0.0f32, |m, (x, y)| m.max((x - y).abs()));
+        let err = fa
+            .data
+            .iter()
+            .zip(&fb.data)
+            .fold(0.0f32, |m, (x, y)| m.max((x - y).abs()));
         worst = worst.max(err / peak);
     }
     worst
@@ -117,7 +133,10 @@ fn fewer_bits_and_jpeg_cost_accuracy_not_correctness() {
         // About a step of the first plane's range per component (relative to the
         // frame's peak, not the plane's range: a little more).
         let bound = 6.0 / ((1u32 << bits) - 1) as f32;
-        assert!(e >= last * 0.9 && e < bound, "{bits} bits: {e} (bound {bound})");
+        assert!(
+            e >= last * 0.9 && e < bound,
+            "{bits} bits: {e} (bound {bound})"
+        );
         last = e;
     }
     let jpeg = Settings {
@@ -133,8 +152,30 @@ fn fewer_bits_and_jpeg_cost_accuracy_not_correctness() {
 #[test]
 fn a_compressed_image_compresses_again_without_nesting() {
     let img = image("sh:16", 20, 20);
-    let first = unpack(&pack(&img, &Settings { components: Some(8), bits: 16, ..Settings::default() }).unwrap()).unwrap();
-    let second = unpack(&pack(&first, &Settings { components: Some(5), bits: 16, ..Settings::default() }).unwrap()).unwrap();
+    let first = unpack(
+        &pack(
+            &img,
+            &Settings {
+                components: Some(8),
+                bits: 16,
+                ..Settings::default()
+            },
+        )
+        .unwrap(),
+    )
+    .unwrap();
+    let second = unpack(
+        &pack(
+            &first,
+            &Settings {
+                components: Some(5),
+                bits: 16,
+                ..Settings::default()
+            },
+        )
+        .unwrap(),
+    )
+    .unwrap();
     assert_eq!(second.maps.k, 5);
     let basis = second.meta.basis.build().unwrap();
     let p = basis.as_any().downcast_ref::<Projected>().unwrap();
@@ -146,11 +187,26 @@ fn a_compressed_image_compresses_again_without_nesting() {
 fn bad_settings_are_refused() {
     let img = image("sh:9", 8, 8);
     for s in [
-        Settings { bits: 1, ..Settings::default() },
-        Settings { bits: 17, ..Settings::default() },
-        Settings { tile: 8, ..Settings::default() },
-        Settings { components: Some(0), ..Settings::default() },
-        Settings { components: Some(10), ..Settings::default() },
+        Settings {
+            bits: 1,
+            ..Settings::default()
+        },
+        Settings {
+            bits: 17,
+            ..Settings::default()
+        },
+        Settings {
+            tile: 8,
+            ..Settings::default()
+        },
+        Settings {
+            components: Some(0),
+            ..Settings::default()
+        },
+        Settings {
+            components: Some(10),
+            ..Settings::default()
+        },
     ] {
         assert!(pack(&img, &s).is_err(), "{s:?}");
     }
@@ -159,11 +215,21 @@ fn bad_settings_are_refused() {
 #[test]
 fn damaged_files_are_refused_not_misread() {
     let img = image("sh:9", 30, 20);
-    let packed = pack(&img, &Settings { tile: 16, ..Settings::default() }).unwrap();
+    let packed = pack(
+        &img,
+        &Settings {
+            tile: 16,
+            ..Settings::default()
+        },
+    )
+    .unwrap();
     let bytes = packed::to_bytes(&packed).unwrap();
     // Every truncation, and a flipped bit anywhere, is an error.
     for len in [0, 7, 8, 15, 20, bytes.len() / 2, bytes.len() - 1] {
-        assert!(packed::from_bytes(&bytes[..len], "t").is_err(), "truncated to {len}");
+        assert!(
+            packed::from_bytes(&bytes[..len], "t").is_err(),
+            "truncated to {len}"
+        );
     }
     for at in (0..bytes.len()).step_by(bytes.len() / 97 + 1) {
         let mut b = bytes.clone();
@@ -178,7 +244,14 @@ fn damaged_files_are_refused_not_misread() {
 #[test]
 fn a_header_that_claims_a_huge_image_is_refused_before_allocating() {
     let img = image("sh:4", 16, 16);
-    let mut packed = pack(&img, &Settings { tile: 16, ..Settings::default() }).unwrap();
+    let mut packed = pack(
+        &img,
+        &Settings {
+            tile: 16,
+            ..Settings::default()
+        },
+    )
+    .unwrap();
     packed.header.width = 1 << 16;
     packed.header.height = 1 << 16;
     let bytes = packed::to_bytes(&packed).unwrap();

@@ -1,0 +1,115 @@
+//! The compressed file end to end through the binary: `convert` both ways, `fit -o
+//! X.rlz`, and every reader (`relight`, `info`, `export-web`) on it.
+
+#[allow(dead_code)]
+mod common;
+
+use std::path::Path;
+use std::process::Command;
+
+fn relit(dir: &Path, args: &[&str]) -> String {
+    let out = Command::new(env!("CARGO_BIN_EXE_relit"))
+        .current_dir(dir)
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "relit {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap()
+}
+
+fn frame(dir: &Path, file: &str, name: &str) -> Vec<f32> {
+    let out = format!("{name}.exr");
+    relit(
+        dir,
+        &["relight", file, "--light", "dir:0.3,0.2,0.93", "-o", &out],
+    );
+    relit::image::load_linear(&dir.join(out), None)
+        .unwrap()
+        .data
+}
+
+#[test]
+fn convert_goes_both_ways_and_every_reader_reads_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    common::capture_and_fit(d);
+    let json = relit(
+        d,
+        &[
+            "convert",
+            "scene.exr",
+            "-o",
+            "small.rlz",
+            "--bits",
+            "14",
+            "--json",
+        ],
+    );
+    let report: serde_json::Value = serde_json::from_str(&json).unwrap();
+    let bytes = std::fs::metadata(d.join("small.rlz")).unwrap().len();
+    assert_eq!(report["output_bytes"], bytes);
+    // Relit from the compressed file as from the EXR, within the quantisation.
+    let exr = frame(d, "scene.exr", "a");
+    let rlz = frame(d, "small.rlz", "b");
+    let peak = exr.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+    let worst = exr
+        .iter()
+        .zip(&rlz)
+        .fold(0.0f32, |m, (a, b)| m.max((a - b).abs()));
+    assert!(worst < 2e-3 * peak, "{worst} of {peak}");
+    // And back to EXR: the same frame again.
+    relit(
+        d,
+        &["convert", "small.rlz", "-o", "back.exr", "--storage", "f32"],
+    );
+    let back = frame(d, "back.exr", "c");
+    let again = back
+        .iter()
+        .zip(&rlz)
+        .fold(0.0f32, |m, (a, b)| m.max((a - b).abs()));
+    assert!(again < 1e-5 * peak, "{again}");
+    let info = relit(d, &["info", "small.rlz", "--json"]);
+    let info: serde_json::Value = serde_json::from_str(&info).unwrap();
+    assert!(
+        info["storage"].as_str().unwrap().starts_with("compressed"),
+        "{info}"
+    );
+    assert_eq!(info["coefficients"], 4);
+    relit(d, &["export-web", "small.rlz", "site"]);
+    assert!(d.join("site/index.html").exists());
+}
+
+#[test]
+fn a_fit_writes_a_compressed_file_when_asked() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    common::capture_and_fit(d);
+    relit(
+        d,
+        &[
+            "fit",
+            "cap/dirs.lp",
+            "-o",
+            "fit.rlz",
+            "--basis",
+            "sh:9",
+            "--layout",
+            "ycc",
+            "--components",
+            "4",
+            "--codec",
+            "jpeg:90",
+            "-q",
+        ],
+    );
+    let info: serde_json::Value =
+        serde_json::from_str(&relit(d, &["info", "fit.rlz", "--json"])).unwrap();
+    assert_eq!(info["coefficients"], 4);
+    assert_eq!(info["basis"]["type"], "projected");
+    let f = frame(d, "fit.rlz", "f");
+    assert!(f.iter().all(|v| v.is_finite()) && f.iter().any(|&v| v > 0.01));
+}
