@@ -58,6 +58,10 @@ pub struct Args {
     /// written, read back and relit, and bits/pixel is its size on disk.
     #[arg(long)]
     pub compressed: bool,
+    /// Store each fit compressed with the settings that score best on its own training
+    /// lights within this many bits per pixel of the whole file.
+    #[arg(long, conflicts_with = "compressed")]
+    pub budget: Option<f64>,
     #[command(flatten)]
     pub compress: CompressArgs,
     /// Print the report as JSON.
@@ -102,6 +106,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         joint: args.joint,
         mask,
         compress: args.compressed.then(|| args.compress.settings()),
+        budget: args.budget,
     };
     let bars = Bars::new(args.quiet || args.json);
     let staged = args.save.as_deref().map(StagedFolder::new).transpose()?;

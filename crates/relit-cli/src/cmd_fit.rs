@@ -19,6 +19,10 @@ pub struct Args {
     pub fit: FitArgs,
     #[command(flatten)]
     pub compress: CompressArgs,
+    /// Write the compressed file (`-o X.rlz`) whose settings relight the capture's own
+    /// lights best within this many bits per pixel of the whole file.
+    #[arg(long)]
+    pub budget: Option<f64>,
     /// Precision of the stored maps: f16 (alias half) or f32 (alias float).
     #[arg(long, default_value = "f16")]
     pub storage: Precision,
@@ -34,6 +38,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     args.storage
         .require(&[Precision::F32, Precision::F16], "--storage (OpenEXR)")?;
     let options = args.fit.to_options()?;
+    anyhow::ensure!(
+        args.budget.is_none()
+            || relit::codec::FileForm::for_output(&args.output)
+                == relit::codec::FileForm::Compressed,
+        "--budget writes a compressed file: name the output `*.rlz`"
+    );
     let outputs = [Output::file(&args.output)];
     refuse_overwriting_inputs(std::slice::from_ref(&args.capture), &outputs)?;
     let capture = Capture::open(&args.capture)?;
@@ -57,6 +67,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let output = relit::fit::fit(&capture, &options, &bars)?;
     match relit::codec::FileForm::for_output(&args.output) {
         relit::codec::FileForm::Exr => exr::write(&args.output, &output.image, args.storage),
+        relit::codec::FileForm::Compressed if args.budget.is_some() => {
+            let budget = args.budget.unwrap_or_default();
+            relit::compress::budget::choose(&output.image, &capture, budget, &bars).and_then(
+                |choice| {
+                    if !args.json && !args.quiet {
+                        eprintln!(
+                            "compression: {} ({:.1} bits/pixel, {:.2} dB on {} captured lights; {} candidates within the budget)",
+                            choice.settings.describe(),
+                            choice.bits_per_pixel,
+                            choice.score,
+                            relit::compress::budget::SCORING_LIGHTS.min(capture.len()),
+                            choice.within
+                        );
+                    }
+                    relit::codec::packed::write_packed(&args.output, &choice.packed)
+                },
+            )
+        }
         relit::codec::FileForm::Compressed => {
             let settings = relit::compress::Settings {
                 directions: Some(capture.directions()),

@@ -122,6 +122,9 @@ pub struct EvalOptions {
     /// Store each fit as a compressed `.rlz` file with these settings instead of EXR:
     /// the file is written, read back and relit, and its size on disk is the figure.
     pub compress: Option<crate::compress::Settings>,
+    /// Store each fit compressed with the settings that score best on its own training
+    /// lights within this many bits per pixel ([`crate::compress::budget`]).
+    pub budget: Option<f64>,
 }
 
 /// The result for one held-out image.
@@ -206,6 +209,7 @@ pub fn evaluate_with(
     let mut coefficients = 0;
     let mut candidates = Vec::new();
     let mut file_bytes: Vec<f64> = Vec::new();
+    let mut chosen_settings: Vec<String> = Vec::new();
     for group in &groups {
         let train: Vec<usize> = (0..n).filter(|i| !group.contains(i)).collect();
         let mut fitted = fit::fit(&capture.subset(&train), &options.fit, progress)?;
@@ -220,7 +224,17 @@ pub fn evaluate_with(
         if !chosen.contains(&fitted.report.objective.name()) {
             chosen.push(fitted.report.objective.name());
         }
-        if let Some(settings) = &options.compress {
+        if let Some(budget) = options.budget {
+            let train_capture = capture.subset(&train);
+            let choice =
+                crate::compress::budget::choose(&fitted.image, &train_capture, budget, progress)?;
+            let (image, bytes) = packed_round_trip(&choice.packed)?;
+            fitted.image = image;
+            file_bytes.push(bytes as f64);
+            if !chosen_settings.contains(&choice.settings.describe()) {
+                chosen_settings.push(choice.settings.describe());
+            }
+        } else if let Some(settings) = &options.compress {
             let settings = crate::compress::Settings {
                 directions: Some(capture.subset(&train).directions()),
                 ..settings.clone()
@@ -284,9 +298,10 @@ pub fn evaluate_with(
             _ => chosen.join(", "),
         },
         color_space: options.fit.color_space.name().into(),
-        storage: match &options.compress {
-            Some(settings) => format!("rlz {}", settings.describe()),
-            None => options.storage.name().into(),
+        storage: match (&options.compress, options.budget) {
+            (_, Some(budget)) => format!("rlz ≤ {budget} bits/px: {}", chosen_settings.join("; ")),
+            (Some(settings), None) => format!("rlz {}", settings.describe()),
+            (None, None) => options.storage.name().into(),
         },
         protocol: if options.joint {
             "joint".into()
@@ -320,10 +335,17 @@ fn compressed_round_trip(
     image: &crate::maps::RelightableImage,
     settings: &crate::compress::Settings,
 ) -> Result<(crate::maps::RelightableImage, u64)> {
+    packed_round_trip(&crate::compress::pack(image, settings)?)
+}
+
+/// Write `packed` to a temporary `.rlz`, read it back (see [`compressed_round_trip`]).
+fn packed_round_trip(
+    packed: &crate::compress::Packed,
+) -> Result<(crate::maps::RelightableImage, u64)> {
     let dir = tempfile::tempdir()
         .map_err(|e| Error::io(std::path::Path::new("."), "create a temporary folder in", e))?;
     let path = dir.path().join("maps.rlz");
-    crate::codec::packed::write(&path, image, settings)?;
+    crate::codec::packed::write_packed(&path, packed)?;
     let bytes = std::fs::metadata(&path)
         .map_err(|e| Error::io(&path, "measure", e))?
         .len();

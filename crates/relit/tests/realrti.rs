@@ -41,6 +41,7 @@ fn item1_beats_the_best_peer_figure() {
         joint: false,
         mask: None,
         compress: None,
+        budget: None,
     };
     let report = evaluate(&capture, &options, &relit::progress::Silent).unwrap();
     let indices: Vec<usize> = report.holdouts.iter().map(|h| h.index).collect();
@@ -78,6 +79,7 @@ fn the_default_fit_never_loses_to_a_linear_fit_on_a_real_capture() {
             joint: true,
             mask: None,
             compress: None,
+            budget: None,
         };
         evaluate(&capture, &options, &relit::progress::Silent).unwrap()
     };

@@ -15,6 +15,7 @@
 //!
 //! [`pack`] runs them; [`unpack`] undoes them into ordinary maps.
 
+pub mod budget;
 pub mod layout;
 pub mod planes;
 pub mod projection;
