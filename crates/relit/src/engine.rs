@@ -219,7 +219,7 @@ impl<'a> Relighter<'a> {
     }
 
     /// A relighter over compact planes decoded without the f32 maps
-    /// ([`crate::codec::exr::read_compact`]): `image` supplies the metadata, sizes and
+    /// (`read_compact` of the EXR codec): `image` supplies the metadata, sizes and
     /// depth; its `maps.data` is not read and may be empty.
     pub fn with_compact(image: &'a RelightableImage, planes: CompactPlanes) -> Result<Self> {
         let basis = image.meta.basis.build()?;

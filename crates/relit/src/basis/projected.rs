@@ -2,7 +2,7 @@
 //! inner basis of `K` functions.
 //!
 //! This is what principal components across pixels make of any basis (the compressed
-//! file, [`crate::compress`]): the coefficient vectors of a capture's pixels crowd into
+//! file of the `compress` module): the coefficient vectors of a capture's pixels crowd into
 //! a few directions of `ℝᴷ`, and a pixel stored as its `K′` coordinates `c′` along them
 //! relights as `b(L)·(Qᵀ c′) = (P b(L))·c′` with `P` the map from inner weights to
 //! the `K′` weights. A directional frame therefore costs `K′` multiply-adds per pixel

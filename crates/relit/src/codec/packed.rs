@@ -17,147 +17,14 @@
 //! All integers little-endian. A reader checks every length against the file's real
 //! size before it allocates anything from it, and every checksum before it decodes.
 
-use crate::compress::{self, Header, Packed};
+use crate::compress::{self, Packed};
 use crate::fsutil::write_atomically;
 use crate::maps::RelightableImage;
 use crate::{Error, ErrorKind, Result};
 use std::io::{Read, Write};
 use std::path::Path;
 
-/// The first eight bytes of every compressed file.
-pub const MAGIC: [u8; 8] = *b"\x89RLZ\r\n\x1a\n";
-
-/// The layout version this build writes and reads.
-pub const VERSION: u32 = 1;
-
-/// The most bytes a header may decompress to.
-const MAX_HEADER_JSON: u64 = 64 << 20;
-
-/// Bytes of one index entry.
-const ENTRY: usize = 20;
-
-/// The file's bytes.
-pub fn to_bytes(packed: &Packed) -> Result<Vec<u8>> {
-    let json = serde_json::to_vec(&packed.header)
-        .map_err(|e| Error::invalid(format!("header does not serialise: {e}")))?;
-    let header = zstd::bulk::compress(&json, 19)
-        .map_err(|e| Error::new(ErrorKind::Io, format!("zstd: {e}")))?;
-    let s = packed.sections.len();
-    let index_start = 8 + 12 + header.len() + 4;
-    let mut offset = (index_start + s * ENTRY + 4) as u64;
-    let mut index = Vec::with_capacity(s * ENTRY);
-    for section in &packed.sections {
-        index.extend_from_slice(&offset.to_le_bytes());
-        index.extend_from_slice(&(section.len() as u64).to_le_bytes());
-        index.extend_from_slice(&crc32fast::hash(section).to_le_bytes());
-        offset += section.len() as u64;
-    }
-    let mut out = Vec::with_capacity(offset as usize);
-    out.extend_from_slice(&MAGIC);
-    out.extend_from_slice(&VERSION.to_le_bytes());
-    out.extend_from_slice(&(header.len() as u32).to_le_bytes());
-    out.extend_from_slice(&crc32fast::hash(&header).to_le_bytes());
-    out.extend_from_slice(&header);
-    out.extend_from_slice(&(s as u32).to_le_bytes());
-    out.extend_from_slice(&index);
-    out.extend_from_slice(&crc32fast::hash(&index).to_le_bytes());
-    for section in &packed.sections {
-        out.extend_from_slice(section);
-    }
-    Ok(out)
-}
-
-/// Parse a file's bytes, checking every length and checksum.
-pub fn from_bytes(bytes: &[u8], name: &str) -> Result<Packed> {
-    let bad = |why: String| Error::parse(format!("{name}: {why}"));
-    let mut at = 0usize;
-    let mut take = |len: usize, what: &str| -> Result<&[u8]> {
-        let end = at
-            .checked_add(len)
-            .filter(|&e| e <= bytes.len())
-            .ok_or_else(|| {
-                bad(format!(
-                    "truncated in the {what} (file of {} bytes)",
-                    bytes.len()
-                ))
-            })?;
-        let out = &bytes[at..end];
-        at = end;
-        Ok(out)
-    };
-    let u32_at = |b: &[u8]| u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
-    if take(8, "magic")? != MAGIC {
-        return Err(bad("not a compressed relit file (wrong magic)".into()));
-    }
-    let version = u32_at(take(4, "version")?);
-    if version != VERSION {
-        return Err(bad(format!(
-            "layout version {version}; this build reads version {VERSION}"
-        )));
-    }
-    let header_len = u32_at(take(4, "header length")?) as usize;
-    let header_crc = u32_at(take(4, "header checksum")?);
-    let header_bytes = take(header_len, "header")?;
-    if crc32fast::hash(header_bytes) != header_crc {
-        return Err(bad("the header's checksum does not match".into()));
-    }
-    let mut json = Vec::new();
-    zstd::stream::read::Decoder::new(header_bytes)
-        .and_then(|d| d.take(MAX_HEADER_JSON).read_to_end(&mut json))
-        .map_err(|e| bad(format!("the header does not decompress: {e}")))?;
-    let header: Header = serde_json::from_slice(&json).map_err(|e| bad(format!("header: {e}")))?;
-    let sections = u32_at(take(4, "section count")?) as usize;
-    if sections != header.sections() {
-        return Err(bad(format!(
-            "{sections} sections, but the header implies {}",
-            header.sections()
-        )));
-    }
-    let index_len = sections
-        .checked_mul(ENTRY)
-        .ok_or_else(|| bad("section count overflows".into()))?;
-    let index = take(index_len, "section index")?;
-    let index_crc = u32_at(take(4, "index checksum")?);
-    if crc32fast::hash(index) != index_crc {
-        return Err(bad("the section index's checksum does not match".into()));
-    }
-    let data_start = at;
-    let mut out = Vec::with_capacity(sections);
-    let mut expected = data_start as u64;
-    for (s, entry) in index.chunks_exact(ENTRY).enumerate() {
-        let offset = u64::from_le_bytes(entry[0..8].try_into().expect("8 bytes"));
-        let len = u64::from_le_bytes(entry[8..16].try_into().expect("8 bytes"));
-        let crc = u32_at(&entry[16..20]);
-        if offset != expected {
-            return Err(bad(format!("section {s} is out of order")));
-        }
-        if offset
-            .checked_add(len)
-            .is_none_or(|e| e > bytes.len() as u64)
-        {
-            return Err(bad(format!(
-                "truncated: section {s} ends past the file's {} bytes",
-                bytes.len()
-            )));
-        }
-        let section = &bytes[offset as usize..(offset + len) as usize];
-        if crc32fast::hash(section) != crc {
-            return Err(bad(format!("section {s}'s checksum does not match")));
-        }
-        out.push(section.to_vec());
-        expected = offset + len;
-    }
-    if expected != bytes.len() as u64 {
-        return Err(bad(format!(
-            "{} bytes after the last section",
-            bytes.len() as u64 - expected
-        )));
-    }
-    Ok(Packed {
-        header,
-        sections: out,
-    })
-}
+pub use crate::compress::container::{from_bytes, to_bytes, MAGIC, VERSION};
 
 /// Whether the file at `path` starts with [`MAGIC`].
 pub fn is_packed(path: &Path) -> Result<bool> {

@@ -101,7 +101,7 @@ pub fn choose(
             ..candidate
         };
         let packed = pack(image, &settings)?;
-        let bytes = crate::codec::packed::to_bytes(&packed)?.len();
+        let bytes = super::container::to_bytes(&packed)?.len();
         let bpp = 8.0 * bytes as f64 / pixels;
         progress.advance(1);
         if bpp > bits_per_pixel {

@@ -1,5 +1,5 @@
 //! Compression of relightable images: the stages between fitted maps and the bytes of
-//! the compressed file ([`crate::codec::packed`]), each undone by any reader.
+//! the compressed file (`.rlz`, [`container`]), each undone by any reader.
 //!
 //! 1. **Colour layout** ([`Layout`]): `rgb`, `ycc` (fewer chroma components) or
 //!    `lrgb` (one luminance function × an RGB albedo).
@@ -16,6 +16,7 @@
 //! [`pack`] runs them; [`unpack`] undoes them into ordinary maps.
 
 pub mod budget;
+pub mod container;
 pub mod layout;
 pub mod planes;
 pub mod projection;

@@ -1,9 +1,9 @@
 // Index loops over coefficients read more plainly than iterator chains here.
 #![allow(clippy::needless_range_loop)]
 
+use super::container as packed;
 use super::*;
 use crate::basis::BasisChoice;
-use crate::codec::packed;
 use crate::engine::{RelightOptions, Relighter};
 use crate::light::{Light, LightRig};
 
