@@ -29,10 +29,14 @@ pub use crate::compress::container::{from_bytes, to_bytes, MAGIC, VERSION};
 /// Whether the file at `path` starts with [`MAGIC`].
 pub fn is_packed(path: &Path) -> Result<bool> {
     let mut f = std::fs::File::open(path).map_err(|e| {
-        Error::new(
-            ErrorKind::Io,
-            format!("cannot open {}: {e}", path.display()),
-        )
+        if e.kind() == std::io::ErrorKind::NotFound {
+            Error::new(ErrorKind::Io, format!("{} does not exist", path.display()))
+        } else {
+            Error::new(
+                ErrorKind::Io,
+                format!("cannot open {}: {e}", path.display()),
+            )
+        }
     })?;
     let mut head = [0u8; 8];
     let mut got = 0;
