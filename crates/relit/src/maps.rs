@@ -53,7 +53,7 @@ pub struct FitInfo {
 }
 
 /// Everything about a relightable image but its pixels.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Metadata {
     pub format_version: u32,
     pub basis: BasisSpec,

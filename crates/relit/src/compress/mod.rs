@@ -25,8 +25,7 @@ pub use layout::Layout;
 pub use planes::{Quantizer, TileCodec};
 
 use crate::basis::{Basis, BasisSpec, Projected};
-use crate::camera::{CameraSpec, Projection};
-use crate::maps::{CoefficientMaps, FitInfo, MapSpace, Metadata, RelightableImage};
+use crate::maps::{CoefficientMaps, Metadata, RelightableImage};
 use crate::sphere::Vec3;
 use crate::{Error, Result};
 use rayon::prelude::*;
@@ -105,18 +104,15 @@ pub struct PlaneEntry {
 /// Everything in a compressed file but its tiles.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Header {
-    pub format_version: u32,
+    /// What every relightable file states (basis, colour space, camera, fit…),
+    /// flattened into the header's fields.
+    #[serde(flatten)]
+    pub meta: Metadata,
     pub width: usize,
     pub height: usize,
     pub tile: usize,
     pub layout: Layout,
     pub codec: TileCodec,
-    pub basis: BasisSpec,
-    pub color_space: MapSpace,
-    pub light_frame: String,
-    pub projection: Projection,
-    pub camera: Option<CameraSpec>,
-    pub fit: Option<FitInfo>,
     pub planes: Vec<PlaneEntry>,
     /// Whether depth follows the planes (f32, lossless).
     pub depth: bool,
@@ -197,18 +193,6 @@ impl Header {
             return Err(bad(format!("bad component counts {counts:?}")));
         }
         Ok(k)
-    }
-
-    pub fn metadata(&self) -> Metadata {
-        Metadata {
-            format_version: self.format_version,
-            basis: self.basis.clone(),
-            color_space: self.color_space,
-            light_frame: self.light_frame.clone(),
-            projection: self.projection.clone(),
-            camera: self.camera.clone(),
-            fit: self.fit.clone(),
-        }
     }
 }
 
@@ -441,18 +425,16 @@ pub fn pack(image: &RelightableImage, settings: &Settings) -> Result<Packed> {
     let projected_basis = Projected::new(inner, matrix)?;
 
     let header = Header {
-        format_version: crate::maps::FORMAT_VERSION,
+        meta: Metadata {
+            format_version: crate::maps::FORMAT_VERSION,
+            basis: projected_basis.spec(),
+            ..image.meta.clone()
+        },
         width: maps.width,
         height: maps.height,
         tile: settings.tile,
         layout,
         codec: settings.codec,
-        basis: projected_basis.spec(),
-        color_space: image.meta.color_space,
-        light_frame: image.meta.light_frame.clone(),
-        projection: image.meta.projection.clone(),
-        camera: image.meta.camera.clone(),
-        fit: image.meta.fit.clone(),
         planes: entries.iter().map(|(e, _)| e.clone()).collect(),
         depth: image.depth.is_some(),
     };
@@ -556,7 +538,7 @@ fn decode_floats(bytes: &[u8], n: usize) -> Result<Vec<f32>> {
 pub fn unpack(packed: &Packed) -> Result<RelightableImage> {
     let header = &packed.header;
     let kp = header.check()?;
-    let basis = header.basis.build()?;
+    let basis = header.meta.basis.build()?;
     if basis.len() != kp {
         return Err(Error::parse(format!(
             "compressed file: the basis has {} functions, the planes {kp}",
@@ -674,7 +656,7 @@ pub fn unpack(packed: &Packed) -> Result<RelightableImage> {
         }
     }
     Ok(RelightableImage {
-        meta: header.metadata(),
+        meta: header.meta.clone(),
         maps,
         depth,
     })

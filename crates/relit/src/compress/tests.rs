@@ -4,8 +4,10 @@
 use super::container as packed;
 use super::*;
 use crate::basis::BasisChoice;
+use crate::camera::Projection;
 use crate::engine::{RelightOptions, Relighter};
 use crate::light::{Light, LightRig};
+use crate::maps::MapSpace;
 
 /// A relightable image whose pixels are mixtures of a few SH functions (as a real
 /// capture's pixels crowd into few directions), with depth.
