@@ -33,6 +33,7 @@ use std::sync::{Arc, Mutex, OnceLock};
 
 mod bounds;
 mod kernels;
+pub mod lookup;
 mod points;
 mod tiles;
 

@@ -8,8 +8,19 @@ use std::io::Read;
 /// The first eight bytes of every compressed file.
 pub const MAGIC: [u8; 8] = *b"\x89RLZ\r\n\x1a\n";
 
-/// The layout version this build writes and reads.
-pub const VERSION: u32 = 1;
+/// The newest layout version this build writes and reads. Version 2 added the codebook
+/// (vector quantisation); files without one are still written as version 1, so that
+/// older readers keep reading them.
+pub const VERSION: u32 = 2;
+
+/// The version a header needs.
+fn version_of(header: &Header) -> u32 {
+    if header.codebook.is_some() {
+        2
+    } else {
+        1
+    }
+}
 
 /// The most bytes a header may decompress to.
 const MAX_HEADER_JSON: u64 = 64 << 20;
@@ -35,7 +46,7 @@ pub fn to_bytes(packed: &Packed) -> Result<Vec<u8>> {
     }
     let mut out = Vec::with_capacity(offset as usize);
     out.extend_from_slice(&MAGIC);
-    out.extend_from_slice(&VERSION.to_le_bytes());
+    out.extend_from_slice(&version_of(&packed.header).to_le_bytes());
     out.extend_from_slice(&(header.len() as u32).to_le_bytes());
     out.extend_from_slice(&crc32fast::hash(&header).to_le_bytes());
     out.extend_from_slice(&header);
@@ -71,9 +82,9 @@ pub fn from_bytes(bytes: &[u8], name: &str) -> Result<Packed> {
         return Err(bad("not a compressed relit file (wrong magic)".into()));
     }
     let version = u32_at(take(4, "version")?);
-    if version != VERSION {
+    if !(1..=VERSION).contains(&version) {
         return Err(bad(format!(
-            "layout version {version}; this build reads version {VERSION}"
+            "layout version {version}; this build reads versions 1 to {VERSION}"
         )));
     }
     let header_len = u32_at(take(4, "header length")?) as usize;
@@ -87,6 +98,11 @@ pub fn from_bytes(bytes: &[u8], name: &str) -> Result<Packed> {
         .and_then(|d| d.take(MAX_HEADER_JSON).read_to_end(&mut json))
         .map_err(|e| bad(format!("the header does not decompress: {e}")))?;
     let header: Header = serde_json::from_slice(&json).map_err(|e| bad(format!("header: {e}")))?;
+    if version < version_of(&header) {
+        return Err(bad(format!(
+            "a version {version} file cannot hold a codebook (version 2 added it)"
+        )));
+    }
     let sections = u32_at(take(4, "section count")?) as usize;
     if sections != header.sections() {
         return Err(bad(format!(

@@ -10,16 +10,22 @@
 //! 3. **Quantisation** ([`planes::Quantizer`]): one step for every function plane
 //!    (their errors weigh the same after step 2), from `bits` over the first plane's
 //!    range; the stored numbers mean `offset + scale · q` as everywhere in relit.
-//! 4. **Entropy coding** per tile ([`TileCodec`]): zstd of prediction residuals
+//! 4. **Vector quantisation** ([`vq`], optional, seed 004): every pixel's stored values
+//!    together become an index into a codebook of `C` vectors found by k-means. A
+//!    frame under uniform lights then relights the codebook and looks every pixel up
+//!    ([`crate::engine::lookup`]).
+//! 5. **Entropy coding** per tile ([`TileCodec`]): zstd of prediction residuals
 //!    (lossless for the codes) or JPEG (lossy, what a browser decodes).
 //!
-//! [`pack`] runs them; [`unpack`] undoes them into ordinary maps.
+//! [`pack`] runs them; [`unpack`] undoes them into ordinary maps ([`indexed`] into an
+//! indexed image, for a codebook file).
 
 pub mod budget;
 pub mod container;
 pub mod layout;
 pub mod planes;
 pub mod projection;
+pub mod vq;
 
 pub use layout::Layout;
 pub use planes::{Quantizer, TileCodec};
@@ -52,6 +58,8 @@ pub struct Settings {
     pub codec: TileCodec,
     /// Tile side in pixels.
     pub tile: usize,
+    /// Vector quantisation: this many codebook entries (2–65536) instead of planes.
+    pub codebook: Option<usize>,
     /// The capture's light directions, to weigh the components by the lights the maps
     /// will be seen under; `None` uses the basis' domain.
     pub directions: Option<Vec<Vec3>>,
@@ -67,6 +75,7 @@ impl Default for Settings {
             bits: 12,
             codec: TileCodec::Zstd { level: 12 },
             tile: 512,
+            codebook: None,
             directions: None,
         }
     }
@@ -84,8 +93,9 @@ impl Settings {
             TileCodec::Jpeg { .. } => String::new(),
             _ => format!(" b{}", self.bits),
         };
+        let vq = self.codebook.map_or(String::new(), |c| format!(" vq{c}"));
         format!(
-            "{} k{k}{chroma}{bits} {}",
+            "{} k{k}{chroma}{bits}{vq} {}",
             self.layout.name(),
             self.codec.name()
         )
@@ -114,6 +124,11 @@ pub struct Header {
     pub layout: Layout,
     pub codec: TileCodec,
     pub planes: Vec<PlaneEntry>,
+    /// Vector quantisation: the codebook's entries. Its values (in `planes`' order and
+    /// quantisers) are the first section, and each pixel's index (tiles of one plane)
+    /// replaces the planes' tiles.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub codebook: Option<usize>,
     /// Whether depth follows the planes (f32, lossless).
     pub depth: bool,
 }
@@ -139,10 +154,25 @@ impl Header {
         )
     }
 
-    /// The sections the tiles take: every plane's tiles, then depth's.
+    /// The sections the tiles take: every plane's tiles (or the codebook and the index
+    /// plane's tiles), then depth's.
     pub fn sections(&self) -> usize {
         let (a, d) = self.tiles();
-        (self.planes.len() + self.depth as usize) * a * d
+        let tiles = a * d;
+        let planes = match self.codebook {
+            Some(_) => 1 + tiles,
+            None => self.planes.len() * tiles,
+        };
+        planes + self.depth as usize * tiles
+    }
+
+    /// Bytes per index of a codebook file.
+    fn index_width(&self) -> usize {
+        if self.codebook.unwrap_or(0) <= 256 {
+            1
+        } else {
+            2
+        }
     }
 
     /// The function channels and their component counts, then the per-pixel planes,
@@ -154,6 +184,14 @@ impl Header {
         }
         if !TILE_SIDES.contains(&self.tile) {
             return Err(bad(format!("bad tile side {}", self.tile)));
+        }
+        if let Some(c) = self.codebook {
+            if !(2..=vq::MAX_ENTRIES).contains(&c) {
+                return Err(bad(format!("a codebook of {c} entries")));
+            }
+            if !self.codec.lossless() {
+                return Err(bad("codebook indices need a lossless codec".into()));
+            }
         }
         let (functions, per_pixel) = self.layout.channels();
         let mut counts = vec![0usize; functions.len()];
@@ -410,6 +448,19 @@ pub fn pack(image: &RelightableImage, settings: &Settings) -> Result<Packed> {
         ));
     }
 
+    // Vector quantisation of every pixel's stored values together.
+    let quantized = match settings.codebook {
+        Some(entries_wanted) => {
+            if !settings.codec.lossless() {
+                return Err(Error::invalid(
+                    "a codebook's indices need the lossless codec (zstd), not JPEG",
+                ));
+            }
+            Some(quantize_vectors(&entries, &counts, n, entries_wanted)?)
+        }
+        None => None,
+    };
+
     // The basis the planes relight with: P of the components composed with the map
     // the input basis already had.
     let (inner, prior) = inner_and_map(&image.meta.basis)?;
@@ -436,30 +487,61 @@ pub fn pack(image: &RelightableImage, settings: &Settings) -> Result<Packed> {
         layout,
         codec: settings.codec,
         planes: entries.iter().map(|(e, _)| e.clone()).collect(),
+        codebook: quantized.as_ref().map(|(book, _)| book.entries()),
         depth: image.depth.is_some(),
     };
     let (across, down) = header.tiles();
     let tiles = across * down;
-    let mut jobs: Vec<(usize, usize)> = Vec::new();
-    for p in 0..entries.len() {
-        for t in 0..tiles {
-            jobs.push((p, t));
+    let tile_codes = |t: usize, code: &dyn Fn(usize) -> u16| -> Vec<u16> {
+        let (x0, y0, w, h) = header.tile_rect(t);
+        let mut codes = Vec::with_capacity(w * h);
+        for y in y0..y0 + h {
+            codes.extend((y * maps.width + x0..y * maps.width + x0 + w).map(code));
         }
-    }
-    let mut sections: Vec<Vec<u8>> = jobs
-        .par_iter()
-        .map(|&(p, t)| {
-            let (entry, plane) = &entries[p];
-            let (x0, y0, w, h) = header.tile_rect(t);
-            let q = &entry.quantizer;
-            let mut codes = Vec::with_capacity(w * h);
-            for y in y0..y0 + h {
-                let row = &plane[y * maps.width + x0..y * maps.width + x0 + w];
-                codes.extend(row.iter().map(|&v| q.code(v)));
+        codes
+    };
+    let mut sections: Vec<Vec<u8>> = match &quantized {
+        None => {
+            let jobs: Vec<(usize, usize)> = (0..entries.len())
+                .flat_map(|p| (0..tiles).map(move |t| (p, t)))
+                .collect();
+            jobs.par_iter()
+                .map(|&(p, t)| {
+                    let (entry, plane) = &entries[p];
+                    let q = &entry.quantizer;
+                    let codes = tile_codes(t, &|i| q.code(plane[i]));
+                    let (_, _, w, h) = header.tile_rect(t);
+                    planes::encode_tile(&codes, w, h, q.width(), settings.codec)
+                })
+                .collect::<Result<_>>()?
+        }
+        Some((book, indices)) => {
+            let mut codes: Vec<u8> = Vec::with_capacity(2 * book.values.len());
+            for (j, (entry, _)) in entries.iter().enumerate() {
+                for e in 0..book.entries() {
+                    let code = entry.quantizer.code(book.entry(e)[j]);
+                    codes.extend_from_slice(&code.to_le_bytes());
+                }
             }
-            planes::encode_tile(&codes, w, h, q.width(), settings.codec)
-        })
-        .collect::<Result<_>>()?;
+            let level = match settings.codec {
+                TileCodec::Zstd { level } => level,
+                TileCodec::Jpeg { .. } => unreachable!("refused above"),
+            };
+            let mut sections = vec![zstd::bulk::compress(&codes, level)
+                .map_err(|e| Error::new(crate::ErrorKind::Io, format!("zstd: {e}")))?];
+            let width = header.index_width();
+            let more: Vec<Vec<u8>> = (0..tiles)
+                .into_par_iter()
+                .map(|t| {
+                    let codes = tile_codes(t, &|i| indices[i]);
+                    let (_, _, w, h) = header.tile_rect(t);
+                    planes::encode_tile(&codes, w, h, width, settings.codec)
+                })
+                .collect::<Result<_>>()?;
+            sections.extend(more);
+            sections
+        }
+    };
     if let Some(depth) = &image.depth {
         let more: Vec<Vec<u8>> = (0..tiles)
             .into_par_iter()
@@ -475,6 +557,50 @@ pub fn pack(image: &RelightableImage, settings: &Settings) -> Result<Packed> {
         sections.extend(more);
     }
     Ok(Packed { header, sections })
+}
+
+/// Vector-quantise the per-pixel values of `entries`: the codebook (in the planes'
+/// units) and every pixel's index. Function planes weigh alike (the components are
+/// orthonormal in the relit image's metric); a per-pixel albedo plane weighs by the
+/// mean energy of the function it scales, so that distance approximates the error of
+/// the relit image.
+fn quantize_vectors(
+    entries: &[(PlaneEntry, &[f32])],
+    counts: &[usize],
+    n: usize,
+    codebook: usize,
+) -> Result<(vq::Codebook, Vec<u16>)> {
+    let dims = entries.len();
+    let functions: usize = counts.iter().sum();
+    let energy = if dims > functions {
+        let sum: f64 = entries[..counts[0]]
+            .iter()
+            .map(|(_, plane)| plane.iter().map(|&v| (v as f64).powi(2)).sum::<f64>())
+            .sum();
+        (sum / n.max(1) as f64).max(1e-12)
+    } else {
+        1.0
+    };
+    let weights: Vec<f32> = (0..dims)
+        .map(|j| if j < functions { 1.0 } else { energy.sqrt() as f32 })
+        .collect();
+    let mut vectors = vec![0.0f32; n * dims];
+    vectors
+        .par_chunks_mut(dims)
+        .enumerate()
+        .for_each(|(p, v)| {
+            for (j, x) in v.iter_mut().enumerate() {
+                *x = entries[j].1[p] * weights[j];
+            }
+        });
+    let mut book = vq::train(&vectors, dims, codebook)?;
+    let indices = vq::assign(&book, &vectors);
+    for entry in book.values.chunks_exact_mut(dims) {
+        for (x, w) in entry.iter_mut().zip(&weights) {
+            *x /= w;
+        }
+    }
+    Ok((book, indices))
 }
 
 /// The quantiser of one plane: the shared step for zstd, the plane's own range
@@ -537,64 +663,25 @@ fn decode_floats(bytes: &[u8], n: usize) -> Result<Vec<f32>> {
 /// Undo [`pack`]: ordinary maps in the stored (projected) basis, RGB.
 pub fn unpack(packed: &Packed) -> Result<RelightableImage> {
     let header = &packed.header;
-    let kp = header.check()?;
-    let basis = header.meta.basis.build()?;
-    if basis.len() != kp {
-        return Err(Error::parse(format!(
-            "compressed file: the basis has {} functions, the planes {kp}",
-            basis.len()
-        )));
-    }
-    if packed.sections.len() != header.sections() {
-        return Err(Error::parse("compressed file: wrong number of sections"));
+    let kp = checked(packed)?;
+    if header.codebook.is_some() {
+        let indexed = indexed(packed)?;
+        let mut image = indexed.expand();
+        image.depth = depth(packed)?;
+        return Ok(image);
     }
     let (w, h) = (header.width, header.height);
-    let n = w * h;
-    let (across, down) = header.tiles();
-    let tiles = across * down;
+    let tiles = header.tiles().0 * header.tiles().1;
     // Decode every tile first: memory grows with what the file really holds.
     let decoded: Vec<Vec<u16>> = (0..header.planes.len() * tiles)
         .into_par_iter()
         .map(|s| {
             let (p, t) = (s / tiles, s % tiles);
             let q = &header.planes[p].quantizer;
-            let (_, _, tw, th) = header.tile_rect(t);
-            let mut codes = vec![0u16; tw * th];
-            planes::decode_tile(
-                &packed.sections[s],
-                tw,
-                th,
-                q.width(),
-                q.levels,
-                header.codec,
-                &mut codes,
-            )?;
-            Ok(codes)
+            decode_codes(packed, s, t, q.width(), q.levels)
         })
         .collect::<Result<_>>()?;
-    let depth = if header.depth {
-        let base = header.planes.len() * tiles;
-        let parts: Vec<Vec<f32>> = (0..tiles)
-            .into_par_iter()
-            .map(|t| {
-                let (_, _, tw, th) = header.tile_rect(t);
-                decode_floats(&packed.sections[base + t], tw * th)
-            })
-            .collect::<Result<_>>()?;
-        let mut depth = vec![0.0f32; n];
-        for (t, part) in parts.iter().enumerate() {
-            let (x0, y0, tw, th) = header.tile_rect(t);
-            for y in 0..th {
-                depth[(y0 + y) * w + x0..(y0 + y) * w + x0 + tw]
-                    .copy_from_slice(&part[y * tw..(y + 1) * tw]);
-            }
-        }
-        Some(depth)
-    } else {
-        None
-    };
-    // Dequantised stored planes.
-    let plane_values = |p: usize, out: &mut [f32]| {
+    let maps = assemble(header, kp, w, h, |p, out| {
         let coding = header.planes[p].quantizer.coding;
         for t in 0..tiles {
             let (x0, y0, tw, th) = header.tile_rect(t);
@@ -606,7 +693,149 @@ pub fn unpack(packed: &Packed) -> Result<RelightableImage> {
                 }
             }
         }
+    });
+    Ok(RelightableImage {
+        meta: header.meta.clone(),
+        maps,
+        depth: depth(packed)?,
+    })
+}
+
+/// A codebook file as an indexed image (entries relit once a frame, pixels looked up:
+/// [`crate::engine::lookup`]); depth is not read.
+pub fn indexed(packed: &Packed) -> Result<crate::engine::lookup::IndexedImage> {
+    let header = &packed.header;
+    let kp = checked(packed)?;
+    let Some(entries) = header.codebook else {
+        return Err(Error::invalid(
+            "not a codebook file: its pixels are planes, not indices",
+        ));
     };
+    let dims = header.planes.len();
+    let want = 2 * entries * dims;
+    let codes = {
+        use std::io::Read;
+        let mut raw = Vec::new();
+        zstd::stream::read::Decoder::new(&packed.sections[0][..])
+            .and_then(|d| d.take(want as u64 + 1).read_to_end(&mut raw))
+            .map_err(|e| Error::parse(format!("the codebook does not decompress: {e}")))?;
+        if raw.len() != want {
+            return Err(Error::parse(format!(
+                "the codebook holds {} bytes, not {want}",
+                raw.len()
+            )));
+        }
+        raw
+    };
+    let code = |j: usize, e: usize| u16::from_le_bytes([codes[2 * (j * entries + e)], codes[2 * (j * entries + e) + 1]]);
+    for (j, plane) in header.planes.iter().enumerate() {
+        if (0..entries).any(|e| code(j, e) as u32 >= plane.quantizer.levels) {
+            return Err(Error::parse("a codebook value is past its plane's codes"));
+        }
+    }
+    let maps = assemble(header, kp, entries, 1, |j, out| {
+        let coding = header.planes[j].quantizer.coding;
+        for (e, o) in out.iter_mut().enumerate() {
+            *o = coding.decode(code(j, e) as f32);
+        }
+    });
+    let (w, h) = (header.width, header.height);
+    let tiles = header.tiles().0 * header.tiles().1;
+    let parts: Vec<Vec<u16>> = (0..tiles)
+        .into_par_iter()
+        .map(|t| decode_codes(packed, 1 + t, t, header.index_width(), entries as u32))
+        .collect::<Result<_>>()?;
+    let mut indices = vec![0u16; w * h];
+    for (t, part) in parts.iter().enumerate() {
+        let (x0, y0, tw, th) = header.tile_rect(t);
+        for y in 0..th {
+            indices[(y0 + y) * w + x0..(y0 + y) * w + x0 + tw]
+                .copy_from_slice(&part[y * tw..(y + 1) * tw]);
+        }
+    }
+    Ok(crate::engine::lookup::IndexedImage {
+        entries: RelightableImage {
+            meta: header.meta.clone(),
+            maps,
+            depth: None,
+        },
+        indices,
+        width: w,
+        height: h,
+    })
+}
+
+/// The header checked against the basis and the sections; `K′`.
+fn checked(packed: &Packed) -> Result<usize> {
+    let header = &packed.header;
+    let kp = header.check()?;
+    let basis = header.meta.basis.build()?;
+    if basis.len() != kp {
+        return Err(Error::parse(format!(
+            "compressed file: the basis has {} functions, the planes {kp}",
+            basis.len()
+        )));
+    }
+    if packed.sections.len() != header.sections() {
+        return Err(Error::parse("compressed file: wrong number of sections"));
+    }
+    Ok(kp)
+}
+
+/// The codes of tile `t` from section `s`.
+fn decode_codes(packed: &Packed, s: usize, t: usize, width: usize, levels: u32) -> Result<Vec<u16>> {
+    let header = &packed.header;
+    let (_, _, tw, th) = header.tile_rect(t);
+    let mut codes = vec![0u16; tw * th];
+    planes::decode_tile(
+        &packed.sections[s],
+        tw,
+        th,
+        width,
+        levels,
+        header.codec,
+        &mut codes,
+    )?;
+    Ok(codes)
+}
+
+/// The depth map, when the file has one (its tiles are the last sections).
+fn depth(packed: &Packed) -> Result<Option<Vec<f32>>> {
+    let header = &packed.header;
+    if !header.depth {
+        return Ok(None);
+    }
+    let (w, h) = (header.width, header.height);
+    let tiles = header.tiles().0 * header.tiles().1;
+    let base = header.sections() - tiles;
+    let parts: Vec<Vec<f32>> = (0..tiles)
+        .into_par_iter()
+        .map(|t| {
+            let (_, _, tw, th) = header.tile_rect(t);
+            decode_floats(&packed.sections[base + t], tw * th)
+        })
+        .collect::<Result<_>>()?;
+    let mut depth = vec![0.0f32; w * h];
+    for (t, part) in parts.iter().enumerate() {
+        let (x0, y0, tw, th) = header.tile_rect(t);
+        for y in 0..th {
+            depth[(y0 + y) * w + x0..(y0 + y) * w + x0 + tw]
+                .copy_from_slice(&part[y * tw..(y + 1) * tw]);
+        }
+    }
+    Ok(Some(depth))
+}
+
+/// RGB coefficient maps of `w × h` pixels from the stored planes (`plane_values(p,
+/// out)` fills plane `p` of the header), undoing the colour layout.
+fn assemble(
+    header: &Header,
+    kp: usize,
+    w: usize,
+    h: usize,
+    plane_values: impl Fn(usize, &mut [f32]),
+) -> CoefficientMaps {
+    let n = w * h;
     let mut maps = CoefficientMaps::zeros(w, h, kp);
     let (functions, _) = header.layout.channels();
     let index_of = |channel: &str, j: usize| {
@@ -655,11 +884,7 @@ pub fn unpack(packed: &Packed) -> Result<RelightableImage> {
             }
         }
     }
-    Ok(RelightableImage {
-        meta: header.meta.clone(),
-        maps,
-        depth,
-    })
+    maps
 }
 
 #[cfg(test)]
