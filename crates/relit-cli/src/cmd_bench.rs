@@ -17,6 +17,12 @@
 //! * `projector` — a slide projector (fov 90°, a 2:1 synthetic slide) beside the eye,
 //!   its frustum covering about a third of the panorama: per-pixel light vector and
 //!   slide colour, basis evaluation where the slide reaches;
+//! * `vq` storage (CPU, directional and environment): the maps as a codebook of
+//!   `--codebook` entries (default 4096) and one 16-bit index a pixel (seed 004's
+//!   vector quantisation, `relit::engine::lookup`): a frame relights the codebook once
+//!   and copies one entry a pixel. `uncompressed_bound_fps` beside it is the most
+//!   frames any reader of the same maps as u8 planes could reach at this run's u8 read
+//!   bound;
 //! * `basis_eval` (CPU) — the per-pixel basis alone (`relit::engine::BasisEvaluator`,
 //!   the evaluation of the point case) at every pixel's light vector, reported in
 //!   pixels per second (`pixels_per_s`); no coefficient is read.
@@ -74,6 +80,7 @@ use anyhow::{bail, Context};
 use rayon::prelude::*;
 use relit::basis::{Basis, BasisChoice, Samples};
 use relit::camera::{CameraSpec, Pose, Projection};
+use relit::engine::lookup::{IndexedImage, LookupRelighter};
 use relit::engine::{BasisEvaluator, Relighter};
 use relit::envmap::EnvironmentLight;
 use relit::image::ImageRgb;
@@ -126,6 +133,10 @@ pub struct Args {
     /// CPU plane storage types (`f32`, `f16`, `u8`; repeatable). Default: all three.
     #[arg(long = "cpu-storage")]
     pub cpu_storage: Vec<Precision>,
+    /// Entries of the codebook the `vq` rows look pixels up in (their directional and
+    /// environment frames relight the codebook, then copy an entry a pixel).
+    #[arg(long, default_value_t = 4096, value_parser = clap::value_parser!(u32).range(2..=65536))]
+    pub codebook: u32,
     /// Write the synthetic maps of the first --size and --k to this relightable EXR
     /// (f16, with depth and camera) and exit: a large test file for `relit relight`.
     #[arg(long)]
@@ -175,6 +186,10 @@ struct Row {
     /// Whether host memory bounds the device (the CPU, a software adapter).
     #[serde(skip)]
     host_bound: bool,
+    /// `vq` rows: the most frames per second any reader of the same maps as u8 planes
+    /// could reach (this size's u8 read bound ÷ the planes' bytes).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    uncompressed_bound_fps: Option<f64>,
 }
 
 const CASES: [&str; 5] = ["directional", "environment", "point", "area", "projector"];
@@ -353,6 +368,7 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
                     fma_peak_gs: f64::NAN,
                     fma_fraction: None,
                     host_bound: true,
+                    uncompressed_bound_fps: None,
                 }
             };
 
@@ -398,6 +414,38 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
                         report(&r, args.json);
                         rows.push(r);
                     }
+                }
+            }
+            // Vector quantisation: the same frames from a codebook and an index a pixel.
+            let vq_cases: Vec<&str> = CASES
+                .into_iter()
+                .filter(|c| uniform(c) && wanted(c))
+                .collect();
+            if !args.no_cpu && !vq_cases.is_empty() {
+                let indexed = synthetic_indexed(&image, args.codebook as usize);
+                let lookup = LookupRelighter::new(&indexed)?;
+                let mut frame = ImageRgb::new(0, 0);
+                for case in vq_cases {
+                    let lights = cpu_lights(case, &env)?;
+                    let t = time_batches(seconds, &mut || {}, || {
+                        lookup.relight_prepared_into(&lights, 0.0, &mut frame)?;
+                        black_box(&frame);
+                        Ok(())
+                    })?;
+                    let mut r = row(
+                        case,
+                        "vq",
+                        0,
+                        "cpu",
+                        format!(
+                            "{threads} threads, look-up in a codebook of {} entries",
+                            args.codebook
+                        ),
+                        &t,
+                    );
+                    r.map_bytes = lookup.index_bytes() as u64;
+                    report(&r, args.json);
+                    rows.push(r);
                 }
             }
             if !args.no_cpu && wanted("basis_eval") {
@@ -497,9 +545,16 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
             r.read_bandwidth_gbs = b / 1e9;
             r.bandwidth_fraction = Some(r.fps * r.map_bytes as f64 / b);
         }
+        if r.storage == "vq" {
+            let u8_bound = bounds
+                .iter()
+                .find(|(key, _)| *key == (r.width, r.height, r.k, "u8"))
+                .map(|(_, b)| *b);
+            r.uncompressed_bound_fps = u8_bound.map(|b| b / (3 * r.k * r.width * r.height) as f64);
+        }
         if let Some(peak) = &fma {
             r.fma_peak_gs = peak.best() / 1e9;
-            if r.device == "cpu" && uniform(r.case) {
+            if r.device == "cpu" && uniform(r.case) && r.storage != "vq" {
                 let madds = (3 * r.k * r.width * r.height) as f64;
                 r.fma_fraction = Some(r.fps * madds / peak.best());
             }
@@ -634,6 +689,38 @@ fn synthetic_image(
         },
         depth: Some(depth),
     })
+}
+
+/// The maps as a codebook of `entries` of their pixels and an index a pixel, constant
+/// over 8×8 blocks (a real codebook file's indices are coherent too; the look-up's speed
+/// depends on neither the entries' values nor the indices, as long as the table stays
+/// in the caches: 12 bytes an entry).
+fn synthetic_indexed(image: &RelightableImage, entries: usize) -> IndexedImage {
+    let (w, h, k) = (image.width(), image.height(), image.maps.k);
+    let n = w * h;
+    let entries = entries.min(n);
+    let mut table = CoefficientMaps::zeros(entries, 1, k);
+    for plane in 0..3 * k {
+        let src = &image.maps.data[plane * n..plane * n + entries];
+        table.data[plane * entries..(plane + 1) * entries].copy_from_slice(src);
+    }
+    let indices = (0..n)
+        .into_par_iter()
+        .map(|p| {
+            let block = ((p % w) / 8) as u64 * 0x9E37_79B9 + ((p / w) / 8) as u64 * 0x85EB_CA6B;
+            ((block ^ (block >> 13)) % entries as u64) as u16
+        })
+        .collect();
+    IndexedImage {
+        entries: RelightableImage {
+            meta: image.meta.clone(),
+            maps: table,
+            depth: None,
+        },
+        indices,
+        width: w,
+        height: h,
+    }
 }
 
 /// A synthetic sky as both engines take it: its light weights on the basis per channel.

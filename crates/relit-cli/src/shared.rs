@@ -133,6 +133,11 @@ pub struct CompressArgs {
     /// Tile side in pixels.
     #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(16..=4096))]
     pub tile: u32,
+    /// Vector quantisation (seed 004): every pixel an index into a codebook of this
+    /// many entries (2–65536; zstd only). Directional and environment frames then
+    /// relight the codebook and look pixels up.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(2..=65536))]
+    pub codebook: Option<u32>,
 }
 
 impl CompressArgs {
@@ -144,6 +149,7 @@ impl CompressArgs {
             bits: self.bits,
             codec: self.codec,
             tile: self.tile as usize,
+            codebook: self.codebook.map(|c| c as usize),
             directions: None,
         }
     }

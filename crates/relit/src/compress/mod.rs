@@ -582,17 +582,20 @@ fn quantize_vectors(
         1.0
     };
     let weights: Vec<f32> = (0..dims)
-        .map(|j| if j < functions { 1.0 } else { energy.sqrt() as f32 })
+        .map(|j| {
+            if j < functions {
+                1.0
+            } else {
+                energy.sqrt() as f32
+            }
+        })
         .collect();
     let mut vectors = vec![0.0f32; n * dims];
-    vectors
-        .par_chunks_mut(dims)
-        .enumerate()
-        .for_each(|(p, v)| {
-            for (j, x) in v.iter_mut().enumerate() {
-                *x = entries[j].1[p] * weights[j];
-            }
-        });
+    vectors.par_chunks_mut(dims).enumerate().for_each(|(p, v)| {
+        for (j, x) in v.iter_mut().enumerate() {
+            *x = entries[j].1[p] * weights[j];
+        }
+    });
     let mut book = vq::train(&vectors, dims, codebook)?;
     let indices = vq::assign(&book, &vectors);
     for entry in book.values.chunks_exact_mut(dims) {
@@ -727,7 +730,12 @@ pub fn indexed(packed: &Packed) -> Result<crate::engine::lookup::IndexedImage> {
         }
         raw
     };
-    let code = |j: usize, e: usize| u16::from_le_bytes([codes[2 * (j * entries + e)], codes[2 * (j * entries + e) + 1]]);
+    let code = |j: usize, e: usize| {
+        u16::from_le_bytes([
+            codes[2 * (j * entries + e)],
+            codes[2 * (j * entries + e) + 1],
+        ])
+    };
     for (j, plane) in header.planes.iter().enumerate() {
         if (0..entries).any(|e| code(j, e) as u32 >= plane.quantizer.levels) {
             return Err(Error::parse("a codebook value is past its plane's codes"));
@@ -783,7 +791,13 @@ fn checked(packed: &Packed) -> Result<usize> {
 }
 
 /// The codes of tile `t` from section `s`.
-fn decode_codes(packed: &Packed, s: usize, t: usize, width: usize, levels: u32) -> Result<Vec<u16>> {
+fn decode_codes(
+    packed: &Packed,
+    s: usize,
+    t: usize,
+    width: usize,
+    levels: u32,
+) -> Result<Vec<u16>> {
     let header = &packed.header;
     let (_, _, tw, th) = header.tile_rect(t);
     let mut codes = vec![0u16; tw * th];

@@ -282,20 +282,40 @@ fn a_codebook_file_reads_back_and_relights_by_look_up() {
         let packed = pack(&img, &vq(4096)).unwrap();
         assert_eq!(packed.header.codebook, Some(24 * 16), "{layout:?}");
         let bytes = packed::to_bytes(&packed).unwrap();
-        assert_eq!(&bytes[8..12], &2u32.to_le_bytes(), "codebook files are version 2");
+        assert_eq!(
+            &bytes[8..12],
+            &2u32.to_le_bytes(),
+            "codebook files are version 2"
+        );
         let again = packed::from_bytes(&bytes, "test").unwrap();
         assert!(again == packed);
         let back = unpack(&again).unwrap();
         assert_eq!(back.depth, img.depth, "depth is lossless");
         let exact = relit_error(&img, &back);
-        let planes = unpack(&pack(&img, &Settings { codebook: None, ..vq(2) }).unwrap()).unwrap();
+        let planes = unpack(
+            &pack(
+                &img,
+                &Settings {
+                    codebook: None,
+                    ..vq(2)
+                },
+            )
+            .unwrap(),
+        )
+        .unwrap();
         let reference = relit_error(&img, &planes);
-        assert!(exact <= reference * 1.5 + 1e-4, "{layout:?}: {exact} vs {reference}");
+        assert!(
+            exact <= reference * 1.5 + 1e-4,
+            "{layout:?}: {exact} vs {reference}"
+        );
 
         // Fewer entries cost accuracy, gradually.
         let coarse = relit_error(&img, &unpack(&pack(&img, &vq(8)).unwrap()).unwrap());
         let finer = relit_error(&img, &unpack(&pack(&img, &vq(64)).unwrap()).unwrap());
-        assert!(finer < coarse && coarse < 0.5, "{layout:?}: 8 → {coarse}, 64 → {finer}");
+        assert!(
+            finer < coarse && coarse < 0.5,
+            "{layout:?}: 8 → {coarse}, 64 → {finer}"
+        );
 
         // Relighting the codebook and looking pixels up gives the expanded maps' frame.
         let small = pack(&img, &vq(64)).unwrap();
@@ -305,10 +325,14 @@ fn a_codebook_file_reads_back_and_relights_by_look_up() {
         let lookup = crate::engine::lookup::LookupRelighter::new(&indexed).unwrap();
         let light = Light::directional([0.2, 0.5, 0.8], [1.0, 0.7, 0.4]);
         let relighter = Relighter::new(&expanded).unwrap();
-        let prepared = vec![relighter.prepare(&light, &RelightOptions::default()).unwrap()];
+        let prepared = vec![relighter
+            .prepare(&light, &RelightOptions::default())
+            .unwrap()];
         let want = relighter.relight_prepared(&prepared, 0.0).unwrap();
         let mut got = crate::image::ImageRgb::new(0, 0);
-        lookup.relight_prepared_into(&prepared, 0.0, &mut got).unwrap();
+        lookup
+            .relight_prepared_into(&prepared, 0.0, &mut got)
+            .unwrap();
         for (a, b) in got.data.iter().zip(&want.data) {
             assert!((a - b).abs() <= 1e-5 * b.abs().max(1.0), "{a} vs {b}");
         }
@@ -336,7 +360,9 @@ fn codebook_files_refuse_jpeg_and_version_1() {
     assert!(indexed(&pack(&img, &Settings::default()).unwrap()).is_err());
     let mut bytes = packed::to_bytes(&packed).unwrap();
     bytes[8..12].copy_from_slice(&1u32.to_le_bytes());
-    let err = packed::from_bytes(&bytes, "old.rlz").unwrap_err().to_string();
+    let err = packed::from_bytes(&bytes, "old.rlz")
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("codebook"), "{err}");
     bytes[8..12].copy_from_slice(&3u32.to_le_bytes());
     assert!(packed::from_bytes(&bytes, "new.rlz").is_err());

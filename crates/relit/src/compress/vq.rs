@@ -259,7 +259,8 @@ fn seed_plus_plus(training: &[f32], dims: usize, entries: usize, rng: &mut Rng) 
             })
             .collect()
     };
-    let dist = |a: &[f32], b: &[f32]| -> f32 { a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum() };
+    let dist =
+        |a: &[f32], b: &[f32]| -> f32 { a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum() };
     let first = pool[rng.below(pool.len())];
     let mut book: Vec<f32> = first.to_vec();
     let mut nearest: Vec<f32> = pool.iter().map(|v| dist(v, first)).collect();

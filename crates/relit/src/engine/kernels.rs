@@ -350,6 +350,79 @@ unsafe fn interleave_stream_avx2(dst: &mut [f32], rows: [&[f32]; 3]) {
     _mm_sfence();
 }
 
+impl Simd {
+    /// Pixel `p` of `dst` (RGB) becomes entry `indices[p]` of `table`, whose entries
+    /// take 4 floats (RGB and one unused, so that an entry is one 16-byte load); with
+    /// non-temporal stores for the aligned runs of 8 pixels as in
+    /// [`Simd::interleave_stream`]. Every index must be below `table.len() / 4`.
+    pub(crate) fn gather_stream(self, dst: &mut [f32], table: &[f32], indices: &[u16]) {
+        let n = dst.len() / 3;
+        assert!(
+            indices.len() >= n
+                && indices[..n]
+                    .iter()
+                    .all(|&i| 4 * i as usize + 4 <= table.len())
+        );
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: as in `axpy`; every entry read is inside `table` (asserted above).
+            return unsafe { gather_stream_avx2(dst, table, &indices[..n]) };
+        }
+        gather_body(dst, table, indices)
+    }
+}
+
+#[inline(always)]
+fn gather_body(dst: &mut [f32], table: &[f32], indices: &[u16]) {
+    for (px, &i) in dst.chunks_exact_mut(3).zip(indices) {
+        let e = 4 * i as usize;
+        px.copy_from_slice(&table[e..e + 3]);
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,f16c")]
+unsafe fn gather_stream_avx2(dst: &mut [f32], table: &[f32], indices: &[u16]) {
+    use std::arch::x86_64::*;
+    let n = dst.len() / 3;
+    let a = (dst.as_ptr() as usize % 32) / 4;
+    let first = ((8 - (3 * a) % 8) % 8).min(n);
+    let runs = (n - first) / 8;
+    let (head, rest) = dst.split_at_mut(3 * first);
+    let (body, tail) = rest.split_at_mut(24 * runs);
+    gather_body(head, table, &indices[..first]);
+    let base = table.as_ptr();
+    for (run, out) in body.chunks_exact_mut(24).enumerate() {
+        let p = first + 8 * run;
+        // SAFETY: each entry's 4 floats are inside `table` (the caller's assertion).
+        let e: [__m128; 8] =
+            std::array::from_fn(|j| unsafe { _mm_loadu_ps(base.add(4 * indices[p + j] as usize)) });
+        // Three 8-float vectors of RGB triples, built in registers:
+        // [r0 g0 b0 r1 | g1 b1 r2 g2], [b2 r3 g3 b3 | r4 g4 b4 r5], [g5 b5 r6 g6 | b6 r7 g7 b7].
+        let first_of = |x: __m128, y: __m128| _mm_blend_ps::<0b1000>(x, _mm_permute_ps::<0>(y));
+        let middle = |x: __m128, y: __m128| _mm_shuffle_ps::<0b01_00_10_01>(x, y);
+        let last_of = |x: __m128, y: __m128| {
+            _mm_blend_ps::<0b0001>(
+                _mm_permute_ps::<0b10_01_00_00>(y),
+                _mm_permute_ps::<0b10_10_10_10>(x),
+            )
+        };
+        let v0 = _mm256_set_m128(middle(e[1], e[2]), first_of(e[0], e[1]));
+        let v1 = _mm256_set_m128(first_of(e[4], e[5]), last_of(e[2], e[3]));
+        let v2 = _mm256_set_m128(last_of(e[6], e[7]), middle(e[5], e[6]));
+        let at = out.as_mut_ptr();
+        debug_assert_eq!(at as usize % 32, 0);
+        // SAFETY: `at` points to 24 writable f32s of `out`, 32-byte aligned.
+        unsafe {
+            _mm256_stream_ps(at, v0);
+            _mm256_stream_ps(at.add(8), v1);
+            _mm256_stream_ps(at.add(16), v2);
+        }
+    }
+    gather_body(tail, table, &indices[first + 8 * runs..]);
+    _mm_sfence();
+}
+
 #[inline(always)]
 fn interleave_body(dst: &mut [f32], rows: [&[f32]; 3]) {
     for (p, px) in dst.chunks_exact_mut(3).enumerate() {
@@ -564,6 +637,31 @@ mod tests {
                     simd.interleave_stream(dst, [&rows[0][..n], &rows[1][..n], &rows[2][..n]]);
                     let want: Vec<f32> = (0..3 * n).map(|v| v as f32).collect();
                     assert_eq!(dst, &want[..], "{simd:?} skip {skip} n {n}");
+                    assert!(buffer[skip + 3 * n..].iter().all(|&v| v == -1.0));
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn gather_copies_each_pixels_entry_at_every_alignment() {
+        let entries = 11;
+        let table: Vec<f32> = (0..4 * entries).map(|v| v as f32).collect();
+        let indices: Vec<u16> = (0..100).map(|p| ((p * 7) % entries) as u16).collect();
+        for simd in both() {
+            for skip in 0..8 {
+                for n in [0, 1, 7, 8, 9, 30, 100 - skip] {
+                    let mut buffer = vec![-1f32; 3 * 100 + 8];
+                    let dst = &mut buffer[skip..skip + 3 * n];
+                    simd.gather_stream(dst, &table, &indices[..n]);
+                    for p in 0..n {
+                        let e = 4 * indices[p] as usize;
+                        assert_eq!(
+                            &dst[3 * p..3 * p + 3],
+                            &table[e..e + 3],
+                            "{simd:?} {skip} {n} {p}"
+                        );
+                    }
                     assert!(buffer[skip + 3 * n..].iter().all(|&v| v == -1.0));
                 }
             }

@@ -60,7 +60,7 @@ pub struct LookupRelighter<'a> {
 }
 
 /// Pixels gathered per step before they are written out.
-const RUN: usize = 512;
+const RUN: usize = 4096;
 
 impl<'a> LookupRelighter<'a> {
     pub fn new(image: &'a IndexedImage) -> Result<Self> {
@@ -69,9 +69,7 @@ impl<'a> LookupRelighter<'a> {
             return Err(Error::invalid("a codebook is a non-empty C × 1 image"));
         }
         if image.indices.len() != image.width * image.height {
-            return Err(Error::invalid(
-                "an indexed image needs one index per pixel",
-            ));
+            return Err(Error::invalid("an indexed image needs one index per pixel"));
         }
         if image.indices.iter().any(|&i| i as usize >= c) {
             return Err(Error::invalid(format!(
@@ -104,8 +102,13 @@ impl<'a> LookupRelighter<'a> {
                 light_kind(l)
             )));
         }
-        let table = self.entries.relight_prepared(lights, exposure)?;
-        let table = &table.data;
+        let relit = self.entries.relight_prepared(lights, exposure)?;
+        // Four floats an entry: one 16-byte load a pixel.
+        let table: Vec<f32> = relit
+            .data
+            .chunks_exact(3)
+            .flat_map(|rgb| [rgb[0], rgb[1], rgb[2], 0.0])
+            .collect();
         let n = self.image.indices.len();
         out.width = self.image.width;
         out.height = self.image.height;
@@ -117,18 +120,10 @@ impl<'a> LookupRelighter<'a> {
             .zip(self.image.indices.par_chunks(RUN))
             .for_each(|(dst, indices)| {
                 if stream {
-                    let mut rows = [[0f32; RUN]; 3];
-                    for (p, &i) in indices.iter().enumerate() {
-                        let e = 3 * i as usize;
-                        rows[0][p] = table[e];
-                        rows[1][p] = table[e + 1];
-                        rows[2][p] = table[e + 2];
-                    }
-                    let m = indices.len();
-                    simd.interleave_stream(dst, [&rows[0][..m], &rows[1][..m], &rows[2][..m]]);
+                    simd.gather_stream(dst, &table, indices);
                 } else {
                     for (px, &i) in dst.chunks_exact_mut(3).zip(indices) {
-                        let e = 3 * i as usize;
+                        let e = 4 * i as usize;
                         px.copy_from_slice(&table[e..e + 3]);
                     }
                 }
@@ -156,7 +151,10 @@ mod tests {
     use crate::maps::{CoefficientMaps, MapSpace, Metadata};
 
     fn indexed(w: usize, h: usize) -> IndexedImage {
-        let basis = BasisChoice::parse("sh:9").unwrap().build(&[], None).unwrap();
+        let basis = BasisChoice::parse("sh:9")
+            .unwrap()
+            .build(&[], None)
+            .unwrap();
         let entries = 37;
         let mut maps = CoefficientMaps::zeros(entries, 1, 9);
         for (i, v) in maps.data.iter_mut().enumerate() {
@@ -185,7 +183,9 @@ mod tests {
         let expanded = image.expand();
         let lights = vec![
             PreparedLight::Directional {
-                direction: crate::sphere::Vec3::new(0.3, 0.8, 0.5).normalized().unwrap(),
+                direction: crate::sphere::Vec3::new(0.3, 0.8, 0.5)
+                    .normalized()
+                    .unwrap(),
                 rgb: [1.0, 0.5, 0.25],
             },
             PreparedLight::Weights(std::array::from_fn(|c| {
@@ -198,7 +198,9 @@ mod tests {
             .unwrap();
         let lookup = LookupRelighter::new(&image).unwrap();
         let mut got = ImageRgb::new(0, 0);
-        lookup.relight_prepared_into(&lights, 0.5, &mut got).unwrap();
+        lookup
+            .relight_prepared_into(&lights, 0.5, &mut got)
+            .unwrap();
         assert_eq!((got.width, got.height), (53, 7));
         for (a, b) in got.data.iter().zip(&want.data) {
             assert!((a - b).abs() <= 1e-5 * b.abs().max(1.0), "{a} vs {b}");
