@@ -179,7 +179,7 @@ fn sort_entries(book: &mut Vec<f32>, dims: usize, axis: usize) {
 /// seeds on a subsample, then Lloyd iterations; entries left empty are moved to the
 /// vectors worst served.
 pub fn train(vectors: &[f32], dims: usize, entries: usize) -> Result<Codebook> {
-    if dims == 0 || vectors.is_empty() || vectors.len() % dims != 0 {
+    if dims == 0 || vectors.is_empty() || !vectors.len().is_multiple_of(dims) {
         return Err(Error::invalid("vector quantisation of no vectors"));
     }
     if !(2..=MAX_ENTRIES).contains(&entries) {
