@@ -1069,10 +1069,12 @@ mod tests {
             no_cpu: false,
             cases: vec![],
             cpu_storage: vec![],
+            codebook: 16,
             write_maps: None,
         };
         let rows = measure(args).unwrap().unwrap();
-        assert_eq!(rows.len(), CASES.len() * 3 + 1);
+        // Three storages, the uniform cases again from a codebook, the basis alone.
+        assert_eq!(rows.len(), CASES.len() * 3 + 2 + 1);
         for r in &rows {
             let json = serde_json::to_value(r).unwrap();
             for field in [
@@ -1089,7 +1091,11 @@ mod tests {
             }
             assert!(r.fps > 0.0 && r.fps_median <= r.fps && r.batches == BATCHES);
             assert!(r.fma_peak_gs > 0.0);
-            if r.case == "basis_eval" {
+            if r.storage == "vq" {
+                assert!(uniform(r.case) && r.bandwidth_fraction.is_none());
+                assert!(r.uncompressed_bound_fps.is_some_and(|f| f > 0.0));
+                assert_eq!(r.map_bytes, 2 * 64 * 16);
+            } else if r.case == "basis_eval" {
                 assert!(r.bandwidth_fraction.is_none());
             } else {
                 assert!(r.read_bandwidth_gbs > 0.0);
