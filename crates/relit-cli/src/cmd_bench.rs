@@ -141,6 +141,16 @@ pub struct Args {
     /// (f16, with depth and camera) and exit: a large test file for `relit relight`.
     #[arg(long)]
     pub write_maps: Option<std::path::PathBuf>,
+    /// With --write-maps: fill the size with this fitted file's maps (repeated, every
+    /// other copy mirrored so that no seam is a step) instead of random values: a large
+    /// file with the statistics of a real capture, for compression and load times.
+    #[arg(long, requires = "write_maps")]
+    pub tile_from: Option<std::path::PathBuf>,
+    /// Time loading each file and drawing its first frame (one directional light) and
+    /// exit: EXR files into u8 planes, compressed files into their planes, or into a
+    /// codebook and indices (repeatable).
+    #[arg(long)]
+    pub load: Vec<std::path::PathBuf>,
 }
 
 /// One measured case; also the JSON form.
@@ -266,12 +276,26 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
     } else {
         args.cpu_storage.clone()
     };
+    if !args.load.is_empty() {
+        load_times(&args.load, args.json)?;
+        return Ok(None);
+    }
     if let Some(path) = &args.write_maps {
-        // The maps are synthetic: the only file read is the program itself.
-        crate::shared::refuse_overwriting_inputs(&[], &[relit::fsutil::Output::file(path)])?;
+        let inputs: Vec<std::path::PathBuf> = args.tile_from.iter().cloned().collect();
+        crate::shared::refuse_overwriting_inputs(&inputs, &[relit::fsutil::Output::file(path)])?;
         let (width, height) = sizes[0];
-        let basis = bench_basis(&bases[0])?;
-        let image = synthetic_image(width, height, basis.as_ref())?;
+        let (basis, image) = match &args.tile_from {
+            Some(from) => {
+                let source = relit::codec::read(from)?;
+                let image = tiled_image(&source, width, height);
+                (source.meta.basis.build()?, image)
+            }
+            None => {
+                let basis = bench_basis(&bases[0])?;
+                let image = synthetic_image(width, height, basis.as_ref())?;
+                (basis, image)
+            }
+        };
         relit::codec::exr::write(path, &image, Precision::F16)?;
         println!(
             "wrote {} ({width}×{height}, {}, {} of f32 maps)",
@@ -627,6 +651,131 @@ fn bench_basis(name: &str) -> anyhow::Result<Box<dyn Basis>> {
         n: dirs.len(),
     };
     Ok(choice.build(&dirs, Some(samples))?)
+}
+
+/// `source`'s maps and depth repeated over `width × height`, every other copy mirrored
+/// (across and down) so that neighbouring copies meet at equal pixels.
+fn tiled_image(source: &RelightableImage, width: usize, height: usize) -> RelightableImage {
+    let (sw, sh) = (source.width(), source.height());
+    let at = |x: usize, y: usize| {
+        let (cx, cy) = (x / sw, y / sh);
+        let (mut u, mut v) = (x % sw, y % sh);
+        if cx % 2 == 1 {
+            u = sw - 1 - u;
+        }
+        if cy % 2 == 1 {
+            v = sh - 1 - v;
+        }
+        v * sw + u
+    };
+    let n = width * height;
+    let k = source.maps.k;
+    let mut maps = CoefficientMaps::zeros(width, height, k);
+    let sn = sw * sh;
+    maps.data
+        .par_chunks_mut(n)
+        .enumerate()
+        .for_each(|(plane, out)| {
+            let src = &source.maps.data[plane * sn..(plane + 1) * sn];
+            for (p, o) in out.iter_mut().enumerate() {
+                *o = src[at(p % width, p / width)];
+            }
+        });
+    let depth = source
+        .depth
+        .as_ref()
+        .map(|d| (0..n).map(|p| d[at(p % width, p / width)]).collect());
+    let mut meta = source.meta.clone();
+    meta.camera = None;
+    RelightableImage { meta, maps, depth }
+}
+
+/// One file's load and first frame.
+#[derive(Serialize)]
+struct LoadTime {
+    file: String,
+    bytes: u64,
+    /// How the frame was drawn: `u8 planes`, `f32 planes` or `codebook look-up`.
+    path: &'static str,
+    /// Fastest of three runs (the file in the page cache each time), seconds.
+    seconds: f64,
+    seconds_median: f64,
+}
+
+/// Time [`LOAD_RUNS`] loads and first frames of each file.
+fn load_times(files: &[std::path::PathBuf], json: bool) -> anyhow::Result<()> {
+    const LOAD_RUNS: usize = 3;
+    let light = [PreparedLight::Directional {
+        direction: relit::sphere::Vec3::new(0.3, 0.4, 0.866),
+        rgb: [1.0; 3],
+    }];
+    let mut rows = Vec::new();
+    for file in files {
+        let bytes = std::fs::metadata(file)
+            .with_context(|| format!("cannot read {}", file.display()))?
+            .len();
+        let mut times = Vec::new();
+        let mut path = "";
+        for _ in 0..LOAD_RUNS {
+            let start = Instant::now();
+            let frame = match relit::codec::FileForm::of(file)? {
+                relit::codec::FileForm::Exr => {
+                    path = "u8 planes";
+                    let (image, planes) = relit::codec::read_compact(file, Precision::U8)?;
+                    Relighter::with_compact(&image, planes)?.relight_prepared(&light, 0.0)?
+                }
+                relit::codec::FileForm::Compressed => {
+                    let packed = relit::codec::packed::read_packed(file)?;
+                    if packed.header.codebook.is_some() {
+                        path = "codebook look-up";
+                        let indexed = relit::compress::indexed(&packed)?;
+                        let mut frame = ImageRgb::new(0, 0);
+                        LookupRelighter::new(&indexed)?
+                            .relight_prepared_into(&light, 0.0, &mut frame)?;
+                        frame
+                    } else {
+                        path = "f32 planes";
+                        let image = relit::compress::unpack(&packed)?;
+                        Relighter::new(&image)?.relight_prepared(&light, 0.0)?
+                    }
+                }
+            };
+            black_box(&frame);
+            times.push(start.elapsed().as_secs_f64());
+        }
+        times.sort_by(f64::total_cmp);
+        let row = LoadTime {
+            file: file.display().to_string(),
+            bytes,
+            path,
+            seconds: times[0],
+            seconds_median: times[LOAD_RUNS / 2],
+        };
+        if !json {
+            println!(
+                "{}: {} MiB, load + first frame ({}) {:.3} s (median {:.3} s)",
+                row.file,
+                bytes >> 20,
+                row.path,
+                row.seconds,
+                row.seconds_median
+            );
+        }
+        rows.push(row);
+    }
+    if json {
+        println!("{}", serde_json::to_string_pretty(&rows)?);
+    } else if rows.len() > 1 {
+        for r in &rows[1..] {
+            println!(
+                "{} / {}: {:.2}×",
+                r.file,
+                rows[0].file,
+                r.seconds / rows[0].seconds
+            );
+        }
+    }
+    Ok(())
 }
 
 /// Maps of `basis` with random values (a brighter first coefficient), depth 1.5–2.5
@@ -1071,6 +1220,8 @@ mod tests {
             cpu_storage: vec![],
             codebook: 16,
             write_maps: None,
+            tile_from: None,
+            load: vec![],
         };
         let rows = measure(args).unwrap().unwrap();
         // Three storages, the uniform cases again from a codebook, the basis alone.

@@ -42,13 +42,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 .map(|p| p.quantizer.levels)
                 .max()
                 .unwrap_or(0);
+            let pixels = match header.codebook {
+                Some(entries) => format!(
+                    "a codebook of {entries} entries ({} values each, ≤ {levels} levels), {} index tiles of {}²",
+                    header.planes.len(),
+                    header.codec.name(),
+                    header.tile
+                ),
+                None => format!(
+                    "{} planes of ≤ {levels} levels, {} tiles of {}²",
+                    header.planes.len(),
+                    header.codec.name(),
+                    header.tile
+                ),
+            };
             format!(
-                "compressed: {} layout, {} components, {} planes of ≤ {levels} levels, {} tiles of {}²",
+                "compressed: {} layout, {} components, {pixels}",
                 header.layout.name(),
                 counts.join("/"),
-                header.planes.len(),
-                header.codec.name(),
-                header.tile
             )
         }
     };

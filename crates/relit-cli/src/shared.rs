@@ -138,6 +138,10 @@ pub struct CompressArgs {
     /// relight the codebook and look pixels up.
     #[arg(long, value_parser = clap::value_parser!(u32).range(2..=65536))]
     pub codebook: Option<u32>,
+    /// JPEG planes: `shared` (every plane with the first plane's step: few bits for the
+    /// minor components) or `plane` (each over its own range: finer, many more bits).
+    #[arg(long, default_value = "shared", value_parser = |s: &str| relit::compress::JpegRange::parse(s).map_err(|e| e.to_string()))]
+    pub jpeg_range: relit::compress::JpegRange,
 }
 
 impl CompressArgs {
@@ -150,6 +154,7 @@ impl CompressArgs {
             codec: self.codec,
             tile: self.tile as usize,
             codebook: self.codebook.map(|c| c as usize),
+            jpeg_range: self.jpeg_range,
             directions: None,
         }
     }
