@@ -160,6 +160,15 @@ fn bases() -> Vec<Case> {
             });
         }
     }
+    // What compressed files relight with: K′ fixed combinations of a fitted basis.
+    let inner = sh(16);
+    let matrix: Vec<f64> = (0..6 * 16)
+        .map(|i| ((i * 7919) % 13) as f64 / 13.0 - 0.4)
+        .collect();
+    out.push(Case {
+        basis: Box::new(relit::basis::Projected::new(inner, matrix).unwrap()),
+        registered: true,
+    });
     for k in [5, 12] {
         out.push(Case {
             basis: lobes(k),

@@ -884,6 +884,25 @@ try {
       expect(`no band windows for ${basis} (no bands), and the panel says why`, await win.isDisabled() && hint.includes(basis), hint);
     }
   });
+
+  await section('compressed', async () => {
+    // Compressed files, principal components and a codebook: the viewer relights the
+    // planes they decode to with the projected basis (K′ combinations of sh:16, from its
+    // weight table) and matches `relit relight` of the same file.
+    for (const [name, flags] of [
+      ['pca', ['--layout', 'ycc', '--components', '6', '--codec', 'jpeg:90']],
+      ['codebook', ['--layout', 'ycc', '--components', '9', '--codebook', '256']],
+    ]) {
+      const rlz = path.join(work, `pano-${name}.rlz`);
+      run('convert', path.join(work, 'pano.exr'), '-o', rlz, ...flags);
+      await open(rlz, ENVS);
+      expect(`the viewer reads the ${name} file's projected basis`, current.info.basis.name.startsWith('sh:16→'), current.info.basis.name);
+      await setRig({ lights: [{ type: 'directional', direction: [-0.4, 0.6, 0.7], color: [1, 0.9, 0.8], intensity: 1.2 }] });
+      await check(`rlz ${name} directional`);
+      await setRig({ lights: [{ type: 'point', position: [0, 1, 1], intensity: 2 }] });
+      await check(`rlz ${name} point`);
+    }
+  });
 } finally {
   await browser.close();
   for (const p of servers) p.kill();
