@@ -157,6 +157,23 @@ fn no_file_reader_panics_on_mutated_files() {
     crashes.extend(fuzz(d, "maps-jpeg.rlz", &rlz_jpeg, |p| {
         let _ = relit::codec::read(p);
     }));
+    // A codebook file, read both ways: expanded into maps, and as entries and indices.
+    let vq_settings = relit::compress::Settings {
+        codebook: Some(12),
+        ..zstd_settings.clone()
+    };
+    let rlz_vq = relit::codec::packed::to_bytes(
+        &relit::compress::pack(&fitted.image, &vq_settings).unwrap(),
+    )
+    .unwrap();
+    crashes.extend(fuzz(d, "maps-vq.rlz", &rlz_vq, |p| {
+        let _ = relit::codec::read(p);
+        if let Ok(packed) = relit::codec::packed::read_packed(p) {
+            if let Ok(indexed) = relit::compress::indexed(&packed) {
+                let _ = relit::engine::lookup::LookupRelighter::new(&indexed);
+            }
+        }
+    }));
     std::fs::write(d.join("sections.bin"), packed.sections.concat()).unwrap();
     let header_json = serde_json::to_vec(&packed.header).unwrap();
     crashes.extend(fuzz(d, "header.json", &header_json, |p| {
