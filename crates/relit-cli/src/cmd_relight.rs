@@ -2,6 +2,7 @@
 
 use crate::shared::{refuse_overwriting_inputs, rig_inputs, Bars};
 use anyhow::{bail, Context};
+use relit::engine::lookup::LookupRelighter;
 use relit::engine::{RelightOptions, Relighter, Roi};
 use relit::fsutil::{Output, StagedFolder};
 use relit::image::ImageRgb;
@@ -159,6 +160,56 @@ fn build_engine<'a>(
     })
 }
 
+/// A codebook file under lights that are the same for every pixel, one whole frame on
+/// the CPU: relight the codebook once and look every pixel up, without expanding the
+/// maps (`relit::engine::lookup`). `None` when the file or the request is not that.
+fn relight_codebook(
+    args: &Args,
+    rig_file: Option<&RigFile>,
+    extra: &[Light],
+    options: &RelightOptions,
+) -> anyhow::Result<Option<()>> {
+    let mut lights = extra.to_vec();
+    match rig_file {
+        Some(RigFile::Rig(rig)) => lights.extend(rig.lights.iter().cloned()),
+        Some(RigFile::Animation(_)) => return Ok(None),
+        None => {}
+    }
+    let rig = LightRig::new(lights);
+    let plain = !args.gpu && !args.compare && args.roi.is_none() && !args.memory;
+    if !plain
+        || rig.lights.is_empty()
+        || !LookupRelighter::draws(&rig)
+        || relit::codec::FileForm::of(&args.file)? != relit::codec::FileForm::Compressed
+    {
+        return Ok(None);
+    }
+    let packed = relit::codec::packed::read_packed(&args.file)?;
+    if packed.header.codebook.is_none() {
+        return Ok(None);
+    }
+    let Some(output) = args.output.as_ref() else {
+        return Ok(None);
+    };
+    let indexed = relit::compress::indexed(&packed)?;
+    let start = std::time::Instant::now();
+    let frame = LookupRelighter::new(&indexed)?.relight(&rig, options)?;
+    let seconds = start.elapsed().as_secs_f64();
+    relit::image::save(output, &frame, 0.0)
+        .with_context(|| format!("writing {}", output.display()))?;
+    println!(
+        "wrote {} ({}×{}, {} light{}, relit in {:.1} ms from a codebook of {} entries)",
+        output.display(),
+        frame.width,
+        frame.height,
+        rig.lights.len(),
+        if rig.lights.len() == 1 { "" } else { "s" },
+        seconds * 1e3,
+        indexed.entries.maps.pixels()
+    );
+    Ok(Some(()))
+}
+
 fn flag_lights(args: &Args) -> anyhow::Result<Vec<Light>> {
     if args.colors.len() > args.lights.len() {
         bail!(
@@ -205,6 +256,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // Compact CPU planes are decoded straight from the file, so the f32 maps are never
     // held (--compare and --gpu need them).
     let storage = args.storage;
+    if let Some(result) = relight_codebook(&args, rig_file.as_ref(), &extra, &options)? {
+        return Ok(result);
+    }
     let (image, compact) = if storage != Precision::F32 && !args.gpu && !args.compare {
         let (image, planes) = relit::codec::read_compact(&args.file, storage)?;
         (image, Some(planes))

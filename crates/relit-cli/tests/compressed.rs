@@ -113,3 +113,65 @@ fn a_fit_writes_a_compressed_file_when_asked() {
     let f = frame(d, "fit.rlz", "f");
     assert!(f.iter().all(|v| v.is_finite()) && f.iter().any(|&v| v > 0.01));
 }
+
+#[test]
+fn a_codebook_file_relights_by_look_up_as_its_expanded_maps() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    common::capture_and_fit(d);
+    relit(
+        d,
+        &["convert", "scene.exr", "-o", "vq.rlz", "--codebook", "64"],
+    );
+    let info = relit(d, &["info", "vq.rlz"]);
+    assert!(info.contains("codebook of 64 entries"), "{info}");
+    // Directional lights: the codebook relit once and looked up.
+    let said = relit(
+        d,
+        &[
+            "relight",
+            "vq.rlz",
+            "--light",
+            "dir:0.3,0.2,0.93",
+            "-o",
+            "look.exr",
+        ],
+    );
+    assert!(said.contains("from a codebook of 64 entries"), "{said}");
+    // --memory takes the ordinary path over the expanded maps: the same frame.
+    relit(
+        d,
+        &[
+            "relight",
+            "vq.rlz",
+            "--light",
+            "dir:0.3,0.2,0.93",
+            "-o",
+            "expanded.exr",
+            "--memory",
+        ],
+    );
+    let load = |f: &str| relit::image::load_linear(&d.join(f), None).unwrap().data;
+    let (a, b) = (load("look.exr"), load("expanded.exr"));
+    let peak = b.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+    let worst = a
+        .iter()
+        .zip(&b)
+        .fold(0.0f32, |m, (x, y)| m.max((x - y).abs()));
+    assert!(peak > 0.0 && worst <= 1e-5 * peak, "{worst} of {peak}");
+    // A region is drawn from the expanded maps.
+    let said = relit(
+        d,
+        &[
+            "relight",
+            "vq.rlz",
+            "--light",
+            "dir:0.3,0.2,0.93",
+            "--roi",
+            "0,0,4,4",
+            "-o",
+            "roi.exr",
+        ],
+    );
+    assert!(!said.contains("codebook"), "{said}");
+}

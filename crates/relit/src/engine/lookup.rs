@@ -9,9 +9,9 @@
 //! refused here; their frames come from the expanded maps.
 
 use super::kernels::Simd;
-use super::{Relighter, STREAM_BYTES};
+use super::{RelightOptions, Relighter, STREAM_BYTES};
 use crate::image::ImageRgb;
-use crate::light::PreparedLight;
+use crate::light::{Light, LightRig, PreparedLight};
 use crate::maps::RelightableImage;
 use crate::{Error, Result};
 use rayon::prelude::*;
@@ -86,6 +86,26 @@ impl<'a> LookupRelighter<'a> {
     /// Bytes one frame reads: the indices.
     pub fn index_bytes(&self) -> usize {
         2 * self.image.indices.len()
+    }
+
+    /// Whether every light of `rig` is the same for every pixel (directional or
+    /// environment), which is what this relighter draws.
+    pub fn draws(rig: &LightRig) -> bool {
+        rig.lights
+            .iter()
+            .all(|l| matches!(l, Light::Directional(_) | Light::Environment(_)))
+    }
+
+    /// Relight under `rig` (see [`LookupRelighter::draws`]).
+    pub fn relight(&self, rig: &LightRig, options: &RelightOptions) -> Result<ImageRgb> {
+        let lights: Vec<PreparedLight> = rig
+            .lights
+            .iter()
+            .map(|l| self.entries.prepare(l, options))
+            .collect::<Result<_>>()?;
+        let mut out = ImageRgb::new(0, 0);
+        self.relight_prepared_into(&lights, options.exposure, &mut out)?;
+        Ok(out)
     }
 
     /// Relight every pixel under `lights` (all of them uniform) into `out`, which
