@@ -12,9 +12,10 @@ use relit::storage::Precision;
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
+#[command(group = clap::ArgGroup::new("rd_source").args(["rd", "rd_report"]))]
 pub struct Args {
     /// The capture: an RTI `.lp` file or a relit manifest `.json`.
-    #[arg(required_unless_present = "scene", conflicts_with = "scene")]
+    #[arg(required_unless_present_any = ["scene", "rd_report"], conflicts_with = "scene")]
     pub capture: Option<PathBuf>,
     /// Instead of a capture: a studio scene (attic, city, box, .obj or scene .json) to
     /// capture, fit, and relight under each light of `--rig` against ray-traced truth.
@@ -84,10 +85,14 @@ pub struct Args {
     #[arg(long = "rd-settings", requires = "rd",
           value_parser = clap::value_parser!(u16).range(1..))]
     pub rd_settings: Option<u16>,
-    /// With --rd: draw the curve (PSNR against bits/pixel, one series per basis, the
-    /// Pareto front as a line) into this SVG file.
-    #[arg(long, requires = "rd")]
+    /// With --rd or --rd-report: draw the curve (PSNR against bits/pixel, one series
+    /// per basis, the Pareto front as a line) into this SVG file.
+    #[arg(long, requires = "rd_source")]
     pub plot: Option<PathBuf>,
+    /// Instead of computing a curve: show the one a `--rd --json` run stored in this
+    /// file (its table, or its plot with --plot).
+    #[arg(long, conflicts_with_all = ["capture", "scene"])]
+    pub rd_report: Option<PathBuf>,
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
@@ -100,7 +105,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.scene.is_some() {
         return run_scene(args);
     }
-    if args.rd {
+    if args.rd || args.rd_report.is_some() {
         return crate::cmd_eval_rd::run(args);
     }
     use relit::fsutil::{Output, StagedFolder};

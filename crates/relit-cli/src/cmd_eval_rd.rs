@@ -3,6 +3,7 @@
 
 use crate::cmd_eval::{load_mask, Args};
 use crate::shared::{refuse_overwriting_inputs, Bars};
+use anyhow::Context;
 use relit::capture::Capture;
 use relit::eval::rd::{curve, RdOptions, RdReport};
 use relit::fit::BasisRequest;
@@ -10,8 +11,20 @@ use relit::fsutil::Output;
 use relit::storage::Precision;
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let capture_path = args.capture.as_deref().expect("clap requires a capture");
     let outputs: Vec<Output> = args.plot.iter().map(Output::file).collect();
+    if let Some(stored) = &args.rd_report {
+        refuse_overwriting_inputs(std::slice::from_ref(stored), &outputs)?;
+        let bytes =
+            std::fs::read(stored).with_context(|| format!("reading {}", stored.display()))?;
+        let report: RdReport = serde_json::from_slice(&bytes).with_context(|| {
+            format!(
+                "{} is not the JSON of `relit eval --rd --json`",
+                stored.display()
+            )
+        })?;
+        return show(&args, &report);
+    }
+    let capture_path = args.capture.as_deref().expect("clap requires a capture");
     let mut inputs = vec![capture_path.to_path_buf()];
     inputs.extend(args.mask.clone());
     refuse_overwriting_inputs(&inputs, &outputs)?;
@@ -53,13 +66,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let bars = Bars::new(args.quiet || args.json);
     let report = curve(&capture, &options, &bars)?;
+    show(&args, &report)
+}
+
+/// The plot (with --plot), then the table or the JSON.
+fn show(args: &Args, report: &RdReport) -> anyhow::Result<()> {
     if let Some(path) = &args.plot {
-        relit::fsutil::write_bytes_atomically(path, crate::rd_plot::svg(&report).as_bytes())?;
+        relit::fsutil::write_bytes_atomically(path, crate::rd_plot::svg(report).as_bytes())?;
     }
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        println!("{}", serde_json::to_string_pretty(report)?);
     } else {
-        print_table(&report);
+        print_table(report);
     }
     Ok(())
 }

@@ -214,8 +214,8 @@ pub fn svg(report: &RdReport) -> String {
     s
 }
 
-/// A log₁₀ axis ticked at 1, 2, 5 × 10ⁿ (only at powers of ten when it spans many
-/// decades), from the last tick below the data to the first above.
+/// A log₁₀ axis from the last of 1, 2, 5 × 10ⁿ below the data to the first above,
+/// ticked at those values (at powers of ten only when they would crowd).
 struct LogAxis {
     lo: f64,
     hi: f64,
@@ -231,13 +231,8 @@ impl LogAxis {
         };
         let first = lo.log10().floor() as i32;
         let last = (hi.log10().ceil() as i32).max(first + 1);
-        let steps: &[f64] = if last - first > 3 {
-            &[1.0]
-        } else {
-            &[1.0, 2.0, 5.0]
-        };
         let all: Vec<f64> = (first..=last)
-            .flat_map(|e| steps.iter().map(move |m| m * 10f64.powi(e)))
+            .flat_map(|e| [1.0, 2.0, 5.0].map(|m| m * 10f64.powi(e)))
             .collect();
         let start = all
             .iter()
@@ -249,13 +244,17 @@ impl LogAxis {
             .copied()
             .find(|&t| t >= hi && t > start)
             .unwrap_or(10f64.powi(last));
+        let mut ticks: Vec<f64> = all
+            .into_iter()
+            .filter(|&t| t >= start && t <= end)
+            .collect();
+        if ticks.len() > 12 {
+            ticks.retain(|t| (t.log10().round() - t.log10()).abs() < 1e-9);
+        }
         LogAxis {
             lo: start,
             hi: end,
-            ticks: all
-                .into_iter()
-                .filter(|&t| t >= start && t <= end)
-                .collect(),
+            ticks,
         }
     }
 
@@ -325,9 +324,12 @@ mod tests {
         assert_eq!((x.lo, x.hi), (10.0, 1000.0));
         assert_eq!(x.ticks, vec![10.0, 20.0, 50.0, 100.0, 200.0, 500.0, 1000.0]);
         assert!((x.fraction(100.0) - 0.5).abs() < 1e-12);
-        let x = LogAxis::covering(8.2, 979.0);
-        assert_eq!((x.lo, x.hi), (5.0, 1000.0));
+        let x = LogAxis::covering(8.2, 1016.0);
+        assert_eq!((x.lo, x.hi), (5.0, 2000.0));
         assert_eq!(x.ticks[0], 5.0);
+        let x = LogAxis::covering(0.3, 2e6);
+        assert_eq!(x.ticks.first(), Some(&1.0));
+        assert!(x.ticks.len() <= 8);
         let y = LinearAxis::covering(22.3, 37.9);
         assert_eq!((y.lo, y.hi), (22.0, 38.0));
         assert_eq!(y.ticks.len(), 9);

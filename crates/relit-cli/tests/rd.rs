@@ -1,5 +1,6 @@
 //! `relit eval --rd`: the rate–distortion curve of a tiny capture through the binary —
-//! real files behind every point, a monotone Pareto front, the plot, and the refusals.
+//! real files behind every point, a monotone Pareto front, the plot (again from the
+//! stored report), and the refusals.
 
 #[allow(dead_code)]
 mod common;
@@ -120,6 +121,15 @@ fn the_curve_is_made_of_real_files_and_its_front_rises() {
     assert!(svg.contains("bits per pixel") && svg.contains("PSNR"));
     assert_eq!(svg.matches("<circle").count(), 8 + 2, "points and legend");
 
+    // A stored report draws the same plot again.
+    std::fs::write(d.join("rd.json"), &out.stdout).unwrap();
+    let again = relit(
+        d,
+        &["eval", "--rd-report", "rd.json", "--plot", "again.svg"],
+    );
+    assert!(again.status.success());
+    assert_eq!(std::fs::read_to_string(d.join("again.svg")).unwrap(), svg);
+
     // The table: every point, the front starred.
     let out = relit(d, &[CHEAP, &["-q"]].concat());
     let table = String::from_utf8(out.stdout).unwrap();
@@ -165,5 +175,8 @@ fn bad_combinations_are_refused_before_any_work() {
     fails(&["--plot", "cap/light 000.png"], "refusing");
     fails(&["--plot", "missing/rd.svg"], "does not exist");
     fails(&["--rd-basis", "sh:4"], "twice");
+    let out = relit(d, &["eval", "--rd-report", "scene.exr"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("is not the JSON"));
     assert_eq!(before, common::snapshot(d), "nothing was written");
 }

@@ -19,7 +19,7 @@ use crate::progress::Progress;
 use crate::storage::Precision;
 use crate::{Error, Result};
 use rayon::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// The bases of a curve unless told otherwise, at 25 coefficients (what `--basis auto`
 /// may use by default; smaller sizes are on the curve as fewer principal components):
@@ -64,7 +64,7 @@ impl Default for RdOptions {
 }
 
 /// One point of the curve: one basis stored one way, over every fit of the protocol.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct RdPoint {
     /// The basis asked for (`sh:25`, `auto`).
     pub basis: String,
@@ -88,7 +88,7 @@ pub struct RdPoint {
 }
 
 /// How one basis was fitted.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct RdFit {
     /// The basis asked for.
     pub basis: String,
@@ -103,7 +103,7 @@ pub struct RdFit {
 }
 
 /// The curve of a capture.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct RdReport {
     pub capture: String,
     pub images: usize,
