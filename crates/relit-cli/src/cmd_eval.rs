@@ -2,17 +2,20 @@
 //! studio's ray-traced truth under every light type.
 
 use crate::shared::{
-    mib, refuse_overwriting_inputs, rig_inputs, scene_inputs, Bars, CompressArgs, FitArgs,
+    mib, parse_basis, refuse_overwriting_inputs, rig_inputs, scene_inputs, Bars, CompressArgs,
+    FitArgs,
 };
 use relit::capture::Capture;
 use relit::eval::{evaluate_with, EvalOptions, Holdout};
+use relit::fit::BasisRequest;
 use relit::storage::Precision;
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
+#[command(group = clap::ArgGroup::new("rd_source").args(["rd", "rd_report"]))]
 pub struct Args {
     /// The capture: an RTI `.lp` file or a relit manifest `.json`.
-    #[arg(required_unless_present = "scene", conflicts_with = "scene")]
+    #[arg(required_unless_present_any = ["scene", "rd_report"], conflicts_with = "scene")]
     pub capture: Option<PathBuf>,
     /// Instead of a capture: a studio scene (attic, city, box, .obj or scene .json) to
     /// capture, fit, and relight under each light of `--rig` against ray-traced truth.
@@ -64,6 +67,32 @@ pub struct Args {
     pub budget: Option<f64>,
     #[command(flatten)]
     pub compress: CompressArgs,
+    /// The rate–distortion curve instead of one evaluation: every --rd-basis fitted once
+    /// per hold-out, each fit stored as the lossless EXR (--storage) and with every
+    /// compression setting --budget chooses from, each a real file written, read back
+    /// and relit; bits/pixel is its size on disk.
+    #[arg(long, conflicts_with_all = [
+        "scene", "compressed", "budget", "save", "basis",
+        "layout", "components", "chroma", "bits", "codec", "tile",
+    ])]
+    pub rd: bool,
+    /// With --rd: a basis of the curve, `auto` or `family:K` (repeat the flag for more;
+    /// default sh:25 and rbf:25).
+    #[arg(long = "rd-basis", requires = "rd", value_parser = parse_basis)]
+    pub rd_basis: Vec<BasisRequest>,
+    /// With --rd: at most N compression settings per basis, spread evenly over the grid
+    /// (default all of it): a coarser, quicker curve.
+    #[arg(long = "rd-settings", requires = "rd",
+          value_parser = clap::value_parser!(u16).range(1..))]
+    pub rd_settings: Option<u16>,
+    /// With --rd or --rd-report: draw the curve (PSNR against bits/pixel, one series
+    /// per basis, the Pareto front as a line) into this SVG file.
+    #[arg(long, requires = "rd_source")]
+    pub plot: Option<PathBuf>,
+    /// Instead of computing a curve: show the one a `--rd --json` run stored in this
+    /// file (its table, or its plot with --plot).
+    #[arg(long, conflicts_with_all = ["capture", "scene"])]
+    pub rd_report: Option<PathBuf>,
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
@@ -76,6 +105,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.scene.is_some() {
         return run_scene(args);
     }
+    if args.rd || args.rd_report.is_some() {
+        return crate::cmd_eval_rd::run(args);
+    }
     use relit::fsutil::{Output, StagedFolder};
     let capture_path = args.capture.as_deref().expect("clap requires a capture");
     let outputs: Vec<Output> = args.save.iter().map(Output::folder).collect();
@@ -83,20 +115,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let capture = Capture::open(capture_path)?;
     refuse_overwriting_inputs(&capture.input_files(), &outputs)?;
     let holdout: Holdout = args.holdout.parse()?;
-    let mask = match &args.mask {
-        Some(path) => {
-            let (w, h, values) = relit::image::load_scalar(path)?;
-            anyhow::ensure!(
-                (w, h) == (capture.width, capture.height),
-                "mask {} is {w}×{h} but the capture is {}×{}",
-                path.display(),
-                capture.width,
-                capture.height
-            );
-            Some(values)
-        }
-        None => None,
-    };
+    let mask = load_mask(args.mask.as_deref(), &capture)?;
     let options = EvalOptions {
         holdout,
         fit: args.fit.to_options()?,
@@ -172,6 +191,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         mib(report.peak_rss_bytes)
     );
     Ok(())
+}
+
+/// The `--mask` image, checked against the capture's size.
+pub fn load_mask(
+    path: Option<&std::path::Path>,
+    capture: &Capture,
+) -> anyhow::Result<Option<Vec<f32>>> {
+    let Some(path) = path else {
+        return Ok(None);
+    };
+    let (w, h, values) = relit::image::load_scalar(path)?;
+    anyhow::ensure!(
+        (w, h) == (capture.width, capture.height),
+        "mask {} is {w}×{h} but the capture is {}×{}",
+        path.display(),
+        capture.width,
+        capture.height
+    );
+    Ok(Some(values))
 }
 
 fn run_scene(args: Args) -> anyhow::Result<()> {

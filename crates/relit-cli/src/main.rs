@@ -8,12 +8,14 @@ mod cmd_convert;
 mod cmd_demo;
 mod cmd_doctor;
 mod cmd_eval;
+mod cmd_eval_rd;
 mod cmd_export_web;
 mod cmd_fit;
 mod cmd_info;
 mod cmd_relight;
 mod cmd_render_truth;
 mod cmd_view;
+mod rd_plot;
 mod shared;
 
 use clap::{Parser, Subcommand};

@@ -10,9 +10,11 @@
 //!   8/16-bit inputs.
 //!
 //! By default each held-out image gets its own fit on the other N−1 images, as the peer
-//! baseline was made; `joint` fits once without all held-out images. The maps are
-//! rounded to the storage precision before relighting, so the figures are those of the
-//! stored file.
+//! baseline was made; `joint` fits once without all held-out images. Every fit is
+//! written as a real file (EXR at the storage precision, or `.rlz`), read back and
+//! relit, so the figures are those of the stored file and its size on disk.
+//!
+//! [`rd`] scores many files per fit: the rate–distortion curve.
 
 use crate::capture::Capture;
 use crate::engine::{self, RelightOptions};
@@ -24,6 +26,8 @@ use crate::storage::Precision;
 use crate::{Error, Result};
 use serde::Serialize;
 use std::str::FromStr;
+
+pub mod rd;
 
 /// Which images to hold out.
 #[derive(Clone, Debug, PartialEq)]
@@ -157,6 +161,7 @@ pub struct EvalReport {
     pub psnr_srgb8_mean: f64,
     pub psnr_linear_mean: f64,
     pub masked: bool,
+    /// The fits' files on disk, bytes per pixel (mean over the fits).
     pub bytes_per_pixel: f64,
     /// Mean wall time of one fit.
     pub fit_seconds: f64,
@@ -185,24 +190,10 @@ pub fn evaluate_with(
     mut sink: Option<&mut HoldoutSink>,
 ) -> Result<EvalReport> {
     let n = capture.len();
-    let held = options.holdout.indices(n)?;
-    let mask = match &options.mask {
-        Some(m) => Some(m.clone()),
-        None => capture.mask.as_ref().map(|m| m.as_ref().clone()),
-    };
-    if let Some(m) = &mask {
-        if m.len() != capture.width * capture.height {
-            return Err(Error::invalid("the mask's size differs from the capture's"));
-        }
-    }
+    let protocol = Protocol::new(capture, &options.holdout, options.joint, &options.mask)?;
+    let scratch = Scratch::new()?;
     crate::memory::reset_peak_rss();
-    let groups: Vec<Vec<usize>> = if options.joint {
-        vec![held.clone()]
-    } else {
-        held.iter().map(|&i| vec![i]).collect()
-    };
     let mut results = Vec::new();
-    let mut bytes_per_pixel = f64::NAN;
     let mut fit_seconds = Vec::new();
     let mut chosen: Vec<&'static str> = Vec::new();
     let mut bases: Vec<String> = Vec::new();
@@ -210,9 +201,9 @@ pub fn evaluate_with(
     let mut candidates = Vec::new();
     let mut file_bytes: Vec<f64> = Vec::new();
     let mut chosen_settings: Vec<String> = Vec::new();
-    for group in &groups {
-        let train: Vec<usize> = (0..n).filter(|i| !group.contains(i)).collect();
-        let mut fitted = fit::fit(&capture.subset(&train), &options.fit, progress)?;
+    for group in &protocol.groups {
+        let train_capture = capture.subset(&protocol.training(group));
+        let mut fitted = fit::fit(&train_capture, &options.fit, progress)?;
         fit_seconds.push(fitted.report.seconds);
         coefficients = fitted.report.coefficients;
         if candidates.is_empty() {
@@ -224,46 +215,29 @@ pub fn evaluate_with(
         if !chosen.contains(&fitted.report.objective.name()) {
             chosen.push(fitted.report.objective.name());
         }
-        if let Some(budget) = options.budget {
-            let train_capture = capture.subset(&train);
+        let (image, bytes) = if let Some(budget) = options.budget {
             let choice =
                 crate::compress::budget::choose(&fitted.image, &train_capture, budget, progress)?;
-            let (image, bytes) = packed_round_trip(&choice.packed)?;
-            fitted.image = image;
-            file_bytes.push(bytes as f64);
             if !chosen_settings.contains(&choice.settings.describe()) {
                 chosen_settings.push(choice.settings.describe());
             }
+            scratch.packed_round_trip(&choice.packed, "maps")?
         } else if let Some(settings) = &options.compress {
-            let settings = crate::compress::Settings {
-                directions: Some(capture.subset(&train).directions()),
-                ..settings.clone()
-            };
-            let (image, bytes) = compressed_round_trip(&fitted.image, &settings)?;
-            fitted.image = image;
-            file_bytes.push(bytes as f64);
+            let settings = for_training(settings, &train_capture);
+            scratch.compressed_round_trip(&fitted.image, &settings, "maps")?
         } else {
-            if bytes_per_pixel.is_nan() {
-                bytes_per_pixel = stored_bytes(&fitted.image, options.storage)? as f64
-                    / (capture.width * capture.height) as f64;
-            }
-            let n = fitted.image.maps.pixels().max(1);
-            for plane in fitted.image.maps.data.chunks_mut(n) {
-                options.storage.round_trip(plane);
-            }
-        }
+            scratch.exr_round_trip(&fitted.image, options.storage, "maps")?
+        };
+        fitted.image = image;
+        file_bytes.push(bytes as f64);
         for &index in group {
-            let light = &capture.lights[index];
-            let color = light.intensity.map(|v| v as f64);
-            let rig = LightRig::new(vec![Light::directional(light.direction, color)]);
-            let relit = engine::relight(&fitted.image, &rig, &RelightOptions::default())?;
             let reference = capture.load_raw(index)?;
-            let (psnr_srgb8, psnr_linear) =
-                protocol_scores(&relit.data, &reference.data, mask.as_deref());
+            let (relit, psnr_srgb8, psnr_linear) =
+                relight_and_score(&fitted.image, capture, index, &reference, protocol.mask())?;
             let result = HoldoutResult {
                 index,
                 image: capture.image_name(index),
-                direction: light.direction.into(),
+                direction: capture.lights[index].direction.into(),
                 psnr_srgb8,
                 psnr_linear,
                 fit_seconds: fitted.report.seconds,
@@ -275,11 +249,9 @@ pub fn evaluate_with(
             results.push(result);
         }
     }
-    if !file_bytes.is_empty() {
-        bytes_per_pixel = file_bytes.iter().sum::<f64>()
-            / file_bytes.len() as f64
-            / (capture.width * capture.height) as f64;
-    }
+    let bytes_per_pixel = file_bytes.iter().sum::<f64>()
+        / file_bytes.len() as f64
+        / (capture.width * capture.height) as f64;
     let mean = |f: &dyn Fn(&HoldoutResult) -> f64| {
         results.iter().map(f).sum::<f64>() / results.len() as f64
     };
@@ -303,14 +275,10 @@ pub fn evaluate_with(
             (Some(settings), None) => format!("rlz {}", settings.describe()),
             (None, None) => options.storage.name().into(),
         },
-        protocol: if options.joint {
-            "joint".into()
-        } else {
-            "one fit per hold-out".into()
-        },
+        protocol: protocol.name().into(),
         psnr_srgb8_mean: mean(&|r| r.psnr_srgb8),
         psnr_linear_mean: mean(&|r| r.psnr_linear),
-        masked: mask.is_some(),
+        masked: protocol.mask.is_some(),
         bytes_per_pixel,
         fit_seconds: fit_seconds.iter().sum::<f64>() / fit_seconds.len() as f64,
         peak_rss_bytes: crate::memory::peak_rss_bytes(),
@@ -318,38 +286,148 @@ pub fn evaluate_with(
     })
 }
 
-/// Bytes of the EXR file the maps would be stored in.
-fn stored_bytes(image: &crate::maps::RelightableImage, storage: Precision) -> Result<u64> {
-    let dir = tempfile::tempdir()
-        .map_err(|e| Error::io(std::path::Path::new("."), "create a temporary folder in", e))?;
-    let path = dir.path().join("maps.exr");
-    crate::codec::exr::write(&path, image, storage)?;
-    Ok(std::fs::metadata(&path)
-        .map_err(|e| Error::io(&path, "measure", e))?
-        .len())
+/// Which images each fit leaves out, and where the linear figure is taken: what
+/// [`evaluate`] and [`rd::curve`] share, so both score the same protocol.
+struct Protocol {
+    images: usize,
+    joint: bool,
+    /// One group per fit: the images it leaves out and is scored on.
+    groups: Vec<Vec<usize>>,
+    mask: Option<Vec<f32>>,
 }
 
-/// Write `image` compressed to a temporary `.rlz`, read it back: the image a reader
-/// of that file relights, and the file's size on disk.
-fn compressed_round_trip(
-    image: &crate::maps::RelightableImage,
+impl Protocol {
+    fn new(
+        capture: &Capture,
+        holdout: &Holdout,
+        joint: bool,
+        mask: &Option<Vec<f32>>,
+    ) -> Result<Protocol> {
+        let n = capture.len();
+        let held = holdout.indices(n)?;
+        let mask = match mask {
+            Some(m) => Some(m.clone()),
+            None => capture.mask.as_ref().map(|m| m.as_ref().clone()),
+        };
+        if let Some(m) = &mask {
+            if m.len() != capture.width * capture.height {
+                return Err(Error::invalid("the mask's size differs from the capture's"));
+            }
+        }
+        let groups = if joint {
+            vec![held]
+        } else {
+            held.iter().map(|&i| vec![i]).collect()
+        };
+        Ok(Protocol {
+            images: n,
+            joint,
+            groups,
+            mask,
+        })
+    }
+
+    /// The images a fit that leaves out `group` is fitted on.
+    fn training(&self, group: &[usize]) -> Vec<usize> {
+        (0..self.images).filter(|i| !group.contains(i)).collect()
+    }
+
+    fn mask(&self) -> Option<&[f32]> {
+        self.mask.as_deref()
+    }
+
+    fn name(&self) -> &'static str {
+        if self.joint {
+            "joint"
+        } else {
+            "one fit per hold-out"
+        }
+    }
+}
+
+/// Compression settings for maps fitted on `training`: its light directions weigh the
+/// principal components, as a file made by `relit fit` from that capture would be.
+fn for_training(
     settings: &crate::compress::Settings,
-) -> Result<(crate::maps::RelightableImage, u64)> {
-    packed_round_trip(&crate::compress::pack(image, settings)?)
+    training: &Capture,
+) -> crate::compress::Settings {
+    crate::compress::Settings {
+        directions: Some(training.directions()),
+        ..settings.clone()
+    }
 }
 
-/// Write `packed` to a temporary `.rlz`, read it back (see [`compressed_round_trip`]).
-fn packed_round_trip(
-    packed: &crate::compress::Packed,
-) -> Result<(crate::maps::RelightableImage, u64)> {
-    let dir = tempfile::tempdir()
-        .map_err(|e| Error::io(std::path::Path::new("."), "create a temporary folder in", e))?;
-    let path = dir.path().join("maps.rlz");
-    crate::codec::packed::write_packed(&path, packed)?;
-    let bytes = std::fs::metadata(&path)
-        .map_err(|e| Error::io(&path, "measure", e))?
-        .len();
-    Ok((crate::codec::read(&path)?, bytes))
+/// Relight `image` at captured light `index` and score it against `reference` (that
+/// image as captured): (the relit image, 8-bit sRGB PSNR, linear PSNR).
+fn relight_and_score(
+    image: &crate::maps::RelightableImage,
+    capture: &Capture,
+    index: usize,
+    reference: &crate::image::ImageRgb,
+    mask: Option<&[f32]>,
+) -> Result<(crate::image::ImageRgb, f64, f64)> {
+    let light = &capture.lights[index];
+    let color = light.intensity.map(|v| v as f64);
+    let rig = LightRig::new(vec![Light::directional(light.direction, color)]);
+    let relit = engine::relight(image, &rig, &RelightOptions::default())?;
+    let (psnr_srgb8, psnr_linear) = protocol_scores(&relit.data, &reference.data, mask);
+    Ok((relit, psnr_srgb8, psnr_linear))
+}
+
+/// A temporary folder the scored files are written to and read back from: every figure
+/// is that of a real file, its bytes on disk and what a reader of it relights. Files are
+/// named by a stem, so that several can be in flight at once.
+struct Scratch {
+    dir: tempfile::TempDir,
+}
+
+impl Scratch {
+    fn new() -> Result<Scratch> {
+        let dir = tempfile::tempdir()
+            .map_err(|e| Error::io(std::path::Path::new("."), "create a temporary folder in", e))?;
+        Ok(Scratch { dir })
+    }
+
+    fn measured(&self, path: &std::path::Path) -> Result<(crate::maps::RelightableImage, u64)> {
+        let bytes = std::fs::metadata(path)
+            .map_err(|e| Error::io(path, "measure", e))?
+            .len();
+        Ok((crate::codec::read(path)?, bytes))
+    }
+
+    /// Write `image` as an EXR of `storage` precision and read it back: the image a
+    /// reader of that file relights, and the file's size on disk.
+    fn exr_round_trip(
+        &self,
+        image: &crate::maps::RelightableImage,
+        storage: Precision,
+        stem: &str,
+    ) -> Result<(crate::maps::RelightableImage, u64)> {
+        let path = self.dir.path().join(format!("{stem}.exr"));
+        crate::codec::exr::write(&path, image, storage)?;
+        self.measured(&path)
+    }
+
+    /// The same for `image` compressed with `settings` into a `.rlz`.
+    fn compressed_round_trip(
+        &self,
+        image: &crate::maps::RelightableImage,
+        settings: &crate::compress::Settings,
+        stem: &str,
+    ) -> Result<(crate::maps::RelightableImage, u64)> {
+        self.packed_round_trip(&crate::compress::pack(image, settings)?, stem)
+    }
+
+    /// The same for an image already packed.
+    fn packed_round_trip(
+        &self,
+        packed: &crate::compress::Packed,
+        stem: &str,
+    ) -> Result<(crate::maps::RelightableImage, u64)> {
+        let path = self.dir.path().join(format!("{stem}.rlz"));
+        crate::codec::packed::write_packed(&path, packed)?;
+        self.measured(&path)
+    }
 }
 
 /// The protocol's two figures of `test` against `reference`: (8-bit sRGB PSNR over the

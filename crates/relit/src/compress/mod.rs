@@ -412,30 +412,39 @@ pub fn pack(image: &RelightableImage, settings: &Settings) -> Result<Packed> {
             });
     }
     // Per-pixel albedo of lrgb: the least-squares scale of each channel's function onto
-    // the luminance function, in the relit image's metric.
+    // the luminance function, in the relit image's metric: (cᵀ G l) / (lᵀ G l), with
+    // G l formed once a pixel for the three channels (this is most of an lrgb pack).
     let mut albedo: Vec<Vec<f32>> = Vec::new();
     if layout == Layout::Lrgb {
-        albedo = (0..3)
-            .map(|ch| {
-                (0..n)
-                    .into_par_iter()
-                    .map(|p| {
-                        let l: Vec<f64> = (0..k).map(|i| function_value(i, 0, p) as f64).collect();
-                        let c: Vec<f64> = (0..k).map(|i| maps.plane(i, ch)[p] as f64).collect();
-                        let g = |a: &[f64], b: &[f64]| -> f64 {
-                            (0..k)
-                                .map(|i| a[i] * (0..k).map(|j| gram[i * k + j] * b[j]).sum::<f64>())
-                                .sum()
-                        };
-                        let ll = g(&l, &l);
+        let per_pixel: Vec<[f32; 3]> = (0..n)
+            .into_par_iter()
+            .map_init(
+                || (vec![0.0f64; k], vec![0.0f64; k]),
+                |(l, gl), p| {
+                    for (i, li) in l.iter_mut().enumerate() {
+                        *li = function_value(i, 0, p) as f64;
+                    }
+                    for (i, gli) in gl.iter_mut().enumerate() {
+                        *gli = gram[i * k..(i + 1) * k]
+                            .iter()
+                            .zip(l.iter())
+                            .map(|(g, l)| g * l)
+                            .sum();
+                    }
+                    let ll: f64 = l.iter().zip(gl.iter()).map(|(a, b)| a * b).sum();
+                    std::array::from_fn(|ch| {
                         if ll > 1e-20 {
-                            (g(&c, &l) / ll) as f32
+                            let cl: f64 = (0..k).map(|i| maps.plane(i, ch)[p] as f64 * gl[i]).sum();
+                            (cl / ll) as f32
                         } else {
                             1.0
                         }
                     })
-                    .collect()
-            })
+                },
+            )
+            .collect();
+        albedo = (0..3)
+            .map(|ch| per_pixel.iter().map(|a| a[ch]).collect())
             .collect();
     }
 

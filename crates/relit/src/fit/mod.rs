@@ -156,6 +156,23 @@ impl BasisRequest {
             Ok(BasisRequest::Fixed(BasisChoice::parse(s)?))
         }
     }
+
+    /// The name [`BasisRequest::parse`] reads back: `auto`, `sh:25`,
+    /// `sg:25:centres=hemisphere,sharpness=8`.
+    pub fn name(&self) -> String {
+        match self {
+            BasisRequest::Auto => "auto".into(),
+            BasisRequest::Fixed(choice) if choice.options.is_empty() => choice.name(),
+            BasisRequest::Fixed(choice) => {
+                let options: Vec<String> = choice
+                    .options
+                    .iter()
+                    .map(|(k, v)| format!("{k}={v}"))
+                    .collect();
+                format!("{}:{}", choice.name(), options.join(","))
+            }
+        }
+    }
 }
 
 /// `auto`: the basis is chosen per capture, like λ and the objective, because no one
