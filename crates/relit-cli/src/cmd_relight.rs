@@ -195,19 +195,34 @@ fn relight_codebook(
     let start = std::time::Instant::now();
     let frame = LookupRelighter::new(&indexed)?.relight(&rig, options)?;
     let seconds = start.elapsed().as_secs_f64();
-    relit::image::save(output, &frame, 0.0)
+    let how = format!(
+        " from a codebook of {} entries",
+        indexed.entries.maps.pixels()
+    );
+    save_frame(output, &frame, &rig, seconds, &how)?;
+    Ok(Some(()))
+}
+
+/// Write the frame and say so (`how` it was drawn, after the time).
+fn save_frame(
+    output: &Path,
+    frame: &ImageRgb,
+    rig: &LightRig,
+    seconds: f64,
+    how: &str,
+) -> anyhow::Result<()> {
+    relit::image::save(output, frame, 0.0)
         .with_context(|| format!("writing {}", output.display()))?;
     println!(
-        "wrote {} ({}×{}, {} light{}, relit in {:.1} ms from a codebook of {} entries)",
+        "wrote {} ({}×{}, {} light{}, relit in {:.1} ms{how})",
         output.display(),
         frame.width,
         frame.height,
         rig.lights.len(),
         if rig.lights.len() == 1 { "" } else { "s" },
-        seconds * 1e3,
-        indexed.entries.maps.pixels()
+        seconds * 1e3
     );
-    Ok(Some(()))
+    Ok(())
 }
 
 fn flag_lights(args: &Args) -> anyhow::Result<Vec<Light>> {
@@ -334,17 +349,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             diff / peak.max(f32::MIN_POSITIVE)
         );
     }
-    relit::image::save(output, &frame, 0.0)
-        .with_context(|| format!("writing {}", output.display()))?;
-    println!(
-        "wrote {} ({}×{}, {} light{}, relit in {:.1} ms)",
-        output.display(),
-        frame.width,
-        frame.height,
-        rig.lights.len(),
-        if rig.lights.len() == 1 { "" } else { "s" },
-        seconds * 1e3
-    );
+    save_frame(output, &frame, &rig, seconds, "")?;
     if args.memory {
         let maps = relighter.plane_bytes(&image) as u64;
         let out = (frame.data.len() * 4) as u64;

@@ -318,9 +318,32 @@ impl Simd {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma,f16c")]
 unsafe fn interleave_stream_avx2(dst: &mut [f32], rows: [&[f32]; 3]) {
-    use std::arch::x86_64::*;
+    use std::arch::x86_64::__m256;
     let n = dst.len() / 3;
     let rows = rows.map(|r| &r[..n]);
+    stream_frame(
+        dst,
+        |p, out| interleave_body(out, rows.map(|r| &r[p..p + out.len() / 3])),
+        |p| {
+            let mut px = [0f32; 24];
+            interleave_body(&mut px, rows.map(|r| &r[p..p + 8]));
+            bytemuck::cast::<[f32; 24], [__m256; 3]>(px)
+        },
+    );
+}
+
+/// Write an RGB frame (3 floats a pixel): its 32-byte-aligned runs of 8 pixels from
+/// `run(p)` (the three vectors of pixels `p..p+8`) with non-temporal stores, the pixels
+/// before and after them with `plain(p, out)`.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,f16c")]
+fn stream_frame(
+    dst: &mut [f32],
+    plain: impl Fn(usize, &mut [f32]),
+    run: impl Fn(usize) -> [std::arch::x86_64::__m256; 3],
+) {
+    use std::arch::x86_64::*;
+    let n = dst.len() / 3;
     // Pixel p starts at byte 12p + a of a 32-byte line: aligned where 3p ≡ −a/4 (mod 8),
     // and 3 is its own inverse mod 8.
     let a = (dst.as_ptr() as usize % 32) / 4;
@@ -328,13 +351,9 @@ unsafe fn interleave_stream_avx2(dst: &mut [f32], rows: [&[f32]; 3]) {
     let runs = (n - first) / 8;
     let (head, rest) = dst.split_at_mut(3 * first);
     let (body, tail) = rest.split_at_mut(24 * runs);
-    interleave_body(head, rows.map(|r| &r[..first]));
-    for (run, out) in body.chunks_exact_mut(24).enumerate() {
-        let p = first + 8 * run;
-        let mut px = [0f32; 24];
-        interleave_body(&mut px, rows.map(|r| &r[p..p + 8]));
-        let [x, y, z] = bytemuck::cast::<[f32; 24], [__m256; 3]>(px);
-        let out: &mut [f32; 24] = out.try_into().expect("24 values");
+    plain(0, head);
+    for (r, out) in body.chunks_exact_mut(24).enumerate() {
+        let [x, y, z] = run(first + 8 * r);
         let at = out.as_mut_ptr();
         debug_assert_eq!(at as usize % 32, 0);
         // SAFETY: `at` points to 24 writable f32s of `out`, 32-byte aligned (above).
@@ -344,7 +363,7 @@ unsafe fn interleave_stream_avx2(dst: &mut [f32], rows: [&[f32]; 3]) {
             _mm256_stream_ps(at.add(16), z);
         }
     }
-    interleave_body(tail, rows.map(|r| &r[first + 8 * runs..]));
+    plain(first + 8 * runs, tail);
     // Non-temporal stores are weakly ordered: make them visible before the frame is
     // handed to another thread (what `_mm256_stream_ps` requires).
     _mm_sfence();
@@ -384,43 +403,32 @@ fn gather_body(dst: &mut [f32], table: &[f32], indices: &[u16]) {
 #[target_feature(enable = "avx2,fma,f16c")]
 unsafe fn gather_stream_avx2(dst: &mut [f32], table: &[f32], indices: &[u16]) {
     use std::arch::x86_64::*;
-    let n = dst.len() / 3;
-    let a = (dst.as_ptr() as usize % 32) / 4;
-    let first = ((8 - (3 * a) % 8) % 8).min(n);
-    let runs = (n - first) / 8;
-    let (head, rest) = dst.split_at_mut(3 * first);
-    let (body, tail) = rest.split_at_mut(24 * runs);
-    gather_body(head, table, &indices[..first]);
     let base = table.as_ptr();
-    for (run, out) in body.chunks_exact_mut(24).enumerate() {
-        let p = first + 8 * run;
-        // SAFETY: each entry's 4 floats are inside `table` (the caller's assertion).
-        let e: [__m128; 8] =
-            std::array::from_fn(|j| unsafe { _mm_loadu_ps(base.add(4 * indices[p + j] as usize)) });
-        // Three 8-float vectors of RGB triples, built in registers:
-        // [r0 g0 b0 r1 | g1 b1 r2 g2], [b2 r3 g3 b3 | r4 g4 b4 r5], [g5 b5 r6 g6 | b6 r7 g7 b7].
-        let first_of = |x: __m128, y: __m128| _mm_blend_ps::<0b1000>(x, _mm_permute_ps::<0>(y));
-        let middle = |x: __m128, y: __m128| _mm_shuffle_ps::<0b01_00_10_01>(x, y);
-        let last_of = |x: __m128, y: __m128| {
-            _mm_blend_ps::<0b0001>(
-                _mm_permute_ps::<0b10_01_00_00>(y),
-                _mm_permute_ps::<0b10_10_10_10>(x),
-            )
-        };
-        let v0 = _mm256_set_m128(middle(e[1], e[2]), first_of(e[0], e[1]));
-        let v1 = _mm256_set_m128(first_of(e[4], e[5]), last_of(e[2], e[3]));
-        let v2 = _mm256_set_m128(last_of(e[6], e[7]), middle(e[5], e[6]));
-        let at = out.as_mut_ptr();
-        debug_assert_eq!(at as usize % 32, 0);
-        // SAFETY: `at` points to 24 writable f32s of `out`, 32-byte aligned.
-        unsafe {
-            _mm256_stream_ps(at, v0);
-            _mm256_stream_ps(at.add(8), v1);
-            _mm256_stream_ps(at.add(16), v2);
-        }
-    }
-    gather_body(tail, table, &indices[first + 8 * runs..]);
-    _mm_sfence();
+    stream_frame(
+        dst,
+        |p, out| gather_body(out, table, &indices[p..p + out.len() / 3]),
+        |p| {
+            // SAFETY: each entry's 4 floats are inside `table` (the caller's assertion).
+            let e: [__m128; 8] = std::array::from_fn(|j| unsafe {
+                _mm_loadu_ps(base.add(4 * indices[p + j] as usize))
+            });
+            // Three 8-float vectors of RGB triples, built in registers: [r0 g0 b0 r1 |
+            // g1 b1 r2 g2], [b2 r3 g3 b3 | r4 g4 b4 r5], [g5 b5 r6 g6 | b6 r7 g7 b7].
+            let first_of = |x: __m128, y: __m128| _mm_blend_ps::<0b1000>(x, _mm_permute_ps::<0>(y));
+            let middle = |x: __m128, y: __m128| _mm_shuffle_ps::<0b01_00_10_01>(x, y);
+            let last_of = |x: __m128, y: __m128| {
+                _mm_blend_ps::<0b0001>(
+                    _mm_permute_ps::<0b10_01_00_00>(y),
+                    _mm_permute_ps::<0b10_10_10_10>(x),
+                )
+            };
+            [
+                _mm256_set_m128(middle(e[1], e[2]), first_of(e[0], e[1])),
+                _mm256_set_m128(first_of(e[4], e[5]), last_of(e[2], e[3])),
+                _mm256_set_m128(last_of(e[6], e[7]), middle(e[5], e[6])),
+            ]
+        },
+    );
 }
 
 #[inline(always)]
