@@ -39,7 +39,8 @@ enum Command {
     /// Convert between the lossless EXR and the compressed .rlz file.
     Convert(cmd_convert::Args),
     /// Measure fidelity: hold out captured lights, fit the rest, compare.
-    Eval(cmd_eval::Args),
+    // Boxed: eval has the most flags by far, and every other command would carry its size.
+    Eval(Box<cmd_eval::Args>),
     /// Run the whole pipeline on a built-in scene: capture, fit, relight, compare.
     Demo(cmd_demo::Args),
     /// Render a synthetic capture (images, manifest, .lp, depth, mask) of a scene.
@@ -96,7 +97,7 @@ fn main() {
         Command::Relight(args) => cmd_relight::run(args),
         Command::Info(args) => cmd_info::run(args),
         Command::Convert(args) => cmd_convert::run(args),
-        Command::Eval(args) => cmd_eval::run(args),
+        Command::Eval(args) => cmd_eval::run(*args),
         Command::Demo(args) => cmd_demo::run(args),
         Command::Capture(args) => cmd_capture::run(args),
         Command::RenderTruth(args) => cmd_render_truth::run(args),
