@@ -39,6 +39,7 @@ enum Command {
     /// Convert between the lossless EXR and the compressed .rlz file.
     Convert(cmd_convert::Args),
     /// Measure fidelity: hold out captured lights, fit the rest, compare.
+    // Boxed: eval has the most flags by far, and every other command would carry its size.
     Eval(Box<cmd_eval::Args>),
     /// Run the whole pipeline on a built-in scene: capture, fit, relight, compare.
     Demo(cmd_demo::Args),
