@@ -9,13 +9,14 @@ use std::io::Read;
 pub const MAGIC: [u8; 8] = *b"\x89RLZ\r\n\x1a\n";
 
 /// The newest layout version this build writes and reads. Version 2 added the codebook
-/// (vector quantisation); files without one are still written as version 1, so that
-/// older readers keep reading them.
+/// (vector quantisation) and WebP tiles; files with neither are still written as version
+/// 1, so that older readers keep reading them.
 pub const VERSION: u32 = 2;
 
 /// The version a header needs.
 fn version_of(header: &Header) -> u32 {
-    if header.codebook.is_some() {
+    let webp = matches!(header.codec, super::TileCodec::Webp { .. });
+    if header.codebook.is_some() || webp {
         2
     } else {
         1
@@ -100,7 +101,7 @@ pub fn from_bytes(bytes: &[u8], name: &str) -> Result<Packed> {
     let header: Header = serde_json::from_slice(&json).map_err(|e| bad(format!("header: {e}")))?;
     if version < version_of(&header) {
         return Err(bad(format!(
-            "a version {version} file cannot hold a codebook (version 2 added it)"
+            "a version {version} file cannot hold a codebook or WebP tiles (version 2 added them)"
         )));
     }
     let sections = u32_at(take(4, "section count")?) as usize;

@@ -93,8 +93,8 @@ impl Settings {
             _ => String::new(),
         };
         let bits = match self.codec {
-            TileCodec::Jpeg { .. } if self.jpeg_range == JpegRange::PerPlane => " own".into(),
-            TileCodec::Jpeg { .. } => String::new(),
+            c if c.is_image() && self.jpeg_range == JpegRange::PerPlane => " own".into(),
+            c if c.is_image() => String::new(),
             _ => format!(" b{}", self.bits),
         };
         let vq = self.codebook.map_or(String::new(), |c| format!(" vq{c}"));
@@ -459,7 +459,7 @@ pub fn pack(image: &RelightableImage, settings: &Settings) -> Result<Packed> {
             ((r.hi - r.lo) / steps).max(f32::MIN_POSITIVE)
         }
         // JPEG codes are 8-bit: the first plane's range in 256 codes, or no shared step.
-        TileCodec::Jpeg { .. } => match settings.jpeg_range {
+        TileCodec::Jpeg { .. } | TileCodec::Webp { .. } => match settings.jpeg_range {
             JpegRange::Shared => {
                 let (lo, hi) = percentiles(&projected[0], 1e-4);
                 ((hi - lo) / 255.0).max(f32::MIN_POSITIVE)
@@ -486,7 +486,7 @@ pub fn pack(image: &RelightableImage, settings: &Settings) -> Result<Packed> {
         // JPEG albedo planes span their own range in 256 codes.
         let step = match settings.codec {
             TileCodec::Zstd { .. } => ((r.hi - r.lo) / steps).max(f32::MIN_POSITIVE),
-            TileCodec::Jpeg { .. } => 0.0,
+            TileCodec::Jpeg { .. } | TileCodec::Webp { .. } => 0.0,
         };
         let quantizer = plane_quantizer(a, settings.codec, step, max_levels);
         entries.push((
@@ -504,7 +504,7 @@ pub fn pack(image: &RelightableImage, settings: &Settings) -> Result<Packed> {
         Some(entries_wanted) => {
             if !settings.codec.lossless() {
                 return Err(Error::invalid(
-                    "a codebook's indices need the lossless codec (zstd), not JPEG",
+                    "a codebook's indices need the lossless codec (zstd), not an image codec",
                 ));
             }
             Some(quantize_vectors(&entries, &counts, n, entries_wanted)?)
@@ -576,7 +576,7 @@ pub fn pack(image: &RelightableImage, settings: &Settings) -> Result<Packed> {
             }
             let level = match settings.codec {
                 TileCodec::Zstd { level } => level,
-                TileCodec::Jpeg { .. } => unreachable!("refused above"),
+                TileCodec::Jpeg { .. } | TileCodec::Webp { .. } => unreachable!("refused above"),
             };
             let mut sections = vec![zstd::bulk::compress(&codes, level)
                 .map_err(|e| Error::new(crate::ErrorKind::Io, format!("zstd: {e}")))?];
@@ -663,7 +663,7 @@ fn plane_quantizer(plane: &[f32], codec: TileCodec, step: f32, max_levels: u32) 
     let r = crate::storage::FiniteRange::of(plane.iter().copied());
     match codec {
         TileCodec::Zstd { .. } => Quantizer::spanning(r.lo, r.hi, step, max_levels),
-        TileCodec::Jpeg { .. } => {
+        TileCodec::Jpeg { .. } | TileCodec::Webp { .. } => {
             let (lo, hi) = percentiles(plane, 1e-4);
             // All 256 codes stay valid (JPEG's ringing can reach any of them); a plane
             // narrower than 256 steps sits in the middle of them.

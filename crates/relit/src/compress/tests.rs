@@ -382,3 +382,25 @@ fn codebook_files_refuse_jpeg_and_version_1() {
     bytes[8..12].copy_from_slice(&3u32.to_le_bytes());
     assert!(packed::from_bytes(&bytes, "new.rlz").is_err());
 }
+
+#[test]
+fn webp_planes_relight_close_in_a_version_2_file() {
+    let img = image("sh:16", 64, 48);
+    let settings = Settings {
+        layout: Layout::Ycc,
+        components: Some(6),
+        codec: TileCodec::Webp { quality: 95 },
+        tile: 32,
+        ..Settings::default()
+    };
+    let packed = pack(&img, &settings).unwrap();
+    let bytes = packed::to_bytes(&packed).unwrap();
+    assert_eq!(
+        &bytes[8..12],
+        &2u32.to_le_bytes(),
+        "WebP files are version 2"
+    );
+    let (back, _) = round_trip(&img, &settings);
+    let e = relit_error(&img, &back);
+    assert!(e < 0.1, "webp: {e}");
+}
