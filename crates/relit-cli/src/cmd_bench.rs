@@ -575,6 +575,9 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
                 .find(|(key, _)| *key == (r.width, r.height, r.k, "u8"))
                 .map(|(_, b)| *b);
             r.uncompressed_bound_fps = u8_bound.map(|b| b / (3 * r.k * r.width * r.height) as f64);
+            if let Some(fps) = r.uncompressed_bound_fps {
+                r.engine += &format!("; u8 planes could reach {fps:.1} fps at most");
+            }
         }
         if let Some(peak) = &fma {
             r.fma_peak_gs = peak.best() / 1e9;
