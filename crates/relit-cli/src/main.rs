@@ -4,6 +4,7 @@
 
 mod cmd_bench;
 mod cmd_capture;
+mod cmd_compare;
 mod cmd_convert;
 mod cmd_demo;
 mod cmd_doctor;
@@ -38,6 +39,9 @@ enum Command {
     Info(cmd_info::Args),
     /// Convert between the lossless EXR and the compressed .rlz file.
     Convert(cmd_convert::Args),
+    /// Compare two images: PSNR (linear and 8-bit sRGB), SSIM, absolute errors, a
+    /// difference picture.
+    Compare(cmd_compare::Args),
     /// Measure fidelity: hold out captured lights, fit the rest, compare.
     // Boxed: eval has the most flags by far, and every other command would carry its size.
     Eval(Box<cmd_eval::Args>),
@@ -96,6 +100,7 @@ fn main() {
         Command::Fit(args) => cmd_fit::run(args),
         Command::Relight(args) => cmd_relight::run(args),
         Command::Info(args) => cmd_info::run(args),
+        Command::Compare(args) => cmd_compare::run(args),
         Command::Convert(args) => cmd_convert::run(args),
         Command::Eval(args) => cmd_eval::run(*args),
         Command::Demo(args) => cmd_demo::run(args),

@@ -157,6 +157,92 @@ pub fn psnr_of_codes(test: &[u8], reference: &[u8], mask: Option<&[f32]>) -> f64
     psnr(sq / n.max(1) as f64, 255.0)
 }
 
+/// The structural similarity (SSIM, Wang et al. 2004) of two `width × height`
+/// interleaved RGB linear images, on the luma of their 8-bit sRGB codes (BT.601 weights,
+/// `L = 255`, `K1 = 0.01`, `K2 = 0.03`) with an 11×11 Gaussian window of σ = 1.5
+/// (edges clamped), averaged over the pixels where `mask > 0.5` or the whole frame; 1
+/// for equal images and for an empty region.
+pub fn ssim(
+    test: &[f32],
+    reference: &[f32],
+    width: usize,
+    height: usize,
+    mask: Option<&[f32]>,
+) -> f64 {
+    assert_eq!(test.len(), reference.len(), "images of different sizes");
+    assert_eq!(test.len(), 3 * width * height, "an image of another size");
+    let luma = |rgb: &[f32]| -> Vec<f64> {
+        rgb.chunks_exact(3)
+            .map(|px| {
+                let c = |v: f32| crate::color::linear_to_srgb8(finite_or_black(v)) as f64;
+                0.299 * c(px[0]) + 0.587 * c(px[1]) + 0.114 * c(px[2])
+            })
+            .collect()
+    };
+    let (x, y) = (luma(test), luma(reference));
+    let weights: Vec<f64> = {
+        let w: Vec<f64> = (-5i32..=5)
+            .map(|i| (-(i * i) as f64 / (2.0 * 1.5 * 1.5)).exp())
+            .collect();
+        let sum: f64 = w.iter().sum();
+        w.into_iter().map(|v| v / sum).collect()
+    };
+    // Separable Gaussian blur, edges clamped.
+    let blur = |v: &[f64]| -> Vec<f64> {
+        let mut across = vec![0.0; v.len()];
+        for row in 0..height {
+            for col in 0..width {
+                across[row * width + col] = (0..11)
+                    .map(|k| {
+                        let c = (col as i64 + k as i64 - 5).clamp(0, width as i64 - 1) as usize;
+                        weights[k] * v[row * width + c]
+                    })
+                    .sum();
+            }
+        }
+        let mut out = vec![0.0; v.len()];
+        for row in 0..height {
+            for col in 0..width {
+                out[row * width + col] = (0..11)
+                    .map(|k| {
+                        let r = (row as i64 + k as i64 - 5).clamp(0, height as i64 - 1) as usize;
+                        weights[k] * across[r * width + col]
+                    })
+                    .sum();
+            }
+        }
+        out
+    };
+    let product =
+        |a: &[f64], b: &[f64]| -> Vec<f64> { a.iter().zip(b).map(|(p, q)| p * q).collect() };
+    let (mx, my) = (blur(&x), blur(&y));
+    let (xx, yy, xy) = (
+        blur(&product(&x, &x)),
+        blur(&product(&y, &y)),
+        blur(&product(&x, &y)),
+    );
+    let (c1, c2) = ((0.01f64 * 255.0).powi(2), (0.03f64 * 255.0).powi(2));
+    let (mut sum, mut n) = (0.0f64, 0usize);
+    for p in 0..width * height {
+        if mask.is_some_and(|m| m[p] <= 0.5) {
+            continue;
+        }
+        let (vx, vy, cov) = (
+            xx[p] - mx[p] * mx[p],
+            yy[p] - my[p] * my[p],
+            xy[p] - mx[p] * my[p],
+        );
+        sum += ((2.0 * mx[p] * my[p] + c1) * (2.0 * cov + c2))
+            / ((mx[p] * mx[p] + my[p] * my[p] + c1) * (vx + vy + c2));
+        n += 1;
+    }
+    if n == 0 {
+        1.0
+    } else {
+        sum / n as f64
+    }
+}
+
 /// Mean linear radiance (the mean of a pixel's three channels, averaged) over the pixels
 /// where `mask > 0.5`, or the whole frame; 0 over an empty region. The ratio of a relit
 /// image's mean to the truth's shows a fit that darkens or brightens.
@@ -175,6 +261,47 @@ pub fn mean_radiance(rgb: &[f32], mask: Option<&[f32]>) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn ssim_has_its_closed_form_on_flat_images_and_falls_with_noise() {
+        let (w, h) = (23, 17);
+        let grey = |code: u8| vec![crate::color::srgb8_table()[code as usize]; 3 * w * h];
+        // Flat images: no variance, so SSIM = (2ab + C1) / (a² + b² + C1) exactly.
+        let (a, b) = (grey(100), grey(140));
+        let c1 = (0.01f64 * 255.0).powi(2);
+        let want = (2.0 * 100.0 * 140.0 + c1) / (100.0f64.powi(2) + 140.0f64.powi(2) + c1);
+        let got = ssim(&a, &b, w, h, None);
+        assert!((got - want).abs() < 1e-9, "{got} vs {want}");
+        assert!((ssim(&a, &a, w, h, None) - 1.0).abs() < 1e-12);
+        // Texture, then noise on it: below 1, lower with more noise.
+        let texture: Vec<f32> = (0..3 * w * h)
+            .map(|i| crate::color::srgb8_table()[(((i / 3) * 37) % 200 + 20) as usize])
+            .collect();
+        let noisy = |amount: f32| -> Vec<f32> {
+            texture
+                .iter()
+                .enumerate()
+                .map(|(i, v)| v * (1.0 + amount * (((i * 7919) % 13) as f32 / 13.0 - 0.5)))
+                .collect()
+        };
+        let (slight, strong) = (
+            ssim(&noisy(0.05), &texture, w, h, None),
+            ssim(&noisy(0.5), &texture, w, h, None),
+        );
+        assert!(1.0 > slight && slight > strong, "{slight} {strong}");
+        // A mask scores only its pixels: the left half equal, the right half not.
+        let mut half = texture.clone();
+        for p in 0..w * h {
+            if p % w >= w / 2 {
+                half[3 * p..3 * p + 3].copy_from_slice(&[0.0; 3]);
+            }
+        }
+        let left: Vec<f32> = (0..w * h)
+            .map(|p| if p % w < w / 2 - 6 { 1.0 } else { 0.0 })
+            .collect();
+        assert!((ssim(&half, &texture, w, h, Some(&left)) - 1.0).abs() < 1e-9);
+        assert!(ssim(&half, &texture, w, h, None) < 0.9);
+    }
 
     #[test]
     fn a_constant_offset_gives_the_closed_form() {
