@@ -275,7 +275,7 @@ mod tests {
         assert!((ssim(&a, &a, w, h, None) - 1.0).abs() < 1e-12);
         // Texture, then noise on it: below 1, lower with more noise.
         let texture: Vec<f32> = (0..3 * w * h)
-            .map(|i| crate::color::srgb8_table()[(((i / 3) * 37) % 200 + 20) as usize])
+            .map(|i| crate::color::srgb8_table()[((i / 3) * 37) % 200 + 20])
             .collect();
         let noisy = |amount: f32| -> Vec<f32> {
             texture
