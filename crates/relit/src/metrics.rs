@@ -187,32 +187,24 @@ pub fn ssim(
         let sum: f64 = w.iter().sum();
         w.into_iter().map(|v| v / sum).collect()
     };
-    // Separable Gaussian blur, edges clamped.
-    let blur = |v: &[f64]| -> Vec<f64> {
-        let mut across = vec![0.0; v.len()];
-        for row in 0..height {
-            for col in 0..width {
-                across[row * width + col] = (0..11)
+    // Separable Gaussian blur, edges clamped: one pass along x (step 1 in rows of
+    // `width`), one along y (step `width` in columns of `height`).
+    let pass = |v: &[f64], along_x: bool| -> Vec<f64> {
+        let (len, step) = if along_x { (width, 1) } else { (height, width) };
+        (0..v.len())
+            .map(|p| {
+                let at = if along_x { p % width } else { p / width };
+                let start = p - at * step;
+                (0..11)
                     .map(|k| {
-                        let c = (col as i64 + k as i64 - 5).clamp(0, width as i64 - 1) as usize;
-                        weights[k] * v[row * width + c]
+                        let i = (at as i64 + k as i64 - 5).clamp(0, len as i64 - 1) as usize;
+                        weights[k] * v[start + i * step]
                     })
-                    .sum();
-            }
-        }
-        let mut out = vec![0.0; v.len()];
-        for row in 0..height {
-            for col in 0..width {
-                out[row * width + col] = (0..11)
-                    .map(|k| {
-                        let r = (row as i64 + k as i64 - 5).clamp(0, height as i64 - 1) as usize;
-                        weights[k] * across[r * width + col]
-                    })
-                    .sum();
-            }
-        }
-        out
+                    .sum()
+            })
+            .collect()
     };
+    let blur = |v: &[f64]| pass(&pass(v, true), false);
     let product =
         |a: &[f64], b: &[f64]| -> Vec<f64> { a.iter().zip(b).map(|(p, q)| p * q).collect() };
     let (mx, my) = (blur(&x), blur(&y));

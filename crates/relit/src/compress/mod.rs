@@ -731,7 +731,7 @@ pub fn unpack(packed: &Packed) -> Result<RelightableImage> {
     let header = &packed.header;
     let kp = checked(packed)?;
     if header.codebook.is_some() {
-        let indexed = indexed(packed)?;
+        let indexed = indexed_checked(packed, kp)?;
         let mut image = indexed.expand();
         image.depth = depth(packed)?;
         return Ok(image);
@@ -770,8 +770,12 @@ pub fn unpack(packed: &Packed) -> Result<RelightableImage> {
 /// A codebook file as an indexed image (entries relit once a frame, pixels looked up:
 /// [`crate::engine::lookup`]); depth is not read.
 pub fn indexed(packed: &Packed) -> Result<crate::engine::lookup::IndexedImage> {
+    indexed_checked(packed, checked(packed)?)
+}
+
+/// [`indexed`] of a file already [`checked`], with `kp` functions.
+fn indexed_checked(packed: &Packed, kp: usize) -> Result<crate::engine::lookup::IndexedImage> {
     let header = &packed.header;
-    let kp = checked(packed)?;
     let Some(entries) = header.codebook else {
         return Err(Error::invalid(
             "not a codebook file: its pixels are planes, not indices",
