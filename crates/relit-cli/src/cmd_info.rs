@@ -77,6 +77,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "storage": storage,
             "depth": image.depth.is_some(),
             "fit": meta.fit,
+            "bake": meta.bake,
             "file_bytes": bytes,
             "bytes_per_pixel": bytes as f64 / (image.width() * image.height()) as f64,
             "bits_per_pixel": 8.0 * bytes as f64 / (image.width() * image.height()) as f64,
@@ -115,6 +116,26 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!(
             "  residual      RMSE (linear) R {:.4} G {:.4} B {:.4}; training 8-bit sRGB PSNR {:.2} dB",
             fit.rmse_linear[0], fit.rmse_linear[1], fit.rmse_linear[2], fit.psnr_srgb8
+        );
+    }
+    if let Some(bake) = &meta.bake {
+        let bounces = if bake.indirect > 0 {
+            format!(
+                ", {} bounce rays × {} directions",
+                bake.indirect, bake.bounce_samples
+            )
+        } else {
+            String::new()
+        };
+        println!(
+            "  baked         {} transfer, {} directions per sample{bounces}, {}×{} samples per pixel, {} window, noise {:.2} %, {:.2} s",
+            bake.transfer,
+            bake.samples,
+            bake.supersample,
+            bake.supersample,
+            bake.window,
+            100.0 * bake.noise,
+            bake.seconds
         );
     }
     Ok(())

@@ -2,6 +2,7 @@
 //!
 //! Exit codes: 0 success, 1 the work failed (bad input, I/O…), 2 bad command line.
 
+mod cmd_bake;
 mod cmd_bench;
 mod cmd_capture;
 mod cmd_compare;
@@ -49,6 +50,9 @@ enum Command {
     Demo(cmd_demo::Args),
     /// Render a synthetic capture (images, manifest, .lp, depth, mask) of a scene.
     Capture(cmd_capture::Args),
+    /// Bake relightable maps from a scene's geometry (visibility, diffuse transfer or
+    /// one-bounce colour bleeding projected onto SH), without a capture.
+    Bake(cmd_bake::Args),
     /// Render a scene directly under lights: the ground truth relighting is compared with.
     RenderTruth(cmd_render_truth::Args),
     /// Measure relighting speed (CPU and GPU) against the machine's memory bandwidth.
@@ -106,6 +110,7 @@ fn main() {
         Command::Demo(args) => cmd_demo::run(args),
         Command::Capture(args) => cmd_capture::run(args),
         Command::RenderTruth(args) => cmd_render_truth::run(args),
+        Command::Bake(args) => cmd_bake::run(args),
         Command::Bench(args) => cmd_bench::run(args),
         Command::View(args) => cmd_view::run(args),
         Command::ExportWeb(args) => cmd_export_web::run(args),

@@ -13,6 +13,8 @@
 //!   diffuse indirect light, rayon over rows ([`render`]).
 //! * Lights: [`plan`] parses light plans (`grid:70x140`, `fibonacci:3072`,
 //!   `hemisphere:300`, `list:FILE`); [`emitter`] is what lights a shading point.
+//! * Transfer: [`bake`] projects visibility, diffuse transfer or one-bounce colour
+//!   bleeding onto SH per pixel (seed 003): relightable maps without a capture.
 //! * Outputs: [`capture`] (in memory or a folder with manifest, `.lp`, depth and mask)
 //!   and [`render_truth`] (one image under any emitters).
 //!
@@ -33,6 +35,7 @@
 //! assert!(result.capture.depth.is_some());
 //! ```
 
+pub mod bake;
 pub mod bvh;
 pub mod capture;
 pub mod emitter;

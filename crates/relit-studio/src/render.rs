@@ -64,23 +64,23 @@ impl RenderOptions {
 
 /// A visible surface sample of the G-buffer.
 #[derive(Clone, Copy, Debug)]
-struct Sample {
+pub(crate) struct Sample {
     /// The surface point, moved off the surface toward the eye by the ray epsilon.
-    origin: V3,
-    geometric_normal: V3,
-    shading_normal: V3,
+    pub(crate) origin: V3,
+    pub(crate) geometric_normal: V3,
+    pub(crate) shading_normal: V3,
     /// Unit direction toward the eye.
-    to_eye: V3,
-    reflectance: Reflectance,
+    pub(crate) to_eye: V3,
+    pub(crate) reflectance: Reflectance,
 }
 
 /// A surface seen by a bounce ray (diffuse only).
 #[derive(Clone, Copy, Debug)]
-struct Bounce {
-    origin: V3,
-    geometric_normal: V3,
-    shading_normal: V3,
-    albedo: V3,
+pub(crate) struct Bounce {
+    pub(crate) origin: V3,
+    pub(crate) geometric_normal: V3,
+    pub(crate) shading_normal: V3,
+    pub(crate) albedo: V3,
 }
 
 /// A G-buffer of one scene from one camera, ready to be lit.
@@ -219,6 +219,21 @@ impl<'s> Renderer<'s> {
     /// Rays traced to fill the G-buffer (primary and bounce rays).
     pub fn primary_rays(&self) -> u64 {
         self.primary_rays
+    }
+
+    /// Camera samples per pixel (supersampling).
+    pub(crate) fn samples_per_pixel(&self) -> usize {
+        self.samples_per_pixel
+    }
+
+    /// The G-buffer samples of `pixel` and, per sample, its bounce slots.
+    pub(crate) fn pixel_samples(
+        &self,
+        pixel: usize,
+    ) -> impl Iterator<Item = (Option<&Sample>, &[Option<Bounce>])> {
+        let (spp, k) = (self.samples_per_pixel, self.bounces_per_sample);
+        (pixel * spp..(pixel + 1) * spp)
+            .map(move |i| (self.samples[i].as_ref(), &self.bounces[i * k..(i + 1) * k]))
     }
 
     /// Seconds spent filling the G-buffer.
@@ -392,17 +407,7 @@ fn trace_bounce(
 ) -> Option<Bounce> {
     let u1 = ((b as f32 + hash2(seed as i32, 2 * b as i32 + 1)) / k as f32).min(0.999_999);
     let u2 = (hash2(seed as i32, -1) + b as f32 * 0.618_034).fract();
-    let (r, phi) = (u1.sqrt(), std::f32::consts::TAU * u2);
-    let n = sample.shading_normal;
-    let helper = if n.x.abs() < 0.9 {
-        v3(1.0, 0.0, 0.0)
-    } else {
-        v3(0.0, 1.0, 0.0)
-    };
-    let t = helper.cross(n).normalized();
-    let bt = n.cross(t);
-    let direction =
-        (t * (r * phi.cos()) + bt * (r * phi.sin()) + n * (1.0 - u1).max(0.0).sqrt()).normalized();
+    let direction = cosine_direction(sample.shading_normal, u1, u2);
     if sample.geometric_normal.dot(direction) <= 0.0 {
         return None;
     }
@@ -413,4 +418,23 @@ fn trace_bounce(
         shading_normal: hit.shading_normal,
         albedo: hit.reflectance.albedo,
     })
+}
+
+/// Two unit vectors completing the unit vector `n` to an orthonormal frame.
+pub(crate) fn tangent_frame(n: V3) -> (V3, V3) {
+    let helper = if n.x.abs() < 0.9 {
+        v3(1.0, 0.0, 0.0)
+    } else {
+        v3(0.0, 1.0, 0.0)
+    };
+    let t = helper.cross(n).normalized();
+    (t, n.cross(t))
+}
+
+/// The direction about the unit normal `n` that `(u1, u2) ∈ [0, 1)²` maps to with
+/// density `cos θ / π` (Malley's method: a uniform disc point lifted to the hemisphere).
+pub(crate) fn cosine_direction(n: V3, u1: f32, u2: f32) -> V3 {
+    let (r, phi) = (u1.sqrt(), std::f32::consts::TAU * u2);
+    let (t, bt) = tangent_frame(n);
+    (t * (r * phi.cos()) + bt * (r * phi.sin()) + n * (1.0 - u1).max(0.0).sqrt()).normalized()
 }

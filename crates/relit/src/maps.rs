@@ -52,6 +52,31 @@ pub struct FitInfo {
     pub seconds: f64,
 }
 
+/// How a set of maps was baked from geometry (`relit bake`), kept for provenance.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BakeInfo {
+    /// `visibility`, `diffuse` or `bleeding`.
+    pub transfer: String,
+    /// Directions traced per camera sample.
+    pub samples: u32,
+    /// Bounce rays per camera sample (`bleeding`), 0 otherwise.
+    pub indirect: u32,
+    /// Directions traced per bounce point (`bleeding`), 0 otherwise.
+    pub bounce_samples: u32,
+    /// Camera samples per pixel along each axis.
+    pub supersample: u32,
+    /// The band window applied to the baked coefficients (`none`, `hann`, …).
+    pub window: String,
+    /// Whether glossy lobes were dropped (Lambertian transfer only).
+    #[serde(default)]
+    pub lambert: bool,
+    /// Standard error of the white-sky image (the pixel lit by a uniform unit
+    /// environment) from sampling, relative to its mean: an upper estimate.
+    pub noise: f64,
+    /// Wall time of the bake in seconds.
+    pub seconds: f64,
+}
+
 /// Everything about a relightable image but its pixels.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Metadata {
@@ -63,6 +88,9 @@ pub struct Metadata {
     /// The full camera (pose included), needed with depth by lights that have a position.
     pub camera: Option<CameraSpec>,
     pub fit: Option<FitInfo>,
+    /// Present when the maps were baked from geometry instead of fitted.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bake: Option<BakeInfo>,
 }
 
 impl Metadata {
@@ -76,6 +104,7 @@ impl Metadata {
             projection,
             camera: None,
             fit: None,
+            bake: None,
         }
     }
 }

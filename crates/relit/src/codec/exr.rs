@@ -6,7 +6,9 @@
 
 use crate::basis::BasisSpec;
 use crate::fsutil::write_atomically;
-use crate::maps::{CoefficientMaps, FitInfo, MapSpace, Metadata, RelightableImage, FORMAT_VERSION};
+use crate::maps::{
+    BakeInfo, CoefficientMaps, FitInfo, MapSpace, Metadata, RelightableImage, FORMAT_VERSION,
+};
 use crate::storage::{CompactPlanes, FiniteRange, PlaneCoding, Precision};
 use crate::{Error, ErrorKind, Result};
 use exr::prelude::*;
@@ -96,6 +98,9 @@ pub fn write(path: &Path, image: &RelightableImage, precision: Precision) -> Res
     other.insert(Text::new_or_panic("relit.storage"), text(precision.name()));
     if let Some(fit) = &meta.fit {
         other.insert(Text::new_or_panic("relit.fit"), text(&ascii_json(fit)));
+    }
+    if let Some(bake) = &meta.bake {
+        other.insert(Text::new_or_panic("relit.bake"), text(&ascii_json(bake)));
     }
     if let Some(camera) = &meta.camera {
         other.insert(
@@ -273,6 +278,10 @@ fn read_planes(path: &Path, mut sink: Sink) -> Result<(RelightableImage, Sink)> 
         Some(s) => Some(parse_json(path, "relit.fit", &s)?),
         None => None,
     };
+    let bake: Option<BakeInfo> = match text_attr(attrs, "relit.bake") {
+        Some(s) => Some(parse_json(path, "relit.bake", &s)?),
+        None => None,
+    };
     let (w, h) = (header.layer_size.width(), header.layer_size.height());
     let k = basis.build()?.len();
     let values = w.checked_mul(h).and_then(|n| n.checked_mul(3 * k));
@@ -408,6 +417,7 @@ fn read_planes(path: &Path, mut sink: Sink) -> Result<(RelightableImage, Sink)> 
         projection,
         camera,
         fit,
+        bake,
     };
     Ok((RelightableImage { meta, maps, depth }, sink))
 }

@@ -1,0 +1,196 @@
+//! `relit bake`: relightable maps from a scene's geometry, without a capture (seed 003).
+
+use crate::shared::{mib, refuse_overwriting_inputs, scene_inputs, Bars, CompressArgs};
+use anyhow::Context;
+use relit::codec::exr;
+use relit::envmap::Window;
+use relit::fsutil::Output;
+use relit::storage::Precision;
+use relit_studio::bake::{bake, BakeOptions, Transfer};
+use relit_studio::setup;
+use std::path::PathBuf;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// The scene: a built-in name (attic, city, box), an .obj file or a .json scene file.
+    pub scene: String,
+    /// What to project: visibility (V), diffuse (albedo · cos · V) or bleeding (diffuse
+    /// plus one-bounce interreflection, as `render-truth --indirect`).
+    #[arg(long, default_value = "diffuse", value_parser = |s: &str| Transfer::parse(s).map_err(|e| e.to_string()))]
+    pub transfer: Transfer,
+    /// SH bands (1–8): bands² coefficients per colour channel.
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=8))]
+    pub bands: u32,
+    /// Directions traced per camera sample (quasi-Monte Carlo).
+    #[arg(long, default_value_t = 256)]
+    pub samples: u32,
+    /// Bounce rays per camera sample for `bleeding` (as `render-truth --indirect`).
+    #[arg(long)]
+    pub indirect: Option<u32>,
+    /// Directions traced per bounce point for `bleeding`.
+    #[arg(long, default_value_t = 64)]
+    pub bounce_samples: u32,
+    /// Band window applied to the baked coefficients: none, hann, lanczos or
+    /// laplacian[:λ] (seed 003 §4.1).
+    #[arg(long, default_value = "none", value_parser = parse_window)]
+    pub window: Window,
+    /// Lambertian surfaces only: drop the materials' glossy lobes (seed 003's diffuse
+    /// transfer exactly). By default a surface's transfer is everything the camera sees
+    /// it reflect, as a capture would record it.
+    #[arg(long)]
+    pub lambert: bool,
+    /// Camera: cylindrical[:FOV], equirect, perspective[:FOV] or orthographic[:HEIGHT]
+    /// (default: the scene's own). The scene's eye and orientation are kept.
+    #[arg(long)]
+    pub camera: Option<String>,
+    /// Image size WIDTHxHEIGHT (default: the scene's, or the camera's usual size).
+    #[arg(long)]
+    pub size: Option<String>,
+    /// Camera samples per pixel along each axis (2 = 2×2 antialiasing).
+    #[arg(long, default_value_t = 1)]
+    pub supersample: u32,
+    /// The relightable file to write: OpenEXR, or compressed when it ends in `.rlz`.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    #[command(flatten)]
+    pub compress: CompressArgs,
+    /// Precision of the stored maps: f16 (alias half) or f32 (alias float).
+    #[arg(long, default_value = "f16")]
+    pub storage: Precision,
+    /// Print the summary as JSON.
+    #[arg(long)]
+    pub json: bool,
+    /// No progress bars.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+/// `none`, `hann`, `lanczos`, `laplacian` or `laplacian:λ`.
+fn parse_window(spec: &str) -> Result<Window, String> {
+    let window = match spec.split_once(':') {
+        None => match spec {
+            "none" => Window::None,
+            "hann" => Window::Hann,
+            "lanczos" => Window::Lanczos,
+            "laplacian" => Window::Laplacian { lambda: None },
+            other => {
+                return Err(format!(
+                    "unknown window `{other}`: use none, hann, lanczos or laplacian[:λ]"
+                ))
+            }
+        },
+        Some(("laplacian", lambda)) => Window::Laplacian {
+            lambda: Some(
+                lambda
+                    .parse()
+                    .map_err(|_| format!("`{lambda}` is not a number"))?,
+            ),
+        },
+        Some(_) => {
+            return Err(format!(
+                "only the laplacian window takes a value, not `{spec}`"
+            ))
+        }
+    };
+    window.validate().map_err(|e| e.to_string())?;
+    Ok(window)
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    args.storage
+        .require(&[Precision::F32, Precision::F16], "--storage (OpenEXR)")?;
+    let options = BakeOptions {
+        transfer: args.transfer,
+        bands: args.bands as usize,
+        samples: args.samples,
+        indirect: args.indirect.unwrap_or(match args.transfer {
+            Transfer::Bleeding => 16,
+            _ => 0,
+        }),
+        bounce_samples: args.bounce_samples,
+        supersample: args.supersample,
+        window: args.window,
+        lambert: args.lambert,
+    };
+    options.validate()?;
+    let outputs = [Output::file(&args.output)];
+    refuse_overwriting_inputs(&scene_inputs(&args.scene, None), &outputs)?;
+    let projection = args
+        .camera
+        .as_deref()
+        .map(setup::parse_projection)
+        .transpose()?;
+    let size = args.size.as_deref().map(setup::parse_size).transpose()?;
+    let scene = relit_studio::open_scene(&args.scene)
+        .with_context(|| format!("opening scene `{}`", args.scene))?;
+    refuse_overwriting_inputs(&scene.files, &outputs)?;
+    for warning in &scene.warnings {
+        eprintln!("relit bake: warning: {warning}");
+    }
+    let camera = setup::scene_camera(&scene, projection.as_ref(), size)?;
+    if !args.json && !args.quiet {
+        eprintln!(
+            "relit bake: `{}` ({} triangles), {} {}×{}, {} transfer onto sh:{}, {} directions per sample{}",
+            scene.name,
+            scene.triangle_count(),
+            camera.projection().name(),
+            camera.width(),
+            camera.height(),
+            options.transfer.name(),
+            options.bands * options.bands,
+            options.samples,
+            if options.transfer == Transfer::Bleeding {
+                format!(
+                    ", {} bounce rays × {} directions",
+                    options.indirect, options.bounce_samples
+                )
+            } else {
+                String::new()
+            }
+        );
+    }
+    let bars = Bars::new(args.quiet || args.json);
+    let baked = bake(&scene, &camera, &options, &bars)?;
+    match relit::codec::FileForm::for_output(&args.output) {
+        relit::codec::FileForm::Exr => exr::write(&args.output, &baked.image, args.storage),
+        relit::codec::FileForm::Compressed => {
+            relit::codec::packed::write(&args.output, &baked.image, &args.compress.settings())
+                .map(|_| ())
+        }
+    }
+    .with_context(|| format!("writing {}", args.output.display()))?;
+    let bytes = std::fs::metadata(&args.output)
+        .map(|m| m.len())
+        .unwrap_or(0);
+    let s = &baked.stats;
+    if args.json {
+        let mut value = serde_json::to_value(s)?;
+        value["output"] = serde_json::json!(args.output.display().to_string());
+        value["transfer"] = serde_json::json!(options.transfer.name());
+        value["file_bytes"] = serde_json::json!(bytes);
+        value["relative_noise"] = serde_json::json!(s.relative_noise());
+        println!("{}", serde_json::to_string_pretty(&value)?);
+    } else {
+        println!(
+            "wrote {} ({}, {:.1} bytes/pixel)",
+            args.output.display(),
+            mib(Some(bytes)),
+            bytes as f64 / (s.width * s.height) as f64
+        );
+        println!(
+            "bake: {:.2} s (G-buffer {:.2} s, transfer {:.2} s), {} rays, {:.2} Mrays/s",
+            s.total_seconds,
+            s.gbuffer_seconds,
+            s.transfer_seconds,
+            s.rays,
+            s.rays_per_second / 1e6
+        );
+        println!(
+            "sampling noise: {:.2} % of the white-sky image (RMS standard error {:.4} on a mean of {:.4}; an upper estimate)",
+            100.0 * s.relative_noise(),
+            s.white_sky_noise,
+            s.white_sky_mean
+        );
+    }
+    Ok(())
+}
