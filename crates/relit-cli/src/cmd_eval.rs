@@ -36,6 +36,11 @@ pub struct Args {
     /// With --scene: samples per pixel of an environment light's ray-traced truth.
     #[arg(long, default_value_t = relit_studio::emitter::DEFAULT_ENVIRONMENT_SAMPLES, requires = "scene")]
     pub env_samples: usize,
+    /// With --scene: also bake the scene's diffuse transfer (`relit bake`'s defaults, the
+    /// fit basis' SH bands or 5) and score the baked maps beside the fitted ones under
+    /// every light.
+    #[arg(long)]
+    pub bake: bool,
     /// Write each held-out (or, with --scene, each light's) captured or true image above
     /// its relit image as one 8-bit sRGB PNG, never scaled, into this folder; with
     /// --scene also `mask.png`, the pixels scored.
@@ -212,6 +217,20 @@ pub fn load_mask(
     Ok(Some(values))
 }
 
+/// The SH bands a bake beside a fit of `basis` uses: the fit's own for `sh:K`, else 5.
+fn bake_bands(basis: &relit::fit::BasisRequest) -> usize {
+    match basis {
+        relit::fit::BasisRequest::Fixed(choice) => choice
+            .name()
+            .strip_prefix("sh:")
+            .and_then(|k| k.parse::<usize>().ok())
+            .map(|k| (k as f64).sqrt().round() as usize)
+            .filter(|&b| b * b <= 64 && b >= 1)
+            .unwrap_or(5),
+        relit::fit::BasisRequest::Auto => 5,
+    }
+}
+
 fn run_scene(args: Args) -> anyhow::Result<()> {
     use anyhow::Context;
     use relit::fsutil::{Output, StagedFolder};
@@ -240,6 +259,13 @@ fn run_scene(args: Args) -> anyhow::Result<()> {
         fit: args.fit.to_options()?,
         environment_samples: args.env_samples,
         ..SceneEvalOptions::default()
+    };
+    let options = SceneEvalOptions {
+        bake: args.bake.then(|| relit_studio::bake::BakeOptions {
+            bands: bake_bands(&options.fit.basis),
+            ..Default::default()
+        }),
+        ..options
     };
     let bars = Bars::new(args.quiet || args.json);
     // The default rig's slide and sky live in a scratch folder for the run.
@@ -315,9 +341,24 @@ fn run_scene(args: Args) -> anyhow::Result<()> {
         report.capture_rays_per_second / 1e6,
         report.fit.seconds
     );
+    if let Some(bake) = &report.bake {
+        println!(
+            "baked: sh:{} diffuse transfer in {:.1} s ({:.2} Mrays/s), sampling noise {:.2} %",
+            bake.coefficients,
+            bake.total_seconds,
+            bake.rays_per_second / 1e6,
+            100.0 * bake.relative_noise()
+        );
+    }
     println!(
-        "{:<12} {:>10} {:>10} {:>11} {:>9} {:>26}",
-        "light", "linear dB", "sRGB8 dB", "relight ms", "truth s", "occlusion: px  in / out dB"
+        "{:<12} {:>10} {:>10} {:>11} {:>9} {:>26}{}",
+        "light",
+        "linear dB",
+        "sRGB8 dB",
+        "relight ms",
+        "truth s",
+        "occlusion: px  in / out dB",
+        if report.bake.is_some() { "   baked: linear / sRGB8 dB" } else { "" }
     );
     for l in &report.lights {
         let occlusion = match &l.occlusion {
@@ -332,13 +373,17 @@ fn run_scene(args: Args) -> anyhow::Result<()> {
             None => "-".into(),
         };
         println!(
-            "{:<12} {:>10.2} {:>10.2} {:>11.1} {:>9.2} {:>26}",
+            "{:<12} {:>10.2} {:>10.2} {:>11.1} {:>9.2} {:>26}{}",
             l.kind,
             l.psnr_linear,
             l.psnr_srgb8,
             1e3 * l.relight_seconds,
             l.truth_seconds,
-            occlusion
+            occlusion,
+            l.baked.as_ref().map_or(String::new(), |b| format!(
+                "   {:>12.2} / {:.2}",
+                b.psnr_linear, b.psnr_srgb8
+            ))
         );
     }
     if !report.environment.is_empty() {

@@ -45,7 +45,7 @@
 
 use crate::material::Reflectance;
 use crate::math::V3;
-use crate::render::{cosine_direction, tangent_frame, Bounce, RenderOptions, Renderer, Sample};
+use crate::render::{cosine_direction_in, tangent_frame, Bounce, RenderOptions, Renderer, Sample};
 use crate::scene::Scene;
 use crate::texture::hash2;
 use crate::{invalid, Result};
@@ -107,7 +107,9 @@ pub struct BakeOptions {
     pub bounce_samples: u32,
     /// Camera samples per pixel along each axis.
     pub supersample: u32,
-    /// Band window applied to the baked coefficients (seed 003 §4.1).
+    /// Band window applied to the baked coefficients (seed 003 §4.1). The default,
+    /// the Laplacian window that halves the top band, is the bake's counterpart of the
+    /// fit's roughness penalty (see `docs/transfer.md` for how it was chosen).
     pub window: Window,
     /// Drop the materials' glossy lobes: seed 003's diffuse transfer exactly, instead of
     /// everything the camera sees.
@@ -123,7 +125,7 @@ impl Default for BakeOptions {
             indirect: 0,
             bounce_samples: 64,
             supersample: 1,
-            window: Window::None,
+            window: Window::Laplacian { lambda: None },
             lambert: false,
         }
     }
@@ -231,6 +233,8 @@ pub fn bake(
         scene,
         basis: &basis,
         options,
+        clamped_cosine: funk_hecke(options.bands, |t| t),
+        hemisphere: funk_hecke(options.bands, |_| 1.0),
     };
     progress.begin("transfer", h as u64);
     let rows: Vec<RowResult> = (0..h)
@@ -267,10 +271,9 @@ pub fn bake(
         for x in 0..w {
             let pixel = y * w + x;
             for i in 0..k {
-                let band = (i as f64).sqrt() as usize;
                 for c in 0..3 {
                     maps.data[(3 * i + c) * n + pixel] =
-                        (row.coefficients[(x * 3 + c) * k + i] * factors[band]) as f32;
+                        (row.coefficients[(x * 3 + c) * k + i] * factors[band_of(i)]) as f32;
                 }
             }
             if renderer.mask()[pixel] > 0.0 {
@@ -349,6 +352,9 @@ struct Baker<'a> {
     scene: &'a Scene,
     basis: &'a SphericalHarmonics,
     options: &'a BakeOptions,
+    /// Funk–Hecke factors per band of the clamped cosine and of the hemisphere.
+    clamped_cosine: Vec<f64>,
+    hemisphere: Vec<f64>,
 }
 
 /// What is integrated against the basis over one set of directions.
@@ -429,7 +435,7 @@ impl Baker<'_> {
             if self.options.transfer == Transfer::Bleeding {
                 stats.rays += self.bleed(sample, bounces, seed, scale, out, weights, &mut halves);
             }
-            let (a, b) = (halves[0] * scale, halves[1] * scale);
+            let [a, b] = halves;
             stats.white += a + b;
             stats.variance += (a - b) * (a - b);
         }
@@ -502,12 +508,19 @@ impl Baker<'_> {
         }
     }
 
-    /// Trace `g`'s directions and add each open one's estimate `f(ω) Y(ω) / p(ω)`
-    /// (times `scale`), where `p` is the density of all strategies together (the balance
-    /// heuristic of multiple importance sampling). Each strategy's directions are two
-    /// Hammersley sets of half the count with independent shifts, whose white-sky
-    /// sums go to `halves`: two independent estimates, so their difference measures
-    /// the error.
+    /// Add `g`'s integral against the basis to `out` (times `scale`).
+    ///
+    /// The unoccluded part has a closed form: by the Funk–Hecke theorem a kernel of
+    /// `n·ω` alone (the clamped cosine of a Lambertian surface, the hemisphere of
+    /// visibility) projects to `λ_l Y_i(n)`. Only what the scene blocks is left to
+    /// Monte Carlo, `f = f_open − f_open·(1 − V)`, so an open surface has no noise at
+    /// all and a partly shadowed one only that of its shadow. Glossy lobes have no
+    /// closed form here and are integrated as `lobe · V`. Each traced direction adds
+    /// `estimate(ω) Y(ω) / p(ω)`, with `p` the density of all strategies together (the
+    /// balance heuristic of multiple importance sampling). Each strategy's directions
+    /// are two Hammersley sets of half the count with independent shifts, whose
+    /// white-sky sums go to `halves`: two independent estimates, so their difference
+    /// measures the error.
     fn gather(
         &self,
         g: &Gather,
@@ -519,6 +532,35 @@ impl Baker<'_> {
         let k = weights.len();
         let strategies = Self::strategies(g);
         let frame = tangent_frame(g.geometric_normal);
+        let (axis, open, kernel) = match g.integrand {
+            Integrand::Visibility => (g.geometric_normal, V3::splat(1.0), &self.hemisphere),
+            Integrand::Reflect {
+                shading_normal,
+                reflectance,
+                tint,
+                ..
+            } => (
+                shading_normal,
+                reflectance.albedo.modulate(tint),
+                &self.clamped_cosine,
+            ),
+        };
+        let axis_frame = tangent_frame(axis);
+        self.basis.eval(axis.into(), weights);
+        let open = [open.x as f64, open.y as f64, open.z as f64];
+        for (c, &v) in open.iter().enumerate() {
+            for (i, (o, &y)) in out[c * k..(c + 1) * k]
+                .iter_mut()
+                .zip(weights.iter())
+                .enumerate()
+            {
+                *o += scale * v * kernel[band_of(i)] * y;
+            }
+        }
+        // Y_0 is constant, so the white-sky value of the closed form is λ_0 · open.
+        let open_white = scale * kernel[0] * (open[0] + open[1] + open[2]) / 3.0;
+        halves[0] += 0.5 * open_white;
+        halves[1] += 0.5 * open_white;
         let mut rays = 0;
         let plan = [
             (0u32, strategies.uniform),
@@ -539,7 +581,7 @@ impl Baker<'_> {
                 let direction = match (strategy, g.integrand) {
                     (0, _) => uniform_direction(g.geometric_normal, frame, u1, u2),
                     (1, Integrand::Reflect { shading_normal, .. }) => {
-                        cosine_direction(shading_normal, u1, u2)
+                        cosine_direction_in(shading_normal, axis_frame, u1, u2)
                     }
                     (
                         _,
@@ -552,39 +594,55 @@ impl Baker<'_> {
                     ) => lobe_direction(shading_normal, to_eye, reflectance.shininess, u1, u2),
                     _ => unreachable!("the visibility integrand has only the uniform strategy"),
                 };
-                if !direction.is_finite() || g.geometric_normal.dot(direction) <= 0.0 {
+                if !direction.is_finite() {
                     continue;
                 }
-                let value = match g.integrand {
-                    Integrand::Visibility => V3::splat(2.0 * PI / count as f32),
+                // What the closed form counted here (`blocked`, lost unless the
+                // direction is open) and what only an open direction adds (`glossy`),
+                // both over the density.
+                let (blocked, glossy) = match g.integrand {
+                    Integrand::Visibility => {
+                        if g.geometric_normal.dot(direction) <= 0.0 {
+                            continue;
+                        }
+                        (V3::splat(2.0 * PI / count as f32), V3::ZERO)
+                    }
                     Integrand::Reflect {
                         shading_normal,
                         to_eye,
                         reflectance,
                         tint,
                     } => {
-                        let f = reflectance.reflect(shading_normal, to_eye, direction);
-                        if f.max_component() <= 0.0 {
+                        let cos = shading_normal.dot(direction);
+                        if cos <= 0.0 {
                             continue;
                         }
-                        let cosine = strategies.cosine as f32
-                            * (shading_normal.dot(direction).max(0.0) / PI);
-                        let lobe = if strategies.lobe > 0 {
-                            strategies.lobe as f32
-                                * lobe_density(
-                                    shading_normal,
-                                    to_eye,
-                                    reflectance.shininess,
-                                    direction,
-                                )
-                        } else {
-                            0.0
-                        };
-                        f.modulate(tint) * (1.0 / (cosine + lobe))
+                        let density = strategies.cosine as f32 * cos / PI
+                            + if strategies.lobe > 0 {
+                                strategies.lobe as f32
+                                    * lobe_density(
+                                        shading_normal,
+                                        to_eye,
+                                        reflectance.shininess,
+                                        direction,
+                                    )
+                            } else {
+                                0.0
+                            };
+                        let lambert = reflectance.albedo.modulate(tint) * (cos / density);
+                        let lobe = reflectance.reflect(shading_normal, to_eye, direction)
+                            - reflectance.albedo * cos;
+                        (lambert, lobe.modulate(tint) * (1.0 / density))
                     }
                 };
-                rays += 1;
-                if self.scene.occluded(g.origin, direction, f32::INFINITY) {
+                // Below the geometric surface nothing arrives, whatever the shading
+                // normal says: blocked without a ray.
+                let open = g.geometric_normal.dot(direction) > 0.0 && {
+                    rays += 1;
+                    !self.scene.occluded(g.origin, direction, f32::INFINITY)
+                };
+                let value = if open { glossy } else { V3::ZERO - blocked };
+                if value == V3::ZERO {
                     continue;
                 }
                 self.basis.eval(direction.into(), weights);
@@ -595,11 +653,39 @@ impl Baker<'_> {
                         *o += v * y;
                     }
                 }
-                halves[half] += (value[0] + value[1] + value[2]) / 3.0;
+                halves[half] += scale * (value[0] + value[1] + value[2]) / 3.0;
             }
         }
         rays
     }
+}
+
+/// The band of coefficient `i` (`i = l(l+1) + m`).
+fn band_of(i: usize) -> usize {
+    (i as f64).sqrt() as usize
+}
+
+/// The Funk–Hecke factors `λ_l = 2π ∫₋₁¹ k(t) P_l(t) dt` of a kernel `k` of `n·ω` that
+/// vanishes for `t ≤ 0`, for `l < bands`: `∫ k(n·ω) Y_lm(ω) dω = λ_l Y_lm(n)`.
+pub(crate) fn funk_hecke(bands: usize, kernel: impl Fn(f64) -> f64) -> Vec<f64> {
+    // The integrands are polynomials on [0, 1]: the midpoint rule with this many
+    // steps is exact to about 1e-9.
+    let steps = 1 << 14;
+    let mut lambda = vec![0.0; bands];
+    for s in 0..steps {
+        let t = (s as f64 + 0.5) / steps as f64;
+        let (mut previous, mut legendre) = (0.0, 1.0);
+        for (l, value) in lambda.iter_mut().enumerate() {
+            *value += kernel(t) * legendre / steps as f64;
+            let next = ((2 * l + 1) as f64 * t * legendre - l as f64 * previous) / (l + 1) as f64;
+            previous = legendre;
+            legendre = next;
+        }
+    }
+    lambda
+        .iter()
+        .map(|v| 2.0 * std::f64::consts::PI * v)
+        .collect()
 }
 
 /// A direction drawn along the Blinn–Phong lobe of exponent `s` seen from `to_eye`: the

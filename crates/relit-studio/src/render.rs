@@ -434,7 +434,11 @@ pub(crate) fn tangent_frame(n: V3) -> (V3, V3) {
 /// The direction about the unit normal `n` that `(u1, u2) ∈ [0, 1)²` maps to with
 /// density `cos θ / π` (Malley's method: a uniform disc point lifted to the hemisphere).
 pub(crate) fn cosine_direction(n: V3, u1: f32, u2: f32) -> V3 {
+    cosine_direction_in(n, tangent_frame(n), u1, u2)
+}
+
+/// [`cosine_direction`] with `n`'s [`tangent_frame`] already at hand.
+pub(crate) fn cosine_direction_in(n: V3, (t, bt): (V3, V3), u1: f32, u2: f32) -> V3 {
     let (r, phi) = (u1.sqrt(), std::f32::consts::TAU * u2);
-    let (t, bt) = tangent_frame(n);
     (t * (r * phi.cos()) + bt * (r * phi.sin()) + n * (1.0 - u1).max(0.0).sqrt()).normalized()
 }

@@ -17,6 +17,7 @@
 //!   radiance around each captured direction
 //!   ([`EnvironmentLight::weights_for_directions`]), for each SH window.
 
+use crate::bake::{bake, BakeOptions, BakeStats};
 use crate::emitter::Emitter;
 use crate::plan::LightPlan;
 use crate::render::{RenderOptions, Renderer};
@@ -58,6 +59,9 @@ pub struct SceneEvalOptions {
     pub area_samples: Vec<usize>,
     /// Samples of the converged relit image the sampling error is measured against.
     pub converged_area_samples: usize,
+    /// Also bake the scene's transfer ([`crate::bake`]) and score the baked maps under
+    /// every light beside the fitted ones: the two routes to the same maps, side by side.
+    pub bake: Option<BakeOptions>,
 }
 
 impl Default for SceneEvalOptions {
@@ -76,6 +80,7 @@ impl Default for SceneEvalOptions {
             truth_area_samples: 256,
             area_samples: vec![1, 4, 16, 64],
             converged_area_samples: 1024,
+            bake: None,
         }
     }
 }
@@ -116,6 +121,16 @@ pub struct LightResult {
     pub truth_seconds: f64,
     /// Lights with a position only.
     pub occlusion: Option<Occlusion>,
+    /// The baked maps under the same light, when [`SceneEvalOptions::bake`] asks.
+    pub baked: Option<BakedScore>,
+}
+
+/// Baked maps under one light of the rig.
+#[derive(Clone, Debug, Serialize)]
+pub struct BakedScore {
+    pub psnr_linear: f64,
+    pub psnr_srgb8: f64,
+    pub relit_mean: f64,
 }
 
 /// An environment light against brute-force integration over the captured images.
@@ -182,6 +197,8 @@ pub struct SceneEvalReport {
     pub capture_seconds: f64,
     pub capture_rays_per_second: f64,
     pub fit: FitReport,
+    /// What the bake cost, when [`SceneEvalOptions::bake`] asks.
+    pub bake: Option<BakeStats>,
     pub lights: Vec<LightResult>,
     pub environment: Vec<EnvironmentCheck>,
     pub area: Vec<AreaCheck>,
@@ -228,6 +245,15 @@ pub fn evaluate(
     let fitted = fit::fit(&capture, &options.fit, progress)?;
     let relighter = Relighter::new(&fitted.image)?;
     let bands = relighter.basis().band_limit().unwrap_or(0);
+    let baked_maps = options
+        .bake
+        .as_ref()
+        .map(|bake_options| bake(scene, camera, bake_options, progress))
+        .transpose()?;
+    let baked = baked_maps
+        .as_ref()
+        .map(|baked| Ok::<_, crate::Error>((Relighter::new(&baked.image)?, baked.stats.clone())))
+        .transpose()?;
     let truth = Renderer::new(scene, camera, &options.render, progress)?;
     let mask = truth.mask().to_vec();
     let relight_options = RelightOptions {
@@ -298,6 +324,18 @@ pub fn evaluate(
                 options,
             )?);
         }
+        let baked_score = baked
+            .as_ref()
+            .map(|(relighter, _)| {
+                let image = relighter.relight(&single, &relight_options)?;
+                let score = compare_in(&image, &reference, &mask);
+                Ok::<_, crate::Error>(BakedScore {
+                    psnr_linear: score.psnr_linear,
+                    psnr_srgb8: score.psnr_srgb8,
+                    relit_mean: mean_in(&image, &mask),
+                })
+            })
+            .transpose()?;
         lights.push(LightResult {
             kind: light.kind().into(),
             light: light.clone(),
@@ -308,6 +346,7 @@ pub fn evaluate(
             relight_seconds,
             truth_seconds,
             occlusion,
+            baked: baked_score,
         });
         progress.advance(1);
     }
@@ -323,6 +362,7 @@ pub fn evaluate(
         capture_seconds: captured.stats.total_seconds,
         capture_rays_per_second: captured.stats.rays_per_second,
         fit: fitted.report,
+        bake: baked.map(|(_, stats)| stats),
         lights,
         environment,
         area,

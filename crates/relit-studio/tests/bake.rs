@@ -5,6 +5,7 @@
 
 use relit::basis::{Basis, SphericalHarmonics};
 use relit::camera::{Camera, CameraSpec, Pose, Projection};
+use relit::envmap::Window;
 use relit::maps::RelightableImage;
 use relit::progress::Silent;
 use relit::sphere::{self, Vec3};
@@ -72,10 +73,12 @@ fn coefficients(image: &RelightableImage, x: usize, y: usize, c: usize) -> Vec<f
         .collect()
 }
 
+/// Exact projections (no band window), so that closed forms apply.
 fn options(transfer: Transfer, samples: u32) -> BakeOptions {
     BakeOptions {
         transfer,
         samples,
+        window: Window::None,
         ..BakeOptions::default()
     }
 }
@@ -84,6 +87,29 @@ fn options(transfer: Transfer, samples: u32) -> BakeOptions {
 fn an_open_lambertian_floor_bakes_to_the_clamped_cosine() {
     let (scene, camera) = floor_scene(false);
     let baked = bake(&scene, &camera, &options(Transfer::Diffuse, 1024), &Silent).unwrap();
+    // A band window scales band l by h_l: the Laplacian default keeps band 0 and halves
+    // band 4.
+    let windowed = bake(
+        &scene,
+        &camera,
+        &BakeOptions {
+            samples: 1024,
+            ..BakeOptions::default()
+        },
+        &Silent,
+    )
+    .unwrap();
+    let (exact, halved) = (
+        coefficients(&baked.image, 4, 4, 1),
+        coefficients(&windowed.image, 4, 4, 1),
+    );
+    assert!((halved[0] - exact[0]).abs() < 1e-6);
+    assert!(
+        (halved[20] - 0.5 * exact[20]).abs() < 1e-4,
+        "{} {}",
+        halved[20],
+        exact[20]
+    );
     // Ramamoorthi & Hanrahan: the clamped cosine about n has the zonal coefficients
     // Â_l = π, 2π/3, π/4, 0, −π/24 for l = 0..4, so c_lm = a · Â_l · Y_lm(n).
     let a_hat = [PI, 2.0 * PI / 3.0, PI / 4.0, 0.0, -PI / 24.0];
@@ -217,11 +243,9 @@ fn baked_maps_under_a_uniform_sky_equal_the_renderers_light_sum() {
 fn bleeding_adds_the_renderers_one_bounce_light() {
     let (scene, camera) = box_scene();
     let bleeding = BakeOptions {
-        transfer: Transfer::Bleeding,
-        samples: 512,
         indirect: 4,
         bounce_samples: 256,
-        ..BakeOptions::default()
+        ..options(Transfer::Bleeding, 512)
     };
     let (baked, rendered) = white_sky(&scene, &camera, &bleeding);
     let score = psnr(&baked, &rendered);
