@@ -19,8 +19,12 @@ pub struct Args {
     #[arg(long, default_value = "diffuse", value_parser = |s: &str| Transfer::parse(s).map_err(|e| e.to_string()))]
     pub transfer: Transfer,
     /// SH bands (1–8): bands² coefficients per colour channel.
-    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=8))]
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=8), conflicts_with = "basis")]
     pub bands: u32,
+    /// The basis by its fit name instead of --bands: `sh:K` with K = 1, 4, 9, …, 64 (the
+    /// bake projects onto spherical harmonics only).
+    #[arg(long, value_parser = parse_sh_basis)]
+    pub basis: Option<u32>,
     /// Directions traced per camera sample (quasi-Monte Carlo).
     #[arg(long, default_value_t = 256)]
     pub samples: u32,
@@ -66,6 +70,21 @@ pub struct Args {
     pub quiet: bool,
 }
 
+/// The bands of `sh:K`.
+fn parse_sh_basis(spec: &str) -> Result<u32, String> {
+    let k = spec.strip_prefix("sh:").ok_or_else(|| {
+        format!("a bake projects onto spherical harmonics: use sh:K, not `{spec}`")
+    })?;
+    let k: u32 = k
+        .parse()
+        .map_err(|_| format!("`{k}` is not a number of coefficients"))?;
+    let bands = (k as f64).sqrt().round() as u32;
+    if bands * bands != k || !(1..=8).contains(&bands) {
+        return Err(format!("sh:K needs K = 1, 4, 9, …, 64, not {k}"));
+    }
+    Ok(bands)
+}
+
 /// `none`, `hann`, `lanczos`, `laplacian` or `laplacian:λ`.
 fn parse_window(spec: &str) -> Result<Window, String> {
     let window = match spec.split_once(':') {
@@ -102,7 +121,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .require(&[Precision::F32, Precision::F16], "--storage (OpenEXR)")?;
     let options = BakeOptions {
         transfer: args.transfer,
-        bands: args.bands as usize,
+        bands: args.basis.unwrap_or(args.bands) as usize,
         samples: args.samples,
         indirect: args.indirect.unwrap_or(match args.transfer {
             Transfer::Bleeding => 16,

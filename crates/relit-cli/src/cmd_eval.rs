@@ -358,7 +358,11 @@ fn run_scene(args: Args) -> anyhow::Result<()> {
         "relight ms",
         "truth s",
         "occlusion: px  in / out dB",
-        if report.bake.is_some() { "   baked: linear / sRGB8 dB" } else { "" }
+        if report.bake.is_some() {
+            "   baked: linear / sRGB8 dB"
+        } else {
+            ""
+        }
     );
     for l in &report.lights {
         let occlusion = match &l.occlusion {

@@ -215,6 +215,14 @@ fn bad_bake_requests_are_refused_before_any_work() {
             "directions per sample",
         ),
         (vec!["bake", "nowhere", "-o", "x.exr"], "nowhere"),
+        (
+            vec!["bake", "box", "--basis", "hsh:9", "-o", "x.exr"],
+            "spherical harmonics",
+        ),
+        (
+            vec!["bake", "box", "--basis", "sh:10", "-o", "x.exr"],
+            "K = 1, 4, 9",
+        ),
     ] {
         let out = relit(d, &args);
         let stderr = String::from_utf8_lossy(&out.stderr);
