@@ -177,6 +177,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             relit::codec::packed::write(&args.output, &baked.image, &args.compress.settings())
                 .map(|_| ())
         }
+        form @ (relit::codec::FileForm::Ptm | relit::codec::FileForm::Rti) => {
+            relit::codec::write_interchange(
+                &args.output,
+                &baked.image,
+                form,
+                relit::codec::ptm::PtmFormat::Lrgb,
+            )
+            .map(|_| ())
+        }
     }
     .with_context(|| format!("writing {}", args.output.display()))?;
     let bytes = std::fs::metadata(&args.output)

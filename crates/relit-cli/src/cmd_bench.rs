@@ -727,6 +727,11 @@ fn load_times(files: &[std::path::PathBuf], json: bool) -> anyhow::Result<()> {
                     let (image, planes) = relit::codec::read_compact(file, Precision::U8)?;
                     Relighter::with_compact(&image, planes)?.relight_prepared(&light, 0.0)?
                 }
+                relit::codec::FileForm::Ptm | relit::codec::FileForm::Rti => {
+                    path = "f32 maps";
+                    let image = relit::codec::read(file)?;
+                    Relighter::new(&image)?.relight_prepared(&light, 0.0)?
+                }
                 relit::codec::FileForm::Compressed => {
                     let packed = relit::codec::packed::read_packed(file)?;
                     if packed.header.codebook.is_some() {

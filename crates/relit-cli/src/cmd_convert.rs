@@ -1,4 +1,5 @@
-//! `relit convert`: between the lossless OpenEXR file and the compressed `.rlz` file.
+//! `relit convert`: between the lossless OpenEXR file, the compressed `.rlz` file and the
+//! RTI tools' `.ptm` and `.rti` files.
 
 use crate::shared::{refuse_overwriting_inputs, CompressArgs};
 use anyhow::Context;
@@ -9,13 +10,18 @@ use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// A relightable file (EXR or .rlz).
+    /// A relightable file (EXR, .rlz, .ptm or .rti).
     pub input: PathBuf,
-    /// The file to write: `.rlz` compresses, any other name writes OpenEXR.
+    /// The file to write: `.rlz` compresses, `.ptm` and `.rti` write the RTI tools'
+    /// files (re-expressed in their basis), any other name writes OpenEXR.
     #[arg(short, long)]
     pub output: PathBuf,
     #[command(flatten)]
     pub compress: CompressArgs,
+    /// The colour layout of a `.ptm` output: lrgb (one luminance polynomial × RGB, as
+    /// PTMfitter writes) or rgb (a polynomial per channel).
+    #[arg(long, default_value = "lrgb", value_parser = |s: &str| relit::codec::ptm::PtmFormat::parse(s).map_err(|e| e.to_string()))]
+    pub ptm_format: relit::codec::ptm::PtmFormat,
     /// Precision of an EXR output's maps: f16 or f32.
     #[arg(long, default_value = "f16")]
     pub storage: Precision,
@@ -39,6 +45,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             codec::packed::write(&args.output, &image, &settings)
                 .with_context(|| format!("writing {}", args.output.display()))?;
             settings.describe()
+        }
+        form @ (FileForm::Ptm | FileForm::Rti) => {
+            codec::write_interchange(&args.output, &image, form, args.ptm_format)
+                .with_context(|| format!("writing {}", args.output.display()))?
         }
         FileForm::Exr => {
             args.storage

@@ -85,6 +85,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 },
             )
         }
+        form @ (relit::codec::FileForm::Ptm | relit::codec::FileForm::Rti) => {
+            relit::codec::write_interchange(
+                &args.output,
+                &output.image,
+                form,
+                relit::codec::ptm::PtmFormat::Lrgb,
+            )
+            .map(|_| ())
+        }
         relit::codec::FileForm::Compressed => {
             let settings = relit::compress::Settings {
                 directions: Some(capture.directions()),

@@ -95,9 +95,23 @@ fn quiet_headless_wayland() {
 extern "C" {
     #[link_name = "geteuid"]
     fn libc_geteuid() -> u32;
+    #[link_name = "signal"]
+    fn libc_signal(signal: i32, handler: usize) -> usize;
+}
+
+/// Rust ignores SIGPIPE, so `relit info X | head` would panic on its next print once
+/// `head` has gone; a command-line tool should end quietly as the others do.
+fn default_sigpipe() {
+    #[cfg(unix)]
+    // SAFETY: restoring the default action (SIG_DFL = 0) of SIGPIPE (13 on Linux and
+    // the BSDs) before any thread exists has no preconditions.
+    unsafe {
+        libc_signal(13, 0);
+    }
 }
 
 fn main() {
+    default_sigpipe();
     quiet_headless_wayland();
     let cli = Cli::parse();
     let result = match cli.command {

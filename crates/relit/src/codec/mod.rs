@@ -5,48 +5,106 @@
 //! * The compressed form ([`packed`], `.rlz`): principal components, quantised planes,
 //!   zstd or JPEG tiles ([`crate::compress`]).
 //!
-//! [`read`] opens either (by the file's first bytes, not its name), so every command
-//! that reads a relightable file reads both.
+//! * The RTI tools' interchange files: HP's `.ptm` ([`ptm`]) and HSH `.rti` ([`rti`]),
+//!   display-referred and 8-bit, each with its one basis.
+//!
+//! [`read`] opens any of them (by the file's first bytes, not its name), so every
+//! command that reads a relightable file reads them all.
 
 pub mod exr;
+mod legacy;
 pub mod packed;
+pub mod ptm;
+mod reexpress;
+pub mod rti;
+
+pub use reexpress::reexpress;
 
 use crate::maps::RelightableImage;
 use crate::storage::{CompactPlanes, Precision};
 use crate::Result;
 use std::path::Path;
 
-/// The two forms of relightable file.
+/// The forms of relightable file.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum FileForm {
     Exr,
     Compressed,
+    /// HP's polynomial texture map (`.ptm`).
+    Ptm,
+    /// An HSH `.rti` file.
+    Rti,
 }
 
 impl FileForm {
     /// The form of the file at `path`, from its first bytes.
     pub fn of(path: &Path) -> Result<FileForm> {
-        Ok(if packed::is_packed(path)? {
+        use std::io::Read;
+        let mut prefix = [0u8; 8];
+        let read = std::fs::File::open(path)
+            .and_then(|mut f| f.read(&mut prefix))
+            .map_err(|e| crate::Error::io(path, "read", e))?;
+        let prefix = &prefix[..read];
+        Ok(if ptm::is_ptm(prefix) {
+            FileForm::Ptm
+        } else if rti::is_rti(prefix) {
+            FileForm::Rti
+        } else if packed::is_packed(path)? {
             FileForm::Compressed
         } else {
             FileForm::Exr
         })
     }
 
-    /// The form an output path asks for: `.rlz` is compressed, anything else EXR.
+    /// The form an output path asks for: `.rlz` is compressed, `.ptm` and `.rti` the
+    /// RTI tools' files, anything else EXR.
     pub fn for_output(path: &Path) -> FileForm {
         match path.extension().and_then(|e| e.to_str()) {
             Some(e) if e.eq_ignore_ascii_case("rlz") => FileForm::Compressed,
+            Some(e) if e.eq_ignore_ascii_case("ptm") => FileForm::Ptm,
+            Some(e) if e.eq_ignore_ascii_case("rti") => FileForm::Rti,
             _ => FileForm::Exr,
         }
     }
 }
 
-/// Read a relightable file of either form.
+/// Write `image` as one of the RTI tools' files (`form` [`FileForm::Ptm`] or
+/// [`FileForm::Rti`]; a `.ptm` in `ptm_format`), re-expressed in that file's basis.
+/// Returns a short description of what was written.
+pub fn write_interchange(
+    path: &Path,
+    image: &RelightableImage,
+    form: FileForm,
+    ptm_format: ptm::PtmFormat,
+) -> Result<String> {
+    match form {
+        FileForm::Ptm => {
+            ptm::write(path, image, ptm_format)?;
+            Ok(format!(
+                "PTM 1.2, {}",
+                match ptm_format {
+                    ptm::PtmFormat::Rgb => "RGB",
+                    ptm::PtmFormat::Lrgb => "LRGB",
+                }
+            ))
+        }
+        FileForm::Rti => {
+            rti::write(path, image)?;
+            Ok("HSH .rti".into())
+        }
+        FileForm::Exr | FileForm::Compressed => Err(crate::Error::invalid(
+            "write_interchange writes .ptm and .rti files only",
+        )),
+    }
+}
+
+/// Read a relightable file of any form.
 pub fn read(path: &Path) -> Result<RelightableImage> {
     match FileForm::of(path)? {
         FileForm::Exr => exr::read(path),
         FileForm::Compressed => packed::read(path),
+        FileForm::Ptm => ptm::read(path),
+        FileForm::Rti => rti::read(path),
     }
 }
 
@@ -58,8 +116,8 @@ pub fn read_compact(
 ) -> Result<(RelightableImage, CompactPlanes)> {
     match FileForm::of(path)? {
         FileForm::Exr => exr::read_compact(path, precision),
-        FileForm::Compressed => {
-            let mut image = packed::read(path)?;
+        FileForm::Compressed | FileForm::Ptm | FileForm::Rti => {
+            let mut image = read(path)?;
             let planes = CompactPlanes::from_maps(&image.maps, precision)?;
             image.maps.data = Vec::new();
             Ok((image, planes))
