@@ -106,24 +106,33 @@ pub fn read(path: &Path) -> Result<RelightableImage> {
 
 /// Decode the bytes of a `.ptm` file (`path` names it in errors).
 pub fn decode(path: &Path, bytes: &[u8]) -> Result<RelightableImage> {
-    let (fields, offset) = text_header(path, bytes, 2 + 2 + 2 * K, false)?;
-    if fields[0] != "PTM_1.2" {
+    // The version and format first, so that an unsupported variant is named as such
+    // whatever its header holds next.
+    let head = String::from_utf8_lossy(&bytes[..bytes.len().min(64)]);
+    let mut words = head.split_ascii_whitespace();
+    if words.next() != Some("PTM_1.2") {
         return Err(Error::parse(format!(
-            "{}: `{}` is not a PTM 1.2 file",
-            path.display(),
-            fields[0]
+            "{}: not a PTM 1.2 file (it must start with `PTM_1.2`)",
+            path.display()
         )));
     }
-    let format = match fields[1].as_str() {
-        "PTM_FORMAT_RGB" => PtmFormat::Rgb,
-        "PTM_FORMAT_LRGB" => PtmFormat::Lrgb,
-        other => {
+    let format = match words.next() {
+        Some("PTM_FORMAT_RGB") => PtmFormat::Rgb,
+        Some("PTM_FORMAT_LRGB") => PtmFormat::Lrgb,
+        Some(other) if other.starts_with("PTM_FORMAT_") => {
             return Err(Error::parse(format!(
                 "{}: {other} is not supported (relit reads PTM_FORMAT_RGB and PTM_FORMAT_LRGB)",
                 path.display()
             )))
         }
+        _ => {
+            return Err(Error::parse(format!(
+                "{}: the header has no PTM_FORMAT_ line",
+                path.display()
+            )))
+        }
     };
+    let (fields, offset) = text_header(path, bytes, 2 + 2 + 2 * K, false)?;
     let width: usize = field(path, "width", &fields[2])?;
     let height: usize = field(path, "height", &fields[3])?;
     let mut scale = [0.0f32; K];
