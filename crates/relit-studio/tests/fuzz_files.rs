@@ -1,5 +1,6 @@
 //! Fuzzing of the readers that take a file: fitted EXR maps, the compressed `.rlz` file
-//! (whole, and its header and tiles behind the checksums), environment maps (Radiance
+//! (whole, and its header and tiles behind the checksums), the RTI tools' `.ptm` and
+//! `.rti` files, environment maps (Radiance
 //! HDR), OBJ models and capture manifests. Same harness as `fuzz.rs` (a deterministic
 //! mutation fuzzer on stable), each mutant written to a file in a temporary folder and
 //! read back; a reader may return any error but must not panic. The writes make these
@@ -174,6 +175,25 @@ fn no_file_reader_panics_on_mutated_files() {
             }
         }
     }));
+    // The RTI tools' files, written from the same maps.
+    for (name, bytes) in [
+        (
+            "maps-lrgb.ptm",
+            relit::codec::ptm::encode(&fitted.image, relit::codec::ptm::PtmFormat::Lrgb).unwrap(),
+        ),
+        (
+            "maps-rgb.ptm",
+            relit::codec::ptm::encode(&fitted.image, relit::codec::ptm::PtmFormat::Rgb).unwrap(),
+        ),
+        (
+            "maps.rti",
+            relit::codec::rti::encode(&fitted.image).unwrap(),
+        ),
+    ] {
+        crashes.extend(fuzz(d, name, &bytes, |p| {
+            let _ = relit::codec::read(p);
+        }));
+    }
     std::fs::write(d.join("sections.bin"), packed.sections.concat()).unwrap();
     let header_json = serde_json::to_vec(&packed.header).unwrap();
     crashes.extend(fuzz(d, "header.json", &header_json, |p| {
