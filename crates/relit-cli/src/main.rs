@@ -14,6 +14,7 @@ mod cmd_eval_rd;
 mod cmd_export_web;
 mod cmd_fit;
 mod cmd_info;
+mod cmd_normals;
 mod cmd_relight;
 mod cmd_render_truth;
 mod cmd_view;
@@ -38,6 +39,9 @@ enum Command {
     Relight(cmd_relight::Args),
     /// Show what a relightable file holds.
     Info(cmd_info::Args),
+    /// Surface normals (and albedo) by photometric stereo, robust to shadows and
+    /// highlights, from a capture or a fitted file.
+    Normals(cmd_normals::Args),
     /// Convert between the lossless EXR and the compressed .rlz file.
     Convert(cmd_convert::Args),
     /// Compare two images: PSNR (linear and 8-bit sRGB), SSIM, absolute errors, a
@@ -118,6 +122,7 @@ fn main() {
         Command::Fit(args) => cmd_fit::run(args),
         Command::Relight(args) => cmd_relight::run(args),
         Command::Info(args) => cmd_info::run(args),
+        Command::Normals(args) => cmd_normals::run(args),
         Command::Compare(args) => cmd_compare::run(args),
         Command::Convert(args) => cmd_convert::run(args),
         Command::Eval(args) => cmd_eval::run(*args),

@@ -52,6 +52,7 @@ mod linalg;
 pub mod maps;
 pub mod memory;
 pub mod metrics;
+pub mod normals;
 pub mod progress;
 #[doc(hidden)]
 pub mod skip;
