@@ -46,6 +46,11 @@ pub struct Args {
     /// --scene also `mask.png`, the pixels scored.
     #[arg(long)]
     pub save: Option<PathBuf>,
+    /// Score this relightable file (EXR, .rlz, .ptm, .rti) at the captured lights of
+    /// --holdout against the photographs, without fitting anything: how well a file from
+    /// any tool reproduces the capture (lights it was fitted on score as training).
+    #[arg(long)]
+    pub file: Option<PathBuf>,
     /// Images to hold out: `every:N`, `spread:N` (N evenly spread; `spread:5` is the
     /// RTI peer-baseline protocol) or indices in capture order like `0,12,24,35,47`.
     #[arg(long, default_value = "spread:5")]
@@ -121,6 +126,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     refuse_overwriting_inputs(&capture.input_files(), &outputs)?;
     let holdout: Holdout = args.holdout.parse()?;
     let mask = load_mask(args.mask.as_deref(), &capture)?;
+    if let Some(file) = &args.file {
+        return score_file(&args, &capture, file, &holdout, mask.as_deref());
+    }
     let options = EvalOptions {
         holdout,
         fit: args.fit.to_options()?,
@@ -229,6 +237,94 @@ fn bake_bands(basis: &relit::fit::BasisRequest) -> usize {
             .unwrap_or(5),
         relit::fit::BasisRequest::Auto => 5,
     }
+}
+
+/// `--file`: relight a given file at the held-out lights and compare with the photographs.
+fn score_file(
+    args: &Args,
+    capture: &Capture,
+    file: &std::path::Path,
+    holdout: &Holdout,
+    mask: Option<&[f32]>,
+) -> anyhow::Result<()> {
+    use relit::light::{Light, LightRig};
+    let image = relit::codec::read(file)?;
+    anyhow::ensure!(
+        (image.width(), image.height()) == (capture.width, capture.height),
+        "{} is {}×{} but the capture is {}×{}",
+        file.display(),
+        image.width(),
+        image.height(),
+        capture.width,
+        capture.height
+    );
+    let relighter = relit::engine::Relighter::new(&image)?;
+    let directions = capture.directions();
+    let mut rows = Vec::new();
+    for index in holdout.indices(capture.len())? {
+        let rig = LightRig::new(vec![Light::directional(directions[index], [1.0; 3])]);
+        let relit = relighter.relight(&rig, &Default::default())?;
+        let photo = capture.load(index)?;
+        let score = relit::metrics::compare(&relit.data, &photo.data, mask);
+        rows.push(serde_json::json!({
+            "index": index,
+            "image": capture.image_name(index),
+            "psnr_srgb8": score.psnr_srgb8,
+            "psnr_linear": score.psnr_linear,
+        }));
+    }
+    let mean = |key: &str| {
+        rows.iter()
+            .map(|r| r[key].as_f64().unwrap_or(0.0))
+            .sum::<f64>()
+            / rows.len().max(1) as f64
+    };
+    let basis = image.meta.basis.build()?.name();
+    if args.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&serde_json::json!({
+                "file": file.display().to_string(),
+                "basis": basis,
+                "color_space": image.meta.color_space.name(),
+                "lights": rows,
+                "psnr_srgb8_mean": mean("psnr_srgb8"),
+                "psnr_linear_mean": mean("psnr_linear"),
+            }))?
+        );
+        return Ok(());
+    }
+    println!(
+        "{} ({basis}, {}) at {} captured lights of {}",
+        file.display(),
+        image.meta.color_space.name(),
+        rows.len(),
+        args.capture
+            .as_deref()
+            .unwrap_or(std::path::Path::new(""))
+            .display()
+    );
+    println!(
+        "{:>6}  {:<24} {:>12} {:>12}",
+        "index", "image", "sRGB8 dB", "linear dB"
+    );
+    for r in &rows {
+        println!(
+            "{:>6}  {:<24} {:>12.2} {:>12.2}",
+            r["index"].as_u64().unwrap_or(0),
+            r["image"].as_str().unwrap_or(""),
+            r["psnr_srgb8"].as_f64().unwrap_or(0.0),
+            r["psnr_linear"].as_f64().unwrap_or(0.0)
+        );
+    }
+    println!(
+        "{:>6}  {:<24} {:>12.2} {:>12.2}",
+        "",
+        "mean",
+        mean("psnr_srgb8"),
+        mean("psnr_linear")
+    );
+    Ok(())
 }
 
 fn run_scene(args: Args) -> anyhow::Result<()> {
