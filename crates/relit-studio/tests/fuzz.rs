@@ -10,13 +10,15 @@
 //! parsers: `nan`, `1e999`, `-0`, 2⁶⁴, deep nesting, quotes). A parser may return any
 //! error; it must not panic. A panic fails the test and prints the input.
 //!
-//! `RELIT_FUZZ_EXECS=N` sets the mutants per target (default 3,000 in the test run);
+//! `RELIT_FUZZ_EXECS=N` sets the mutants per target (default 3,000 in the test run) and
+//! `RELIT_FUZZ_TARGETS=a,b` limits the run to those targets;
 //! `RELIT_FUZZ_EXECS=10000000 cargo test --release -p relit-studio --test fuzz --
 //! --nocapture` is the long run, and prints executions and seconds per target.
 //!
-//! Targets (8): `.lp` files, light-rig and animation JSON, `--light` specs, basis names
+//! Targets (10): `.lp` files, light-rig and animation JSON, `--light` specs, basis names
 //! (parsed and, for analytic families, built), stored basis specs (JSON, rebuilt), light
-//! plans (`grid:`/`fibonacci:`/`hemisphere:`), `list:` direction files, image sizes.
+//! plans (`grid:`/`fibonacci:`/`hemisphere:`), `list:` direction files, image sizes, and
+//! the RTI tools' binary `.ptm` and `.rti` files (decoded from memory).
 
 mod common;
 
@@ -113,6 +115,12 @@ fn execs() -> usize {
 
 /// Feed `target` its seeds, then `execs()` mutants; returns the inputs that panicked.
 fn fuzz(name: &str, seeds: Vec<Vec<u8>>, target: fn(&[u8])) -> Vec<String> {
+    // `RELIT_FUZZ_TARGETS=ptm,rti` runs only those (a long run of new targets).
+    if let Ok(only) = std::env::var("RELIT_FUZZ_TARGETS") {
+        if !only.split(',').any(|t| t.trim() == name) {
+            return Vec::new();
+        }
+    }
     let mut rng = Rng(0x9E37_79B9_7F4A_7C15 ^ name.len() as u64);
     let mut crashes = Vec::new();
     let n = execs();
@@ -153,6 +161,35 @@ fn shared_lp_seeds() -> Vec<Vec<u8>> {
         }
     }
     seeds
+}
+
+/// Small `.ptm` (LRGB and RGB) and `.rti` files written by relit, as seeds.
+fn rti_file_seeds() -> (Vec<Vec<u8>>, Vec<Vec<u8>>) {
+    use relit::maps::{CoefficientMaps, MapSpace, Metadata, RelightableImage};
+    let image = |basis: &str| {
+        let spec = BasisSpec::named(basis).unwrap();
+        let k = spec.build().unwrap().len();
+        let mut maps = CoefficientMaps::zeros(5, 4, k);
+        for (i, v) in maps.data.iter_mut().enumerate() {
+            *v = ((i * 37) % 101) as f32 / 200.0;
+        }
+        RelightableImage {
+            meta: Metadata::new(spec, MapSpace::Srgb, Default::default()),
+            maps,
+            depth: None,
+        }
+    };
+    let ptm = image("ptm:6");
+    let ptm_seeds = [
+        relit::codec::ptm::PtmFormat::Lrgb,
+        relit::codec::ptm::PtmFormat::Rgb,
+    ]
+    .map(|f| relit::codec::ptm::encode(&ptm, f).unwrap())
+    .to_vec();
+    let rti_seeds = ["hsh:4", "hsh:9"]
+        .map(|b| relit::codec::rti::encode(&image(b)).unwrap())
+        .to_vec();
+    (ptm_seeds, rti_seeds)
 }
 
 #[test]
@@ -265,6 +302,15 @@ fn no_parser_panics_on_mutated_input() {
             let _ = parse_size(&text(b));
         },
     ));
+
+    // The RTI tools' binary files, decoded from memory (fast enough for long runs).
+    let rti_seeds = rti_file_seeds();
+    crashes.extend(fuzz("ptm", rti_seeds.0, |b| {
+        let _ = relit::codec::ptm::decode(std::path::Path::new("fuzz.ptm"), b);
+    }));
+    crashes.extend(fuzz("rti", rti_seeds.1, |b| {
+        let _ = relit::codec::rti::decode(std::path::Path::new("fuzz.rti"), b);
+    }));
 
     std::panic::set_hook(hook);
     assert!(
