@@ -22,6 +22,10 @@ pub struct Args {
     /// PTMfitter writes) or rgb (a polynomial per channel).
     #[arg(long, default_value = "lrgb", value_parser = |s: &str| relit::codec::ptm::PtmFormat::parse(s).map_err(|e| e.to_string()))]
     pub ptm_format: relit::codec::ptm::PtmFormat,
+    /// What an input `.ptm`/`.rti` file's values are: srgb (the formats' convention,
+    /// the default) or linear (what relight-cli writes by default).
+    #[arg(long, value_enum)]
+    pub file_space: Option<crate::shared::SpaceArg>,
     /// Precision of an EXR output's maps: f16 or f32.
     #[arg(long, default_value = "f16")]
     pub storage: Precision,
@@ -36,7 +40,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &[Output::file(&args.output)],
     )?;
     let start = std::time::Instant::now();
-    let image = codec::read(&args.input)?;
+    let mut image = codec::read(&args.input)?;
+    crate::shared::apply_file_space(&args.input, &mut image, args.file_space)?;
     let (w, h) = (image.width(), image.height());
     let form = FileForm::for_output(&args.output);
     let description = match form {

@@ -51,6 +51,10 @@ pub struct Args {
     /// any tool reproduces the capture (lights it was fitted on score as training).
     #[arg(long)]
     pub file: Option<PathBuf>,
+    /// With --file: what a `.ptm`/`.rti` file's values are, srgb (the formats'
+    /// convention, the default) or linear (relight-cli's default output).
+    #[arg(long, value_enum)]
+    pub file_space: Option<crate::shared::SpaceArg>,
     /// Images to hold out: `every:N`, `spread:N` (N evenly spread; `spread:5` is the
     /// RTI peer-baseline protocol) or indices in capture order like `0,12,24,35,47`.
     #[arg(long, default_value = "spread:5")]
@@ -248,7 +252,8 @@ fn score_file(
     mask: Option<&[f32]>,
 ) -> anyhow::Result<()> {
     use relit::light::{Light, LightRig};
-    let image = relit::codec::read(file)?;
+    let mut image = relit::codec::read(file)?;
+    crate::shared::apply_file_space(file, &mut image, args.file_space)?;
     anyhow::ensure!(
         (image.width(), image.height()) == (capture.width, capture.height),
         "{} is {}×{} but the capture is {}×{}",

@@ -15,8 +15,12 @@ use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// A relightable EXR written by `relit fit`.
+    /// A relightable file: relit's EXR or .rlz, or the RTI tools' .ptm or .rti.
     pub file: PathBuf,
+    /// What a `.ptm`/`.rti` file's values are: srgb (the formats' convention, the
+    /// default) or linear (what relight-cli writes by default).
+    #[arg(long, value_enum)]
+    pub file_space: Option<crate::shared::SpaceArg>,
     /// A light: `dir:x,y,z` (toward the light; x right, y up, z toward the camera),
     /// `point:x,y,z` or `spot:px,py,pz/dx,dy,dz/cone_deg`. Repeatable; lights add up.
     #[arg(long = "light")]
@@ -274,12 +278,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(result) = relight_codebook(&args, rig_file.as_ref(), &extra, &options)? {
         return Ok(result);
     }
-    let (image, compact) = if storage != Precision::F32 && !args.gpu && !args.compare {
+    let (mut image, compact) = if storage != Precision::F32 && !args.gpu && !args.compare {
         let (image, planes) = relit::codec::read_compact(&args.file, storage)?;
         (image, Some(planes))
     } else {
         (relit::codec::read(&args.file)?, None)
     };
+    crate::shared::apply_file_space(&args.file, &mut image, args.file_space)?;
     let roi = match &args.roi {
         Some(s) => {
             let roi = Roi::parse(s)?;

@@ -254,3 +254,28 @@ pub fn scene_inputs(scene: &str, plan: Option<&str>) -> Vec<PathBuf> {
         .map(Path::to_path_buf)
         .collect()
 }
+
+/// What a `.ptm` or `.rti` file's values are, when told (`--file-space`): these files
+/// carry no colour-space marker. relit reads them as display-referred sRGB codes, the
+/// formats' convention (RTIViewer, PTMfitter, RTIBuilder, `relight-cli -I srgb`);
+/// relight-cli's default writes linear-light values instead.
+pub fn apply_file_space(
+    path: &Path,
+    image: &mut relit::maps::RelightableImage,
+    space: Option<SpaceArg>,
+) -> anyhow::Result<()> {
+    let Some(space) = space else {
+        return Ok(());
+    };
+    let form = relit::codec::FileForm::of(path)?;
+    anyhow::ensure!(
+        matches!(form, relit::codec::FileForm::Ptm | relit::codec::FileForm::Rti),
+        "--file-space applies to .ptm and .rti files, which carry no colour space; {} states its own",
+        path.display()
+    );
+    image.meta.color_space = match space {
+        SpaceArg::Linear => relit::maps::MapSpace::Linear,
+        SpaceArg::Srgb => relit::maps::MapSpace::Srgb,
+    };
+    Ok(())
+}
