@@ -151,6 +151,17 @@ pub struct Args {
     /// codebook and indices (repeatable).
     #[arg(long)]
     pub load: Vec<std::path::PathBuf>,
+    /// Time the default fit of this capture, process start to file written, with its
+    /// peak memory and its stages, and exit (see --peer).
+    #[arg(long)]
+    pub fit: Option<std::path::PathBuf>,
+    /// With --fit: also run this RTI fitter (e.g. relight-cli) on the capture's folder in
+    /// the same run, and print the ratios.
+    #[arg(long)]
+    pub peer: Option<std::path::PathBuf>,
+    /// With --peer: the peer's options before the input folder and output path.
+    #[arg(long, default_value = "-b hsh -p 27", allow_hyphen_values = true)]
+    pub peer_args: String,
 }
 
 /// One measured case; also the JSON form.
@@ -276,6 +287,10 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
     } else {
         args.cpu_storage.clone()
     };
+    if let Some(capture) = &args.fit {
+        crate::fit_bench::run(capture, args.peer.as_deref(), &args.peer_args, args.json)?;
+        return Ok(None);
+    }
     if !args.load.is_empty() {
         load_times(&args.load, args.json)?;
         return Ok(None);

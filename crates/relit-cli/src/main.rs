@@ -18,6 +18,7 @@ mod cmd_normals;
 mod cmd_relight;
 mod cmd_render_truth;
 mod cmd_view;
+mod fit_bench;
 mod rd_plot;
 mod shared;
 

@@ -243,6 +243,8 @@ pub struct FitReport {
     /// `(λ, leave-one-out weighted MSE)` for each λ tried by the automatic choice.
     pub lambda_scores: Vec<(f64, f64)>,
     pub seconds: f64,
+    /// Wall time per stage, in order: where a fit spends its time.
+    pub stages: Vec<Stage>,
     pub images_per_second: f64,
     /// Peak resident memory of the process during the fit, if measurable.
     pub peak_rss_bytes: Option<u64>,
@@ -250,6 +252,38 @@ pub struct FitReport {
     pub spill_bytes: u64,
     pub rmse_linear: [f64; 3],
     pub psnr_srgb8: f64,
+}
+
+/// The wall time of one stage of a fit.
+#[derive(Clone, Debug, Serialize)]
+pub struct Stage {
+    pub name: &'static str,
+    pub seconds: f64,
+}
+
+/// Records the stages of a fit as they end.
+struct Stages {
+    last: Instant,
+    done: Vec<Stage>,
+}
+
+impl Stages {
+    fn new() -> Stages {
+        Stages {
+            last: Instant::now(),
+            done: Vec::new(),
+        }
+    }
+
+    /// The stage `name` ends now.
+    fn end(&mut self, name: &'static str) {
+        let now = Instant::now();
+        self.done.push(Stage {
+            name,
+            seconds: (now - self.last).as_secs_f64(),
+        });
+        self.last = now;
+    }
 }
 
 /// One objective as the automatic choice judged it, at its λ.
@@ -548,6 +582,7 @@ fn to_target(mut img: ImageRgb, space: MapSpace) -> ImageRgb {
 /// Fit `capture` with `options`.
 pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> Result<FitOutput> {
     let start = Instant::now();
+    let mut stages = Stages::new();
     if capture.is_empty() {
         return Err(Error::invalid("the capture has no images"));
     }
@@ -579,6 +614,9 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
     } else {
         None
     };
+    if early {
+        stages.end("subsample");
+    }
     let (basis, validated, basis_scores) = choose_basis(
         &options.basis,
         options,
@@ -592,6 +630,9 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
         if matches!(lambda_option, Lambda::Auto) {
             lambda_option = Lambda::Fixed(lambda);
         }
+    }
+    if early {
+        stages.end("basis choice");
     }
     let design = Design::new(&dirs, basis, options.regularizer);
     let have_sub = early_sub.is_some();
@@ -635,6 +676,7 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
     }
     progress.end();
 
+    stages.end("images");
     // λ (and the automatic objective): leave-one-out on the subsample.
     let candidates: &[Objective] = match objective {
         Objective::Auto => &[Objective::Perceptual, Objective::Linear],
@@ -726,6 +768,7 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
         spill = None;
     }
 
+    stages.end("objective and λ");
     let mut maps = CoefficientMaps::zeros(w, h, design.k);
     if let Some(acc) = accum.take() {
         solve_shared(acc, &design, lambda, &mut maps)?;
@@ -740,8 +783,10 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
         )?;
     }
 
+    stages.end("solve");
     let (rmse_linear, psnr_srgb8) =
         training_residual(&design, &maps, &sub, &sub_idx, options.color_space);
+    stages.end("residual");
     let seconds = start.elapsed().as_secs_f64();
     let mut meta = Metadata::new(
         design.basis.spec(),
@@ -778,6 +823,7 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
         lambda,
         lambda_scores,
         seconds,
+        stages: stages.done,
         images_per_second: design.n as f64 / seconds.max(1e-9),
         peak_rss_bytes: crate::memory::peak_rss_bytes(),
         spill_bytes: spill.as_ref().map_or(0, |s| s.bytes()),
