@@ -10,6 +10,11 @@
 //! parsers: `nan`, `1e999`, `-0`, 2⁶⁴, deep nesting, quotes). A parser may return any
 //! error; it must not panic. A panic fails the test and prints the input.
 //!
+//! Each target's committed corpus (`tests/corpus/<target>/`, written from the seeds with
+//! `RELIT_FUZZ_WRITE_CORPUS=1`; shared-data files are read in place, never copied) is
+//! replayed before the mutants, here and in `fuzz_files.rs`, so CI replays it on every
+//! run; an input that ever breaks a parser goes there as a regression.
+//!
 //! `RELIT_FUZZ_EXECS=N` sets the mutants per target (default 3,000 in the test run) and
 //! `RELIT_FUZZ_TARGETS=a,b` limits the run to those targets;
 //! `RELIT_FUZZ_EXECS=10000000 cargo test --release -p relit-studio --test fuzz --
@@ -115,12 +120,27 @@ fn execs() -> usize {
 
 /// Feed `target` its seeds, then `execs()` mutants; returns the inputs that panicked.
 fn fuzz(name: &str, seeds: Vec<Vec<u8>>, target: fn(&[u8])) -> Vec<String> {
+    fuzz_with(name, seeds, Vec::new(), target)
+}
+
+/// [`fuzz`] with `read_in_place` seeds too: files read where they are (the shared
+/// data), never stored in the committed corpus.
+fn fuzz_with(
+    name: &str,
+    seeds: Vec<Vec<u8>>,
+    read_in_place: Vec<Vec<u8>>,
+    target: fn(&[u8]),
+) -> Vec<String> {
     // `RELIT_FUZZ_TARGETS=ptm,rti` runs only those (a long run of new targets).
     if let Ok(only) = std::env::var("RELIT_FUZZ_TARGETS") {
         if !only.split(',').any(|t| t.trim() == name) {
             return Vec::new();
         }
     }
+    common::store_corpus(name, &seeds);
+    let mut seeds = seeds;
+    seeds.extend(read_in_place);
+    seeds.extend(common::corpus(name));
     let mut rng = Rng(0x9E37_79B9_7F4A_7C15 ^ name.len() as u64);
     let mut crashes = Vec::new();
     let n = execs();
@@ -199,12 +219,11 @@ fn no_parser_panics_on_mutated_input() {
     std::panic::set_hook(Box::new(|_| {}));
     let mut crashes = Vec::new();
 
-    let mut lp = vec![
+    let lp = vec![
         b"3\nlight 000.png 0.1 0.2 0.97\nlight 001.png -0.5 0 0.866\n\"a b.png\" 0 0 1\n".to_vec(),
         b"2\r\nx.jpg 0 0.6 0.8\r\ny.jpg 0.6 0 0.8\r\n".to_vec(),
     ];
-    lp.extend(shared_lp_seeds());
-    crashes.extend(fuzz("lp", lp, |b| {
+    crashes.extend(fuzz_with("lp", lp, shared_lp_seeds(), |b| {
         let _ = relit::capture::lp::parse(&text(b), "fuzz.lp");
     }));
 

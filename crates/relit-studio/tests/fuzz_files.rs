@@ -59,8 +59,13 @@ fn fuzz(dir: &Path, name: &str, seed: &[u8], read: fn(&Path)) -> Vec<String> {
     let path = dir.join(name);
     let (n, start) = (execs(), Instant::now());
     let mut crashes = Vec::new();
-    for i in 0..=n {
-        let input = if i == 0 {
+    common::store_corpus(name, &[seed.to_vec()]);
+    // The committed corpus first, then the seed and its mutants.
+    let corpus = common::corpus(name);
+    for i in 0..=n + corpus.len() {
+        let input = if i < corpus.len() {
+            corpus[i].clone()
+        } else if i == corpus.len() {
             seed.to_vec()
         } else {
             mutate(seed, &mut rng)
