@@ -2,7 +2,7 @@
 //! term order and signs against the viewers' own formulas), round trips on a real
 //! capture scored against its photographs, and malformed files refused.
 
-use relit::basis::{Basis, BasisChoice, BasisSpec};
+use relit::basis::{BasisChoice, BasisSpec};
 use relit::capture::Capture;
 use relit::codec::{ptm, rti};
 use relit::engine::{RelightOptions, Relighter};
