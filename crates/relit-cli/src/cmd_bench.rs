@@ -1245,6 +1245,9 @@ mod tests {
             write_maps: None,
             tile_from: None,
             load: vec![],
+            fit: None,
+            peer: None,
+            peer_args: String::new(),
         };
         let rows = measure(args).unwrap().unwrap();
         // Three storages, the uniform cases again from a codebook, the basis alone.

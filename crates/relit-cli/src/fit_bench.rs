@@ -96,9 +96,9 @@ pub fn run(capture: &Path, peer: Option<&Path>, peer_args: &str, json: bool) -> 
     let report_path = scratch.join("report.json");
     // The report goes to a file: the child's stdout is not read while it runs.
     let mut shell = Command::new("sh");
-    shell.arg("-c").arg(format!(
-        "exec \"$0\" fit \"$1\" -o \"$2\" --json -q > \"$3\""
-    ));
+    shell
+        .arg("-c")
+        .arg("exec \"$0\" fit \"$1\" -o \"$2\" --json -q > \"$3\"");
     shell
         .arg(&exe)
         .arg(capture)

@@ -180,8 +180,8 @@ pub fn decode(path: &Path, bytes: &[u8]) -> Result<RelightableImage> {
                     let rgb = &data[n * K + 3 * q..n * K + 3 * q + 3];
                     for i in 0..K {
                         let l = decode(block, q, i);
-                        for c in 0..3 {
-                            maps.data[(3 * i + c) * n + p] = l * rgb[c] as f32 / (255.0 * 255.0);
+                        for (c, &colour) in rgb.iter().enumerate() {
+                            maps.data[(3 * i + c) * n + p] = l * colour as f32 / (255.0 * 255.0);
                         }
                     }
                 }
