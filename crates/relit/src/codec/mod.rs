@@ -40,6 +40,10 @@ impl FileForm {
     /// The form of the file at `path`, from its first bytes.
     pub fn of(path: &Path) -> Result<FileForm> {
         use std::io::Read;
+        // First: a missing or unreadable file gets its clear message here.
+        if packed::is_packed(path)? {
+            return Ok(FileForm::Compressed);
+        }
         let mut prefix = [0u8; 8];
         let read = std::fs::File::open(path)
             .and_then(|mut f| f.read(&mut prefix))
@@ -49,8 +53,6 @@ impl FileForm {
             FileForm::Ptm
         } else if rti::is_rti(prefix) {
             FileForm::Rti
-        } else if packed::is_packed(path)? {
-            FileForm::Compressed
         } else {
             FileForm::Exr
         })
