@@ -37,6 +37,7 @@ mod sg;
 pub(crate) mod sh;
 pub(crate) mod table;
 
+pub use bilinear::{grid_basis, GridMap};
 pub use hsh::HemisphericalHarmonics;
 pub use projected::Projected;
 pub use ptm::PolynomialTextureMap;
