@@ -5,11 +5,16 @@
 //! * The compressed form ([`packed`], `.rlz`): principal components, quantised planes,
 //!   zstd or JPEG tiles ([`crate::compress`]).
 //!
-//! [`read`] opens either (by the file's first bytes, not its name), so every command
-//! that reads a relightable file reads both.
+//! * The relight/OpenLIME web format ([`web`]): a folder with `info.json` and 8-bit
+//!   plane images, what museums publish RTIs in.
+//!
+//! [`read`] opens any of them (a folder holding `info.json` is the web format, a file is
+//! told by its first bytes, not its name), so every command that reads a relightable
+//! file reads all of them.
 
 pub mod exr;
 pub mod packed;
+pub mod web;
 
 use crate::maps::RelightableImage;
 use crate::storage::{CompactPlanes, Precision};
@@ -21,11 +26,15 @@ use std::path::Path;
 pub enum FileForm {
     Exr,
     Compressed,
+    Web,
 }
 
 impl FileForm {
     /// The form of the file at `path`, from its first bytes.
     pub fn of(path: &Path) -> Result<FileForm> {
+        if web::is_web(path) {
+            return Ok(FileForm::Web);
+        }
         Ok(if packed::is_packed(path)? {
             FileForm::Compressed
         } else {
@@ -33,8 +42,12 @@ impl FileForm {
         })
     }
 
-    /// The form an output path asks for: `.rlz` is compressed, anything else EXR.
+    /// The form an output path asks for: a folder (an existing one, or a path ending in
+    /// `/`) is the web format, `.rlz` compressed, anything else EXR.
     pub fn for_output(path: &Path) -> FileForm {
+        if path.is_dir() || path.as_os_str().to_string_lossy().ends_with(['/', '\\']) {
+            return FileForm::Web;
+        }
         match path.extension().and_then(|e| e.to_str()) {
             Some(e) if e.eq_ignore_ascii_case("rlz") => FileForm::Compressed,
             _ => FileForm::Exr,
@@ -47,6 +60,7 @@ pub fn read(path: &Path) -> Result<RelightableImage> {
     match FileForm::of(path)? {
         FileForm::Exr => exr::read(path),
         FileForm::Compressed => packed::read(path),
+        FileForm::Web => web::read(path),
     }
 }
 
@@ -58,8 +72,8 @@ pub fn read_compact(
 ) -> Result<(RelightableImage, CompactPlanes)> {
     match FileForm::of(path)? {
         FileForm::Exr => exr::read_compact(path, precision),
-        FileForm::Compressed => {
-            let mut image = packed::read(path)?;
+        FileForm::Compressed | FileForm::Web => {
+            let mut image = read(path)?;
             let planes = CompactPlanes::from_maps(&image.maps, precision)?;
             image.maps.data = Vec::new();
             Ok((image, planes))

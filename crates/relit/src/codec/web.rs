@@ -1,0 +1,1114 @@
+//! The relight/OpenLIME web format: a folder with `info.json` and coefficient planes as
+//! 8-bit images, written by the RTI tool relight (cnr-isti-vclab/relight) and shown by
+//! the OpenLIME viewer that museums publish RTIs with.
+//!
+//! # What the folder holds
+//!
+//! `info.json` gives the size, the `type` of functions (`ptm`, `hsh`, `sh`, `rbf`,
+//! `bilinear`), the `colorspace` of the planes (`rgb`, `lrgb`, `mrgb`, `mycc`),
+//! `nplanes` (or `yccplanes` for `mycc`), `materials[0]` with a `scale` and `bias` per
+//! plane, and for the principal-component colour spaces a `basis` table of bytes. The
+//! planes are grouped three to an image (`plane_N`, channels R, G, B are planes `3N`,
+//! `3N+1`, `3N+2`), a plane's value being `(byte/255 − bias) · scale`. Layouts, found
+//! from the files present: single images (`plane_N.jpg|png`), Deep Zoom
+//! (`plane_N.dzi` + `plane_N_files/LEVEL/X_Y.jpg`), tarzoom (`plane_N.tzi` JSON with tile
+//! offsets into `plane_N.tzb`) and itarzoom (`planes.tzi`/`.tzb`, the images of a tile
+//! side by side, `stride` of them). Only the full-resolution level of a pyramid is read:
+//! the deepest one, tiles indexed as OpenLIME does (level after level, rows of tiles).
+//!
+//! # How it maps onto relit
+//!
+//! Every type's functions are expressed with relit's bases, so relighting a folder is
+//! relighting any relightable file; the maps are display-referred
+//! ([`MapSpace::Srgb`]): relight fits sRGB-encoded pixels and OpenLIME shows the sum.
+//!
+//! * `ptm` + `rgb`: OpenLIME weighs plane images by `1, x, y, x², xy, y²`; relit's
+//!   `ptm:6` orders the same monomials `x², y², xy, x, y, 1` ([`crate::basis`]): a
+//!   permutation.
+//! * `hsh` + `rgb`: OpenLIME's nine functions are relit's `hsh:9` with every `m ≠ 0`
+//!   function negated and the band listed `m = l … −l` (the tests check this against
+//!   the viewer's formulas). OpenLIME clamps the light's elevation to ≥ 0.15 rad; relit
+//!   follows the functions to the horizon, so the two differ only for lights within
+//!   8.6° of it.
+//! * `sh` + `rgb`: OpenLIME's nine are relit's `sh:9` reordered with signs (its π is
+//!   3.1415, a 3·10⁻⁵ relative difference).
+//! * `lrgb` (of any of those): plane image 0 is a colour, the rest luminance
+//!   coefficients: relit's coefficient `i` of channel `c` is `colour_c · lum_i`, exact.
+//! * `bilinear` + `mrgb`/`mycc`: a pixel's colour is `mean(L) + Σ_p coef_p · basis_p(L)`
+//!   with `mean` and `basis_p` RGB (or YCC) values on a `resolution²` grid over relight's
+//!   octahedral diamond, blended bilinearly: relit's `bilinear` basis with
+//!   `map = octahedral`. Each channel's function is a grid of node values; relit shares
+//!   one basis across channels, so the reader finds the principal node-space directions
+//!   of every pixel's three grids ([`pca_to_grid`]) and keeps as many as the 8-bit
+//!   planes can tell apart (dropped energy under a quarter of a code, at most 64):
+//!   within that of the exact decode.
+//! * `mycc`: relight stores the first `yccplanes[1]` plane images as (Y, C1, C2)
+//!   triples and the rest as three Y planes each, with `R = Y + C1/2 − C2/2`,
+//!   `G = Y + C2/2`, `B = Y − C1/2 − C2/2`; the basis table agrees (a Y plane's C entries
+//!   are all the zero code 127). OpenLIME 1.2.6 tests the plane image's index against
+//!   `yccplanes[0]` instead, so it reads every image as a triple and drops the second and
+//!   third Y plane of each Y-only image; relit decodes what the file holds.
+//! * `rbf`: not read yet (OpenLIME normalises its Gaussians per light, which no relit
+//!   family does); refused with a clear error.
+//!
+//! # Writing
+//!
+//! [`write`] writes `ptm:6` and `hsh:9` (or `hsh:4`, padded) maps that are display-referred
+//! as `ptm`/`hsh` + `rgb` directly. Any other basis, and linear maps, are written as
+//! `bilinear` + `mrgb`: each pixel's function is evaluated at the grid's nodes (encoded to
+//! sRGB there when the maps are linear), and the `3·resolution²` node values of the pixels
+//! are compressed to `planes` principal components, as relight does. Planes are 8-bit
+//! with a scale and bias each (the full range of the plane over 255 codes), in JPEG
+//! single images or Deep Zoom tiles.
+
+use crate::basis::{grid_basis, BasisSpec, GridMap};
+use crate::camera::Projection;
+use crate::fsutil::StagedFolder;
+use crate::maps::{CoefficientMaps, MapSpace, Metadata, RelightableImage};
+use crate::{Error, ErrorKind, Result};
+use rayon::prelude::*;
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+/// The description file of a web folder.
+pub const INFO: &str = "info.json";
+
+/// The largest `info.json` read: a 64-light `rbf` basis of 64 planes is under 1 MiB.
+const MAX_INFO_BYTES: u64 = 64 << 20;
+
+/// The most planes a folder may declare (relight writes up to about 30).
+const MAX_PLANES: usize = 192;
+
+/// The finest bilinear grid read: relight writes 8; the node-space PCA is `resolution⁴`.
+const MAX_RESOLUTION: usize = 32;
+
+/// Dropped node-space energy allowed when reading PCA planes, per value: a quarter of an
+/// 8-bit code, far below the planes' own quantisation.
+const READ_TOLERANCE: f64 = 0.25 / 255.0;
+
+/// Whether `path` is a web folder (or its `info.json`).
+pub fn is_web(path: &Path) -> bool {
+    info_path(path).is_some()
+}
+
+fn info_path(path: &Path) -> Option<PathBuf> {
+    if path.is_dir() {
+        let info = path.join(INFO);
+        info.is_file().then_some(info)
+    } else if path.file_name().is_some_and(|n| n == INFO) && path.is_file() {
+        Some(path.to_path_buf())
+    } else {
+        None
+    }
+}
+
+#[derive(Debug, Deserialize)]
+struct Info {
+    width: usize,
+    height: usize,
+    #[serde(rename = "type")]
+    kind: String,
+    colorspace: String,
+    #[serde(default)]
+    nplanes: Option<usize>,
+    #[serde(default)]
+    yccplanes: Option<[usize; 3]>,
+    #[serde(default)]
+    resolution: Option<usize>,
+    #[serde(default)]
+    format: Option<String>,
+    materials: Vec<Material>,
+    #[serde(default)]
+    basis: Option<Vec<f64>>,
+}
+
+#[derive(Debug, Deserialize)]
+struct Material {
+    scale: Vec<f64>,
+    bias: Vec<f64>,
+    #[serde(default)]
+    range: Option<Vec<f64>>,
+}
+
+/// Read a web folder (or the folder of the `info.json` at `path`).
+pub fn read(path: &Path) -> Result<RelightableImage> {
+    let info_file = info_path(path).ok_or_else(|| {
+        Error::new(
+            ErrorKind::Io,
+            format!("{} is not a web folder (no {INFO})", path.display()),
+        )
+    })?;
+    let folder = info_file.parent().unwrap_or(Path::new(".")).to_path_buf();
+    let bad = |what: String| Error::parse(format!("{}: {what}", info_file.display()));
+    let len = std::fs::metadata(&info_file)
+        .map_err(|e| Error::io(&info_file, "read", e))?
+        .len();
+    if len > MAX_INFO_BYTES {
+        return Err(bad(format!("{len} bytes is too large for a description")));
+    }
+    let text = std::fs::read(&info_file).map_err(|e| Error::io(&info_file, "read", e))?;
+    let info: Info = serde_json::from_slice(&text).map_err(|e| bad(e.to_string()))?;
+    let nplanes = match (info.colorspace.as_str(), info.yccplanes, info.nplanes) {
+        ("mycc", Some(y), _) => y.iter().sum(),
+        ("mycc", None, _) => return Err(bad("`mycc` needs `yccplanes`".into())),
+        (_, _, Some(n)) => n,
+        _ => return Err(bad("`nplanes` is missing".into())),
+    };
+    if nplanes == 0 || !nplanes.is_multiple_of(3) || nplanes > MAX_PLANES {
+        return Err(bad(format!(
+            "`nplanes` {nplanes}: a positive multiple of 3 up to {MAX_PLANES}"
+        )));
+    }
+    if info.width == 0 || info.height == 0 {
+        return Err(bad("`width` and `height` must be positive".into()));
+    }
+    let material = match info.materials.as_slice() {
+        [m, ..] => m,
+        [] => return Err(bad("`materials` is empty".into())),
+    };
+    for (name, v) in [("scale", &material.scale), ("bias", &material.bias)] {
+        if v.len() != nplanes || v.iter().any(|x| !x.is_finite()) {
+            return Err(bad(format!(
+                "`materials[0].{name}` must hold {nplanes} finite numbers, it has {}",
+                v.len()
+            )));
+        }
+    }
+    let planes = PlaneImages::load(&folder, &info, nplanes)?;
+    let value = |p: usize, pixel: usize| -> f32 {
+        let byte = planes.images[p / 3][3 * pixel + p % 3] as f64;
+        ((byte / 255.0 - material.bias[p]) * material.scale[p]) as f32
+    };
+    let n = info.width * info.height;
+    let (spec, maps) = match (info.kind.as_str(), info.colorspace.as_str()) {
+        ("ptm" | "hsh" | "sh", space @ ("rgb" | "lrgb")) => {
+            let table = fixed_functions(&info.kind, nplanes, space == "lrgb").map_err(bad)?;
+            let k = table.functions.len();
+            let mut maps = CoefficientMaps::zeros(info.width, info.height, k);
+            for (j, &(index, sign)) in table.functions.iter().enumerate() {
+                for c in 0..3 {
+                    let plane = maps.plane_mut(index, c);
+                    if space == "rgb" {
+                        let p = 3 * j + c;
+                        plane
+                            .par_iter_mut()
+                            .enumerate()
+                            .for_each(|(i, v)| *v = sign * value(p, i));
+                    } else {
+                        // Plane image 0 is the colour, then the luminance coefficients.
+                        plane
+                            .par_iter_mut()
+                            .enumerate()
+                            .for_each(|(i, v)| *v = sign * value(c, i) * value(3 + j, i));
+                    }
+                }
+            }
+            (BasisSpec::named(&table.name)?, maps)
+        }
+        ("bilinear", space @ ("mrgb" | "mycc")) => {
+            let r = info
+                .resolution
+                .filter(|r| (2..=MAX_RESOLUTION).contains(r))
+                .ok_or_else(|| {
+                    bad(format!(
+                        "`resolution` must be 2 to {MAX_RESOLUTION} for `bilinear`"
+                    ))
+                })?;
+            let c = r * r;
+            let grids = pca_grids(&info, material, nplanes, c, space == "mycc").map_err(bad)?;
+            let coefficients: Vec<Vec<f32>> = (0..nplanes)
+                .map(|p| (0..n).into_par_iter().map(|i| value(p, i)).collect())
+                .collect();
+            drop(planes);
+            let (values, maps) = pca_to_grid(&grids, c, &coefficients, info.width, info.height);
+            let spec = grid_basis(r, values, GridMap::Octahedral)?.spec();
+            (spec, maps)
+        }
+        ("rbf", _) => {
+            return Err(bad(
+                "type `rbf` is not read yet (OpenLIME's per-light normalised Gaussians)".into(),
+            ))
+        }
+        (kind, space) => {
+            return Err(bad(format!(
+                "type `{kind}` with colour space `{space}` is not a combination relight writes"
+            )))
+        }
+    };
+    let meta = Metadata::new(spec, MapSpace::Srgb, Projection::default());
+    Ok(RelightableImage {
+        meta,
+        maps,
+        depth: None,
+    })
+}
+
+/// One line about a web folder's own form: type, colour space, planes and layout.
+pub fn describe(path: &Path) -> Result<String> {
+    let info_file = info_path(path).ok_or_else(|| {
+        Error::new(ErrorKind::Io, format!("{} is not a web folder", path.display()))
+    })?;
+    let folder = info_file.parent().unwrap_or(Path::new("."));
+    let text = std::fs::read(&info_file).map_err(|e| Error::io(&info_file, "read", e))?;
+    let info: Info = serde_json::from_slice(&text)
+        .map_err(|e| Error::parse(format!("{}: {e}", info_file.display())))?;
+    let planes = match info.yccplanes {
+        Some(y) if info.colorspace == "mycc" => y.iter().sum(),
+        _ => info.nplanes.unwrap_or(0),
+    };
+    let layout = if folder.join("planes.tzi").is_file() {
+        "itarzoom"
+    } else if folder.join("plane_0.tzi").is_file() {
+        "tarzoom"
+    } else if folder.join("plane_0.dzi").is_file() {
+        "Deep Zoom"
+    } else {
+        "single images"
+    };
+    Ok(format!(
+        "relight/OpenLIME web folder: type {}, colour space {}, {planes} planes, {layout}",
+        info.kind, info.colorspace
+    ))
+}
+
+/// The plane images of a folder, decoded to 8-bit RGB at full resolution.
+struct PlaneImages {
+    images: Vec<Vec<u8>>,
+}
+
+impl PlaneImages {
+    fn load(folder: &Path, info: &Info, nplanes: usize) -> Result<PlaneImages> {
+        let count = nplanes / 3;
+        let (w, h) = (info.width, info.height);
+        let format = info.format.as_deref().unwrap_or("jpg");
+        let images = if folder.join("planes.tzi").is_file() {
+            itarzoom(folder, w, h, count)?
+        } else {
+            (0..count)
+                .map(|j| {
+                    let stem = format!("plane_{j}");
+                    let tzi = folder.join(format!("{stem}.tzi"));
+                    let dzi = folder.join(format!("{stem}.dzi"));
+                    if tzi.is_file() {
+                        let (index, tzb) = read_tarzoom(&tzi, w, h, 1)?;
+                        index.assemble(&tzi, &tzb, 0)
+                    } else if dzi.is_file() {
+                        deep_zoom(&dzi, &folder.join(format!("{stem}_files")), w, h)
+                    } else {
+                        let mut path = folder.join(format!("{stem}.{format}"));
+                        for ext in ["jpg", "png"] {
+                            if !path.is_file() {
+                                path = folder.join(format!("{stem}.{ext}"));
+                            }
+                        }
+                        single_image(&path, w, h)
+                    }
+                })
+                .collect::<Result<Vec<_>>>()?
+        };
+        Ok(PlaneImages { images })
+    }
+}
+
+fn single_image(path: &Path, w: usize, h: usize) -> Result<Vec<u8>> {
+    let (iw, ih) =
+        image::image_dimensions(path).map_err(|e| Error::image(path, e))?;
+    if (iw as usize, ih as usize) != (w, h) {
+        return Err(Error::parse(format!(
+            "{}: {iw}×{ih}, but {INFO} says {w}×{h}",
+            path.display()
+        )));
+    }
+    let image = image::open(path).map_err(|e| Error::image(path, e))?;
+    Ok(image.to_rgb8().into_raw())
+}
+
+/// Tiles of a pyramid: `tilesize`, `overlap`, and the full-resolution level's grid.
+#[derive(Clone, Copy, Debug)]
+struct TileGrid {
+    tilesize: usize,
+    overlap: usize,
+    columns: usize,
+    rows: usize,
+    width: usize,
+    height: usize,
+}
+
+impl TileGrid {
+    fn new(width: usize, height: usize, tilesize: usize, overlap: usize) -> Result<TileGrid> {
+        if tilesize == 0 || overlap >= tilesize {
+            return Err(Error::parse(format!(
+                "tile size {tilesize} with overlap {overlap}"
+            )));
+        }
+        Ok(TileGrid {
+            tilesize,
+            overlap,
+            columns: width.div_ceil(tilesize),
+            rows: height.div_ceil(tilesize),
+            width,
+            height,
+        })
+    }
+
+    /// The number of levels OpenLIME counts for this size.
+    fn levels(&self) -> usize {
+        let ratio = self.width.max(self.height) as f64 / self.tilesize as f64;
+        (ratio.log2().ceil().max(0.0) as usize) + 1
+    }
+
+    /// The size tile `(x, y)`'s image must have (its overlap included).
+    fn tile_size(&self, x: usize, y: usize) -> (usize, usize) {
+        let span = |i: usize, total: usize, count: usize| {
+            let start = i * self.tilesize;
+            let inner = self.tilesize.min(total - start);
+            inner + if i > 0 { self.overlap } else { 0 } + if i + 1 < count { self.overlap } else { 0 }
+        };
+        (
+            span(x, self.width, self.columns),
+            span(y, self.height, self.rows),
+        )
+    }
+
+    /// Copy tile `(x, y)`'s pixels (RGB, its own size checked) into `out`.
+    fn place(&self, x: usize, y: usize, tile: &image::RgbImage, out: &mut [u8], source: &str) -> Result<()> {
+        let (tw, th) = self.tile_size(x, y);
+        if (tile.width() as usize, tile.height() as usize) != (tw, th) {
+            return Err(Error::parse(format!(
+                "{source}: tile ({x}, {y}) is {}×{}, expected {tw}×{th}",
+                tile.width(),
+                tile.height()
+            )));
+        }
+        let (x0, y0) = (x * self.tilesize, y * self.tilesize);
+        let skip_x = if x > 0 { self.overlap } else { 0 };
+        let skip_y = if y > 0 { self.overlap } else { 0 };
+        let cols = self.tilesize.min(self.width - x0);
+        let rows = self.tilesize.min(self.height - y0);
+        let raw = tile.as_raw();
+        for r in 0..rows {
+            let from = 3 * ((r + skip_y) * tw + skip_x);
+            let to = 3 * ((y0 + r) * self.width + x0);
+            out[to..to + 3 * cols].copy_from_slice(&raw[from..from + 3 * cols]);
+        }
+        Ok(())
+    }
+}
+
+fn decode_tile(bytes: &[u8], expected: (usize, usize), source: &str) -> Result<image::RgbImage> {
+    let reader = image::ImageReader::new(std::io::Cursor::new(bytes))
+        .with_guessed_format()
+        .map_err(|e| Error::parse(format!("{source}: {e}")))?;
+    // The header's size is checked before the pixels are decoded, so no claim in a
+    // tile makes the reader allocate more than the tile grid allows.
+    let (w, h) = image::ImageReader::new(std::io::Cursor::new(bytes))
+        .with_guessed_format()
+        .map_err(|e| Error::parse(format!("{source}: {e}")))?
+        .into_dimensions()
+        .map_err(|e| Error::parse(format!("{source}: {e}")))?;
+    if (w as usize, h as usize) != expected {
+        return Err(Error::parse(format!(
+            "{source}: a {w}×{h} tile, expected {}×{}",
+            expected.0, expected.1
+        )));
+    }
+    Ok(reader
+        .decode()
+        .map_err(|e| Error::parse(format!("{source}: {e}")))?
+        .to_rgb8())
+}
+
+fn deep_zoom(dzi: &Path, files: &Path, w: usize, h: usize) -> Result<Vec<u8>> {
+    let text = std::fs::read_to_string(dzi).map_err(|e| Error::io(dzi, "read", e))?;
+    let attribute = |name: &str| -> Result<usize> {
+        let key = format!("{name}=\"");
+        let start = text
+            .find(&key)
+            .ok_or_else(|| Error::parse(format!("{}: no `{name}`", dzi.display())))?
+            + key.len();
+        text[start..]
+            .split('"')
+            .next()
+            .and_then(|v| v.trim().parse().ok())
+            .ok_or_else(|| Error::parse(format!("{}: a bad `{name}`", dzi.display())))
+    };
+    let (dw, dh) = (attribute("Width")?, attribute("Height")?);
+    if (dw, dh) != (w, h) {
+        return Err(Error::parse(format!(
+            "{}: {dw}×{dh}, but {INFO} says {w}×{h}",
+            dzi.display()
+        )));
+    }
+    let grid = TileGrid::new(w, h, attribute("TileSize")?, attribute("Overlap")?)?;
+    let format = text
+        .split("Format=\"")
+        .nth(1)
+        .and_then(|s| s.split('"').next())
+        .unwrap_or("jpg")
+        .to_string();
+    // The deepest level is the full resolution whether levels are counted from the
+    // tile size (relight, OpenLIME) or from one pixel (the Deep Zoom standard).
+    let level = std::fs::read_dir(files)
+        .map_err(|e| Error::io(files, "list", e))?
+        .filter_map(|e| e.ok()?.file_name().to_str()?.parse::<usize>().ok())
+        .max()
+        .ok_or_else(|| Error::parse(format!("{}: no levels", files.display())))?;
+    let mut out = vec![0u8; 3 * w * h];
+    for y in 0..grid.rows {
+        for x in 0..grid.columns {
+            let path = files.join(format!("{level}/{x}_{y}.{format}"));
+            let bytes = std::fs::read(&path).map_err(|e| Error::io(&path, "read the tile", e))?;
+            let source = path.display().to_string();
+            let tile = decode_tile(&bytes, grid.tile_size(x, y), &source)?;
+            grid.place(x, y, &tile, &mut out, &source)?;
+        }
+    }
+    Ok(out)
+}
+
+#[derive(Debug, Deserialize)]
+struct TarzoomIndex {
+    tilesize: usize,
+    #[serde(default)]
+    overlap: usize,
+    width: usize,
+    height: usize,
+    offsets: Vec<u64>,
+    #[serde(default)]
+    stride: Option<usize>,
+}
+
+/// A tarzoom index checked against its data file.
+struct Tarzoom {
+    grid: TileGrid,
+    /// Index of the first full-resolution tile.
+    first: usize,
+    stride: usize,
+    offsets: Vec<u64>,
+}
+
+fn read_tarzoom(tzi: &Path, w: usize, h: usize, stride: usize) -> Result<(Tarzoom, Vec<u8>)> {
+    let bad = |what: String| Error::parse(format!("{}: {what}", tzi.display()));
+    let len = std::fs::metadata(tzi).map_err(|e| Error::io(tzi, "read", e))?.len();
+    if len > MAX_INFO_BYTES {
+        return Err(bad("too large for a tile index".into()));
+    }
+    let text = std::fs::read(tzi).map_err(|e| Error::io(tzi, "read", e))?;
+    let index: TarzoomIndex = serde_json::from_slice(&text).map_err(|e| bad(e.to_string()))?;
+    if (index.width, index.height) != (w, h) {
+        return Err(bad(format!(
+            "{}×{}, but {INFO} says {w}×{h}",
+            index.width, index.height
+        )));
+    }
+    let stride = index.stride.unwrap_or(stride);
+    if stride == 0 {
+        return Err(bad("`stride` must be positive".into()));
+    }
+    let grid = TileGrid::new(w, h, index.tilesize, index.overlap).map_err(|e| bad(e.to_string()))?;
+    let levels = grid.levels();
+    let tiles_at = |level: usize| {
+        let size = grid.tilesize << (levels - 1 - level);
+        w.div_ceil(size) * h.div_ceil(size)
+    };
+    let first: usize = (0..levels - 1).map(tiles_at).sum();
+    let tiles = first + grid.columns * grid.rows;
+    if index.offsets.len() != tiles * stride + 1 {
+        return Err(bad(format!(
+            "{} offsets, but {levels} levels of {}-pixel tiles need {}",
+            index.offsets.len(),
+            grid.tilesize,
+            tiles * stride + 1
+        )));
+    }
+    if index.offsets.windows(2).any(|p| p[1] < p[0]) {
+        return Err(bad("`offsets` must not decrease".into()));
+    }
+    let tzb = tzi.with_extension("tzb");
+    let data_len = std::fs::metadata(&tzb)
+        .map_err(|e| Error::io(&tzb, "read", e))?
+        .len();
+    let end = *index.offsets.last().expect("offsets");
+    if end > data_len {
+        return Err(bad(format!(
+            "offsets reach byte {end}, but {} has {data_len}",
+            tzb.display()
+        )));
+    }
+    let data = std::fs::read(&tzb).map_err(|e| Error::io(&tzb, "read", e))?;
+    Ok((
+        Tarzoom {
+            grid,
+            first,
+            stride,
+            offsets: index.offsets,
+        },
+        data,
+    ))
+}
+
+impl Tarzoom {
+    /// Plane image `image` (of `stride` per tile) at full resolution.
+    fn assemble(&self, tzi: &Path, data: &[u8], image: usize) -> Result<Vec<u8>> {
+        let grid = self.grid;
+        let mut out = vec![0u8; 3 * grid.width * grid.height];
+        for y in 0..grid.rows {
+            for x in 0..grid.columns {
+                let i = (self.first + y * grid.columns + x) * self.stride + image;
+                let (a, b) = (self.offsets[i] as usize, self.offsets[i + 1] as usize);
+                let source = format!("{} tile ({x}, {y}) image {image}", tzi.display());
+                let tile = decode_tile(&data[a..b], grid.tile_size(x, y), &source)?;
+                grid.place(x, y, &tile, &mut out, &source)?;
+            }
+        }
+        Ok(out)
+    }
+}
+
+fn itarzoom(folder: &Path, w: usize, h: usize, count: usize) -> Result<Vec<Vec<u8>>> {
+    let tzi = folder.join("planes.tzi");
+    let (index, data) = read_tarzoom(&tzi, w, h, count)?;
+    if index.stride != count {
+        return Err(Error::parse(format!(
+            "{}: `stride` {} but {INFO} declares {count} plane images",
+            tzi.display(),
+            index.stride
+        )));
+    }
+    (0..count).map(|j| index.assemble(&tzi, &data, j)).collect()
+}
+
+/// A fixed family's functions in the file's order: relit's index and sign for each.
+struct FixedFunctions {
+    name: String,
+    functions: Vec<(usize, f32)>,
+}
+
+/// The file's order of `kind`'s functions as relit coefficients (see the module docs).
+fn fixed_functions(kind: &str, nplanes: usize, lrgb: bool) -> std::result::Result<FixedFunctions, String> {
+    let k = if lrgb { nplanes - 3 } else { nplanes / 3 };
+    let functions: Vec<(usize, f32)> = match (kind, k) {
+        // 1, x, y, x², xy, y² against relit's x², y², xy, x, y, 1.
+        ("ptm", 6) => [5, 3, 4, 0, 2, 1].iter().map(|&i| (i, 1.0)).collect(),
+        ("hsh", 4 | 9) => {
+            let order = if k == 4 { 2 } else { 3 };
+            (0..order as i64)
+                .flat_map(|l| (-l..=l).rev().map(move |m| (l, m)))
+                .map(|(l, m)| ((l * (l + 1) + m) as usize, if m == 0 { 1.0 } else { -1.0 }))
+                .collect()
+        }
+        // OpenLIME: c₀, c₁x, c₁z, c₁y, c₂xy, c₂xz, c₂₀(3z²−1), c₂yz, c₂(y²−x²)/2 against
+        // relit's Condon–Shortley Y₁₋₁ = −c₁y, Y₁₁ = −c₁x, Y₂₋₁ = −c₂yz, Y₂₁ = −c₂xz,
+        // Y₂₂ = c₂(x²−y²)/2.
+        ("sh", 9) => vec![
+            (0, 1.0),
+            (3, -1.0),
+            (2, 1.0),
+            (1, -1.0),
+            (4, 1.0),
+            (7, -1.0),
+            (6, 1.0),
+            (5, -1.0),
+            (8, -1.0),
+        ],
+        _ => {
+            return Err(format!(
+                "type `{kind}` with {k} coefficients per channel is not one OpenLIME shows"
+            ))
+        }
+    };
+    let name = format!("{kind}:{}", if kind == "hsh" { k } else { functions.len() });
+    Ok(FixedFunctions { name, functions })
+}
+
+/// The node matrices `G_c` (`nodes × (P+1)`, row-major) of a principal-component file:
+/// channel `c` of a pixel is `Σ_t G_c[node][t] u_t` at each node, `u = (1, coef_0, …)`.
+fn pca_grids(
+    info: &Info,
+    material: &Material,
+    nplanes: usize,
+    nodes: usize,
+    ycc: bool,
+) -> std::result::Result<[Vec<f64>; 3], String> {
+    let basis = info.basis.as_ref().ok_or("`basis` is missing")?;
+    let expected = 3 * (nplanes + 1) * nodes;
+    if basis.len() != expected {
+        return Err(format!(
+            "`basis` holds {} values, {nplanes} planes on {nodes} nodes need {expected}",
+            basis.len()
+        ));
+    }
+    if basis.iter().any(|b| !(0.0..=255.0).contains(b)) {
+        return Err("`basis` holds bytes, 0 to 255".into());
+    }
+    let range = material
+        .range
+        .as_ref()
+        .filter(|r| r.len() == nplanes && r.iter().all(|v| v.is_finite() && *v != 0.0))
+        .ok_or(format!("`materials[0].range` must hold {nplanes} non-zero numbers"))?;
+    let decoded = |t: usize, node: usize, s: usize| -> f64 {
+        let byte = basis[3 * (t * nodes + node) + s];
+        if t == 0 {
+            byte / 255.0
+        } else {
+            (byte - 127.0) / range[t - 1]
+        }
+    };
+    // Which YCC component a plane feeds: triples first, then Y only.
+    let triples = if ycc {
+        let [ny, nc1, nc2] = info.yccplanes.expect("checked");
+        let images = nplanes / 3;
+        if nc1 != nc2 || nc1 > images || ny != nc1 + 3 * (images - nc1) {
+            return Err(format!(
+                "`yccplanes` [{ny}, {nc1}, {nc2}] is not relight's layout of {images} images"
+            ));
+        }
+        nc1
+    } else {
+        0
+    };
+    let to_rgb = |v: [f64; 3]| -> [f64; 3] {
+        if ycc {
+            let [y, c1, c2] = v;
+            [y + c1 / 2.0 - c2 / 2.0, y + c2 / 2.0, y - c1 / 2.0 - c2 / 2.0]
+        } else {
+            v
+        }
+    };
+    let width = nplanes + 1;
+    let mut g = [vec![0.0; nodes * width], vec![0.0; nodes * width], vec![0.0; nodes * width]];
+    for node in 0..nodes {
+        for t in 0..width {
+            let mut v = [0.0; 3];
+            if t == 0 || !ycc {
+                (0..3).for_each(|s| v[s] = decoded(t, node, s));
+            } else {
+                let p = t - 1;
+                let s = if p / 3 < triples { p % 3 } else { 0 };
+                v[s] = decoded(t, node, s);
+            }
+            let rgb = to_rgb(v);
+            for c in 0..3 {
+                g[c][node * width + t] = rgb[c];
+            }
+        }
+    }
+    Ok(g)
+}
+
+/// The principal node-space directions of the pixels' grids `f_c = G_c u` (the first
+/// `K` that leave less than [`READ_TOLERANCE`] per value, at most 64) as `K` grids, and
+/// each pixel's coordinates along them: `(grids K × nodes, maps)`.
+pub(crate) fn pca_to_grid(
+    g: &[Vec<f64>; 3],
+    nodes: usize,
+    coefficients: &[Vec<f32>],
+    width: usize,
+    height: usize,
+) -> (Vec<f64>, CoefficientMaps) {
+    let n = width * height;
+    let t = coefficients.len() + 1;
+    // Second moments of u over the pixels: the pixels enter only through them.
+    let rows: Vec<Vec<f64>> = (0..n)
+        .into_par_iter()
+        .fold(
+            || vec![0.0; t * t],
+            |mut s, i| {
+                let mut u = vec![1.0f64; t];
+                for (p, plane) in coefficients.iter().enumerate() {
+                    u[p + 1] = plane[i] as f64;
+                }
+                for a in 0..t {
+                    for b in a..t {
+                        s[a * t + b] += u[a] * u[b];
+                    }
+                }
+                s
+            },
+        )
+        .collect();
+    let mut s = vec![0.0; t * t];
+    for part in rows {
+        s.iter_mut().zip(&part).for_each(|(a, b)| *a += b);
+    }
+    for a in 0..t {
+        for b in 0..a {
+            s[a * t + b] = s[b * t + a];
+        }
+    }
+    // M = Σ_c G_c S G_cᵀ.
+    let mut m = vec![0.0; nodes * nodes];
+    for gc in g {
+        let mut gs = vec![0.0; nodes * t];
+        crate::linalg::matmul_bt(nodes, t, t, gc, &s, &mut gs);
+        let mut part = vec![0.0; nodes * nodes];
+        crate::linalg::matmul_bt(nodes, t, nodes, &gs, gc, &mut part);
+        m.iter_mut().zip(&part).for_each(|(a, b)| *a += b);
+    }
+    let (values, vectors) = crate::linalg::symmetric_eigen(&m, nodes);
+    let allowed = READ_TOLERANCE * READ_TOLERANCE * (3 * n * nodes) as f64;
+    let most = nodes.min(64);
+    let mut k = most;
+    let mut dropped: f64 = values[most..].iter().map(|v| v.max(0.0)).sum();
+    while k > 1 && dropped + values[k - 1].max(0.0) <= allowed {
+        dropped += values[k - 1].max(0.0);
+        k -= 1;
+    }
+    let grids = vectors[..k * nodes].to_vec();
+    // A_c = Eᵀ G_c: each channel's coordinates are a fixed mix of u.
+    let mixes: Vec<Vec<f64>> = g
+        .iter()
+        .map(|gc| {
+            let mut a = vec![0.0; k * t];
+            for q in 0..k {
+                for node in 0..nodes {
+                    let e = grids[q * nodes + node];
+                    for j in 0..t {
+                        a[q * t + j] += e * gc[node * t + j];
+                    }
+                }
+            }
+            a
+        })
+        .collect();
+    let mut maps = CoefficientMaps::zeros(width, height, k);
+    maps.data
+        .par_chunks_mut(n)
+        .enumerate()
+        .for_each(|(plane, out)| {
+            let (q, c) = (plane / 3, plane % 3);
+            let row = &mixes[c][q * t..(q + 1) * t];
+            for (i, v) in out.iter_mut().enumerate() {
+                let mut sum = row[0];
+                for (p, coef) in coefficients.iter().enumerate() {
+                    sum += row[p + 1] * coef[i] as f64;
+                }
+                *v = sum as f32;
+            }
+        });
+    (grids, maps)
+}
+
+/// How [`write`] lays out and encodes the planes.
+#[derive(Clone, Debug)]
+pub struct WriteOptions {
+    /// JPEG quality of the plane images, 1–100.
+    pub quality: u8,
+    /// Principal components kept when the maps are written as `bilinear` (a multiple of
+    /// 3; relight's default is 18).
+    pub planes: usize,
+    /// Nodes per side of the `bilinear` grid (relight's default is 8).
+    pub resolution: usize,
+}
+
+impl Default for WriteOptions {
+    fn default() -> Self {
+        WriteOptions {
+            quality: 95,
+            planes: 18,
+            resolution: 8,
+        }
+    }
+}
+
+/// What [`write`] wrote.
+#[derive(Clone, Debug, PartialEq)]
+pub struct WriteSummary {
+    /// The file's `type` (`ptm`, `hsh`, `bilinear`).
+    pub kind: String,
+    /// The file's `colorspace`.
+    pub colorspace: String,
+    /// Planes written.
+    pub planes: usize,
+    /// Files written (`info.json` included) and their bytes.
+    pub files: usize,
+    pub bytes: u64,
+}
+
+/// The most nodes per side [`write`] uses: its principal components are found in
+/// `3·resolution²` dimensions by Jacobi rotations.
+pub const MAX_WRITE_RESOLUTION: usize = 12;
+
+/// Write `image` as a web folder at `folder` (created, or its files replaced one by one
+/// through [`crate::fsutil::StagedFolder`]): `info.json` and single-image JPEG planes.
+/// See the module docs for which maps go out as which type.
+pub fn write(folder: &Path, image: &RelightableImage, options: &WriteOptions) -> Result<WriteSummary> {
+    if !(1..=100).contains(&options.quality) {
+        return Err(Error::invalid("JPEG quality is 1 to 100"));
+    }
+    let (w, h) = (image.width(), image.height());
+    if w == 0 || h == 0 || w > 65535 || h > 65535 {
+        return Err(Error::invalid(format!(
+            "a {w}×{h} image does not fit JPEG planes (1 to 65535 pixels a side)"
+        )));
+    }
+    let basis = image.meta.basis.build()?;
+    let fixed = match (image.meta.color_space, basis.family(), basis.len()) {
+        (MapSpace::Srgb, "ptm", 6) => Some(("ptm", 6)),
+        (MapSpace::Srgb, "hsh", k @ (4 | 9)) => Some(("hsh", k)),
+        (MapSpace::Srgb, "sh", 9) => Some(("sh", 9)),
+        _ => None,
+    };
+    let (mut info, planes) = match fixed {
+        Some((kind, k)) => fixed_planes(image, kind, k)?,
+        None => bilinear_planes(image, basis.as_ref(), options)?,
+    };
+    let nplanes = planes.len();
+    let quantised: Vec<(Vec<u8>, f64, f64)> = planes.par_iter().map(|p| quantise(p)).collect();
+    drop(planes);
+    info["width"] = w.into();
+    info["height"] = h.into();
+    info["format"] = "jpg".into();
+    info["nplanes"] = nplanes.into();
+    info["quality"] = options.quality.into();
+    let material = info["materials"][0].as_object_mut().expect("a material");
+    material.insert(
+        "scale".into(),
+        quantised.iter().map(|q| q.1).collect::<Vec<_>>().into(),
+    );
+    material.insert(
+        "bias".into(),
+        quantised.iter().map(|q| q.2).collect::<Vec<_>>().into(),
+    );
+    let staged = StagedFolder::new(folder)?;
+    let encoded: Vec<Vec<u8>> = quantised
+        .par_chunks(3)
+        .map(|three| {
+            let mut rgb = vec![0u8; 3 * w * h];
+            for (c, (codes, _, _)) in three.iter().enumerate() {
+                rgb.iter_mut()
+                    .skip(c)
+                    .step_by(3)
+                    .zip(codes)
+                    .for_each(|(o, v)| *o = *v);
+            }
+            let mut out = Vec::new();
+            let mut encoder = jpeg_encoder::Encoder::new(&mut out, options.quality);
+            // Each channel is a plane of its own: no chroma subsampling.
+            encoder.set_sampling_factor(jpeg_encoder::SamplingFactor::F_1_1);
+            encoder
+                .encode(&rgb, w as u16, h as u16, jpeg_encoder::ColorType::Rgb)
+                .map_err(|e| Error::new(ErrorKind::Io, format!("JPEG: {e}")))?;
+            Ok(out)
+        })
+        .collect::<Result<_>>()?;
+    let mut bytes = 0u64;
+    for (j, data) in encoded.iter().enumerate() {
+        let path = staged.file(format!("plane_{j}.jpg"))?;
+        std::fs::write(&path, data).map_err(|e| Error::io(&path, "write", e))?;
+        bytes += data.len() as u64;
+    }
+    let text = serde_json::to_vec(&info).map_err(|e| Error::invalid(e.to_string()))?;
+    let path = staged.file(INFO)?;
+    std::fs::write(&path, &text).map_err(|e| Error::io(&path, "write", e))?;
+    bytes += text.len() as u64;
+    staged.commit()?;
+    Ok(WriteSummary {
+        kind: info["type"].as_str().unwrap_or_default().to_string(),
+        colorspace: info["colorspace"].as_str().unwrap_or_default().to_string(),
+        planes: nplanes,
+        files: encoded.len() + 1,
+        bytes,
+    })
+}
+
+/// 8-bit codes of a plane with relight's scale and bias: `value = (code/255 − bias)·scale`
+/// over the plane's finite range.
+fn quantise(plane: &[f32]) -> (Vec<u8>, f64, f64) {
+    let (lo, hi) = plane
+        .iter()
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v as f64), b.max(v as f64))
+        });
+    let (lo, hi) = if lo.is_finite() { (lo, hi) } else { (0.0, 0.0) };
+    let scale = if hi > lo { hi - lo } else { 1.0 };
+    let codes = plane
+        .iter()
+        .map(|&v| {
+            let v = if v.is_finite() { v as f64 } else { lo };
+            ((v - lo) / scale * 255.0).round().clamp(0.0, 255.0) as u8
+        })
+        .collect();
+    (codes, scale, -lo / scale)
+}
+
+/// `ptm`, `hsh`, `sh` + `rgb`: the maps' own coefficients in the file's order.
+fn fixed_planes(
+    image: &RelightableImage,
+    kind: &str,
+    k: usize,
+) -> Result<(serde_json::Value, Vec<Vec<f32>>)> {
+    // hsh:4 goes out as OpenLIME's nine functions, the second band zero.
+    let order = if kind == "hsh" { 27 } else { 3 * k };
+    let table = fixed_functions(kind, order, false).map_err(Error::invalid)?;
+    let n = image.maps.pixels();
+    let mut planes = Vec::new();
+    for &(index, sign) in &table.functions {
+        for c in 0..3 {
+            planes.push(if index < k {
+                image.maps.plane(index, c).iter().map(|v| sign * v).collect()
+            } else {
+                vec![0.0; n]
+            });
+        }
+    }
+    let info = serde_json::json!({
+        "type": kind,
+        "colorspace": "rgb",
+        "materials": [{}],
+    });
+    Ok((info, planes))
+}
+
+/// Any basis as `bilinear` + `mrgb` (see the module docs): the pixels' functions at the
+/// grid's nodes (sRGB-encoded), their principal components, the planes along them.
+fn bilinear_planes(
+    image: &RelightableImage,
+    basis: &dyn crate::basis::Basis,
+    options: &WriteOptions,
+) -> Result<(serde_json::Value, Vec<Vec<f32>>)> {
+    let r = options.resolution;
+    if !(2..=MAX_WRITE_RESOLUTION).contains(&r) {
+        return Err(Error::invalid(format!(
+            "the bilinear grid has 2 to {MAX_WRITE_RESOLUTION} nodes a side, not {r}"
+        )));
+    }
+    let nodes = r * r;
+    let dims = 3 * nodes;
+    let planes = options.planes;
+    if planes == 0 || !planes.is_multiple_of(3) || planes > dims.min(MAX_PLANES) {
+        return Err(Error::invalid(format!(
+            "the planes of a bilinear file are a positive multiple of 3 up to {}, not {planes}",
+            dims.min(MAX_PLANES)
+        )));
+    }
+    let k = basis.len();
+    let maps = &image.maps;
+    let n = maps.pixels();
+    let mut weights = vec![0.0; nodes * k];
+    for j in 0..r {
+        for i in 0..r {
+            let d = GridMap::Octahedral.node_direction(r, i, j);
+            basis.eval(d, &mut weights[(j * r + i) * k..(j * r + i + 1) * k]);
+        }
+    }
+    let linear = image.meta.color_space == MapSpace::Linear;
+    // A pixel's node values, `3·node + channel`: the basis table's order.
+    let node_values = |p: usize, out: &mut [f64]| {
+        for c in 0..3 {
+            let coef: Vec<f64> = (0..k).map(|i| maps.data[(3 * i + c) * n + p] as f64).collect();
+            for node in 0..nodes {
+                let row = &weights[node * k..(node + 1) * k];
+                let v: f64 = row.iter().zip(&coef).map(|(a, b)| a * b).sum();
+                out[3 * node + c] = if linear {
+                    crate::color::linear_to_srgb(v as f32) as f64
+                } else {
+                    v
+                };
+            }
+        }
+    };
+    // The components come from at most 65 536 pixels spread over the image; the
+    // projection then covers every pixel.
+    let step = n.div_ceil(65_536).max(1);
+    let sample: Vec<usize> = (0..n).step_by(step).collect();
+    let (sum, second) = sample
+        .par_iter()
+        .fold(
+            || (vec![0.0; dims], vec![0.0; dims * dims], vec![0.0; dims]),
+            |(mut sum, mut second, mut f), &p| {
+                node_values(p, &mut f);
+                for a in 0..dims {
+                    sum[a] += f[a];
+                    for b in a..dims {
+                        second[a * dims + b] += f[a] * f[b];
+                    }
+                }
+                (sum, second, f)
+            },
+        )
+        .map(|(s, q, _)| (s, q))
+        .reduce(
+            || (vec![0.0; dims], vec![0.0; dims * dims]),
+            |(mut s1, mut q1), (s2, q2)| {
+                s1.iter_mut().zip(&s2).for_each(|(a, b)| *a += b);
+                q1.iter_mut().zip(&q2).for_each(|(a, b)| *a += b);
+                (s1, q1)
+            },
+        );
+    let count = sample.len() as f64;
+    let mean: Vec<f64> = sum.iter().map(|s| s / count).collect();
+    let mut cov = vec![0.0; dims * dims];
+    for a in 0..dims {
+        for b in a..dims {
+            let v = second[a * dims + b] / count - mean[a] * mean[b];
+            cov[a * dims + b] = v;
+            cov[b * dims + a] = v;
+        }
+    }
+    let (_, vectors) = crate::linalg::symmetric_eigen(&cov, dims);
+    // The basis table in bytes, and the values OpenLIME decodes from them.
+    let mut table = vec![0u8; 3 * (planes + 1) * nodes];
+    let mut decoded_mean = vec![0.0; dims];
+    for d in 0..dims {
+        let byte = (mean[d] * 255.0).round().clamp(0.0, 255.0);
+        table[d] = byte as u8;
+        decoded_mean[d] = byte / 255.0;
+    }
+    let mut ranges = Vec::with_capacity(planes);
+    let mut decoded = vec![0.0; planes * dims];
+    for p in 0..planes {
+        let e = &vectors[p * dims..(p + 1) * dims];
+        let peak = e.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(1e-12);
+        let range = 127.0 / peak;
+        ranges.push(range);
+        for d in 0..dims {
+            let byte = (127.0 + e[d] * range).round().clamp(0.0, 255.0);
+            table[(p + 1) * dims + d] = byte as u8;
+            decoded[p * dims + d] = (byte - 127.0) / range;
+        }
+    }
+    // Coordinates against the decoded (no longer orthonormal) components: least squares.
+    let mut gram = vec![0.0; planes * planes];
+    crate::linalg::matmul_bt(planes, dims, planes, &decoded, &decoded, &mut gram);
+    if !crate::linalg::cholesky(&mut gram, planes) {
+        return Err(Error::new(
+            ErrorKind::Numerical,
+            "the quantised principal components are degenerate (too many planes for these maps?)",
+        ));
+    }
+    let mut project = vec![0.0; planes * dims];
+    let mut column = vec![0.0; planes];
+    for d in 0..dims {
+        (0..planes).for_each(|p| column[p] = decoded[p * dims + d]);
+        crate::linalg::cholesky_solve(&gram, planes, &mut column);
+        (0..planes).for_each(|p| project[p * dims + d] = column[p]);
+    }
+    let mut pixel_major = vec![0.0f32; n * planes];
+    pixel_major
+        .par_chunks_mut(planes)
+        .enumerate()
+        .for_each_init(
+            || vec![0.0; dims],
+            |f, (p, coords)| {
+                node_values(p, f);
+                for (q, v) in coords.iter_mut().enumerate() {
+                    let row = &project[q * dims..(q + 1) * dims];
+                    *v = (0..dims).map(|d| row[d] * (f[d] - decoded_mean[d])).sum::<f64>() as f32;
+                }
+            },
+        );
+    let out: Vec<Vec<f32>> = (0..planes)
+        .into_par_iter()
+        .map(|q| pixel_major.iter().skip(q).step_by(planes).copied().collect())
+        .collect();
+    let info = serde_json::json!({
+        "type": "bilinear",
+        "colorspace": "mrgb",
+        "resolution": r,
+        "materials": [{ "range": ranges }],
+        "basis": table,
+    });
+    Ok((info, out))
+}
