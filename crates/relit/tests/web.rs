@@ -30,9 +30,13 @@ fn lights(dir: &std::path::Path) -> Vec<Vec3> {
         .unwrap()
         .chunks(3)
         .map(|l| {
-            Vec3::new(l[0].as_f64().unwrap(), l[1].as_f64().unwrap(), l[2].as_f64().unwrap())
-                .normalized()
-                .unwrap()
+            Vec3::new(
+                l[0].as_f64().unwrap(),
+                l[1].as_f64().unwrap(),
+                l[2].as_f64().unwrap(),
+            )
+            .normalized()
+            .unwrap()
         })
         .collect()
 }
@@ -64,7 +68,13 @@ fn the_four_fixtures_agree_at_captured_lights() {
         .map(|d| {
             let t = std::time::Instant::now();
             let im = codec::read(d).unwrap();
-            eprintln!("{}: {} k={} {:.2}s", d.display(), im.meta.basis.family, im.maps.k, t.elapsed().as_secs_f64());
+            eprintln!(
+                "{}: {} k={} {:.2}s",
+                d.display(),
+                im.meta.basis.family,
+                im.maps.k,
+                t.elapsed().as_secs_f64()
+            );
             im
         })
         .collect();
@@ -72,7 +82,8 @@ fn the_four_fixtures_agree_at_captured_lights() {
         let frames: Vec<ImageRgb> = images.iter().map(|im| relight(im, captured[i])).collect();
         if let Some(out) = std::env::var_os("WEB_DEBUG") {
             for (f, n) in frames.iter().zip(names) {
-                relit::image::save(&PathBuf::from(&out).join(format!("{n}_{i}.png")), f, 0.0).unwrap();
+                relit::image::save(&PathBuf::from(&out).join(format!("{n}_{i}.png")), f, 0.0)
+                    .unwrap();
             }
         }
         for a in 0..4 {

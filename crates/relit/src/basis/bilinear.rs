@@ -369,7 +369,10 @@ mod tests {
                 let d = GridMap::Octahedral.node_direction(g, i, j);
                 assert!(d.z >= 0.0);
                 let w = basis.values(d);
-                assert!((w[j * g + i] - 1.0).abs() < 1e-9, "node ({i}, {j}) at {d:?}");
+                assert!(
+                    (w[j * g + i] - 1.0).abs() < 1e-9,
+                    "node ({i}, {j}) at {d:?}"
+                );
             }
         }
         // (u, v) = (1, 1) is +y on the horizon; (1, −1) is +x.
