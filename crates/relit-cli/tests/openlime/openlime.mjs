@@ -25,6 +25,8 @@ const roots = { lime: path.resolve(args.client) };
 for (const c of cases) roots[c.name] = path.resolve(c.folder);
 const types = { '.html': 'text/html', '.js': 'text/javascript', '.json': 'application/json', '.jpg': 'image/jpeg', '.png': 'image/png', '.dzi': 'application/xml' };
 const server = http.createServer((req, res) => {
+  // Chromium asks for an icon on its own; only the page's requests count.
+  if (req.url === '/favicon.ico') { res.writeHead(204); res.end(); return; }
   const [, root, ...rest] = decodeURIComponent(req.url.split('?')[0]).split('/');
   const base = roots[root];
   const file = base && path.resolve(base, rest.join('/'));
