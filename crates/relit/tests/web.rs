@@ -56,43 +56,73 @@ fn flipped(image: &ImageRgb) -> ImageRgb {
     out
 }
 
+/// Each fixture reads into the basis its type maps to.
 #[test]
-fn the_four_fixtures_agree_at_captured_lights() {
+fn relight_folders_read_in_every_layout() {
+    for (name, family, k) in [
+        ("ptm", "ptm", 6),
+        ("hsh", "hsh", 9),
+        ("bln", "bilinear", 0),
+        ("ybln", "bilinear", 0),
+    ] {
+        let Some(dir) = fixture(name) else {
+            return;
+        };
+        let image = codec::read(&dir).unwrap();
+        assert_eq!((image.width(), image.height()), (1024, 1024), "{name}");
+        assert_eq!(image.meta.basis.family, family, "{name}");
+        assert_eq!(
+            image.meta.color_space,
+            relit::maps::MapSpace::Srgb,
+            "{name}"
+        );
+        if k > 0 {
+            assert_eq!(image.maps.k, k, "{name}");
+        }
+        assert!(image.maps.data.iter().all(|v| v.is_finite()), "{name}");
+    }
+}
+
+/// The capture these four folders were fitted from (116 lights, 1024×1024, a gold
+/// coin) is not among shared/data/realrti's items (none has 116 lights or that size),
+/// so there is no photo to compare with. What is left without a browser: the four
+/// fits of one capture, read four ways (single images, Deep Zoom, tarzoom, itarzoom;
+/// ptm, hsh, bilinear mrgb, bilinear mycc), agree at its captured lights far better
+/// than any of them agrees with an upside-down reading. Measured (lights 0, 40, 80,
+/// 115; 8-bit sRGB PSNR): hsh–bln 23.3/29.4/31.7/26.1 dB, ptm–hsh 19.3–20.9,
+/// the weakest pair ptm–ybln 16.2–20.6 dB; a flipped image against ptm 11.9–16.1 dB.
+/// The exact check is OpenLIME's own canvas (crates/relit-cli/tests/web.rs: 37 dB).
+#[test]
+fn the_four_fits_of_one_capture_agree_at_its_lights() {
     let names = ["ptm", "hsh", "bln", "ybln"];
     let Some(dirs) = names.iter().map(|n| fixture(n)).collect::<Option<Vec<_>>>() else {
         return;
     };
     let captured = lights(&dirs[0]);
-    let images: Vec<RelightableImage> = dirs
-        .iter()
-        .map(|d| {
-            let t = std::time::Instant::now();
-            let im = codec::read(d).unwrap();
-            eprintln!(
-                "{}: {} k={} {:.2}s",
-                d.display(),
-                im.meta.basis.family,
-                im.maps.k,
-                t.elapsed().as_secs_f64()
-            );
-            im
-        })
-        .collect();
+    assert_eq!(captured.len(), 116);
+    let images: Vec<RelightableImage> = dirs.iter().map(|d| codec::read(d).unwrap()).collect();
     for i in [0, 40, 80, 115] {
         let frames: Vec<ImageRgb> = images.iter().map(|im| relight(im, captured[i])).collect();
-        if let Some(out) = std::env::var_os("WEB_DEBUG") {
-            for (f, n) in frames.iter().zip(names) {
-                relit::image::save(&PathBuf::from(&out).join(format!("{n}_{i}.png")), f, 0.0)
-                    .unwrap();
-            }
-        }
+        let psnr = |a: &ImageRgb, b: &ImageRgb| relit::metrics::psnr_srgb8(&a.data, &b.data);
+        let hsh_bln = psnr(&frames[1], &frames[2]);
+        assert!(hsh_bln > 21.0, "light {i}: hsh against bln {hsh_bln:.2} dB");
         for a in 0..4 {
             for b in a + 1..4 {
-                let p = relit::metrics::psnr_srgb8(&frames[a].data, &frames[b].data);
-                eprintln!("light {i}: {} vs {}: {p:.2} dB", names[a], names[b]);
+                let p = psnr(&frames[a], &frames[b]);
+                assert!(
+                    p > 14.5,
+                    "light {i}: {} against {} {p:.2} dB",
+                    names[a],
+                    names[b]
+                );
             }
-            let p = relit::metrics::psnr_srgb8(&flipped(&frames[a]).data, &frames[0].data);
-            eprintln!("light {i}: flipped {} vs ptm: {p:.2} dB", names[a]);
+            let upside_down = psnr(&flipped(&frames[a]), &frames[if a == 1 { 2 } else { 1 }]);
+            let upright = psnr(&frames[a], &frames[if a == 1 { 2 } else { 1 }]);
+            assert!(
+                upright > upside_down + 3.0,
+                "light {i}: {} upright {upright:.2} dB, flipped {upside_down:.2} dB",
+                names[a]
+            );
         }
     }
 }
