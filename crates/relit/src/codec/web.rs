@@ -1692,4 +1692,49 @@ mod tests {
             );
         }
     }
+
+    /// `ptm` + `lrgb`: image 0 the colour, images 1 and 2 the six luminance coefficients;
+    /// OpenLIME shows `colour · Σ_j lum_j · (1, x, y, x², xy, y²)_j`.
+    #[test]
+    fn lrgb_is_a_colour_times_a_luminance_polynomial() {
+        let dir = tempfile::tempdir().unwrap();
+        let folder = dir.path().join("lrgb");
+        std::fs::create_dir_all(&folder).unwrap();
+        let codes: Vec<Vec<u8>> = (0..3)
+            .map(|j| random_bytes(20 + j, 3 * W * H, 0, 255))
+            .collect();
+        let scale: Vec<f64> = (0..9).map(|p| 0.5 + 0.1 * p as f64).collect();
+        let bias: Vec<f64> = (0..9).map(|p| 0.3 + 0.02 * p as f64).collect();
+        let info = serde_json::json!({
+            "width": W, "height": H, "format": "png", "type": "ptm", "colorspace": "lrgb",
+            "nplanes": 9, "materials": [{"scale": scale, "bias": bias}],
+        });
+        std::fs::write(folder.join(INFO), info.to_string()).unwrap();
+        for (j, c) in codes.iter().enumerate() {
+            image::RgbImage::from_raw(W as u32, H as u32, c.clone())
+                .unwrap()
+                .save(folder.join(format!("plane_{j}.png")))
+                .unwrap();
+        }
+        let image = read(&folder).unwrap();
+        assert_eq!(image.meta.basis.family, "ptm");
+        let value =
+            |p: usize, i: usize| (codes[p / 3][3 * i + p % 3] as f64 / 255.0 - bias[p]) * scale[p];
+        let l = Vec3::new(0.3, -0.2, 0.93).normalized().unwrap();
+        let ours = relit(&image, l);
+        let mut worst = 0.0f64;
+        for i in 0..W * H {
+            let lum: f64 = openlime_ptm(l)
+                .iter()
+                .enumerate()
+                .map(|(j, w)| w * value(3 + j, i))
+                .sum();
+            for c in 0..3 {
+                let want = (lum * value(c, i)).clamp(0.0, 1.0);
+                let got = crate::color::linear_to_srgb(ours[3 * i + c]) as f64;
+                worst = worst.max((got - want).abs());
+            }
+        }
+        assert!(worst < 0.5 / 255.0, "{:.2} codes off", worst * 255.0);
+    }
 }
