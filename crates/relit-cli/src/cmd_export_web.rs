@@ -51,13 +51,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let summary = relit::codec::web::write(&args.dir, &image, &args.web.options())
             .with_context(|| format!("writing {}", args.dir.display()))?;
         println!(
-            "wrote {} (relight/OpenLIME web format: {} {}, {} planes, {} files, {:.1} MiB); open it with OpenLIME's `rti` layer, layout `image`",
+            "wrote {} (relight/OpenLIME web format: {} {}, {} planes, {} files, {:.1} MiB); open it with OpenLIME's `rti` layer, layout `{}`",
             args.dir.display(),
             summary.kind,
             summary.colorspace,
             summary.planes,
             summary.files,
-            summary.bytes as f64 / (1024.0 * 1024.0)
+            summary.bytes as f64 / (1024.0 * 1024.0),
+            if args.web.deep_zoom { "deepzoom" } else { "image" }
         );
         return Ok(());
     }

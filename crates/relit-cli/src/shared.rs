@@ -174,6 +174,9 @@ pub struct WebArgs {
     /// Nodes per side of a `bilinear` web folder's light grid.
     #[arg(long, default_value_t = 8)]
     pub grid: usize,
+    /// Deep Zoom tiles (OpenLIME's `deepzoom` layout) instead of single images.
+    #[arg(long)]
+    pub deep_zoom: bool,
 }
 
 impl WebArgs {
@@ -182,6 +185,7 @@ impl WebArgs {
             quality: self.quality,
             planes: self.planes,
             resolution: self.grid,
+            deep_zoom: self.deep_zoom,
         }
     }
 }

@@ -249,7 +249,7 @@ fn check_in_openlime(browser: &Browser, cases: &[Case], out: &Path) {
 }
 
 /// relit's exports of each type it writes (ptm, hsh from display-referred fits; sh:9 in
-/// linear radiance as bilinear), 160×120, in OpenLIME. Measured: ptm 53.6/52.4 dB,
+/// linear radiance as bilinear; hsh in Deep Zoom tiles too), 160×120, in OpenLIME. Measured: ptm 53.6/52.4 dB,
 /// hsh 53.7/52.5 dB, bilinear 53.5/52.7 dB (the canvas against relit reading the same
 /// folder: JPEG decoders and the GPU's arithmetic).
 #[test]
@@ -265,10 +265,11 @@ fn openlime_shows_what_relit_relights_for_each_type_relit_writes() {
     };
     let capture = plane.capture(&hemisphere_fibonacci(30));
     let mut cases = Vec::new();
-    for (basis, space, kind) in [
-        ("ptm:6", MapSpace::Srgb, "ptm"),
-        ("hsh:9", MapSpace::Srgb, "hsh"),
-        ("sh:9", MapSpace::Linear, "bilinear"),
+    for (basis, space, kind, layout) in [
+        ("ptm:6", MapSpace::Srgb, "ptm", "image"),
+        ("hsh:9", MapSpace::Srgb, "hsh", "image"),
+        ("sh:9", MapSpace::Linear, "bilinear", "image"),
+        ("hsh:9", MapSpace::Srgb, "hsh", "deepzoom"),
     ] {
         let options = relit::fit::FitOptions {
             basis: relit::fit::BasisRequest::parse(basis).unwrap(),
@@ -277,14 +278,19 @@ fn openlime_shows_what_relit_relights_for_each_type_relit_writes() {
             ..Default::default()
         };
         let fitted = relit::fit::fit(&capture, &options, &relit::progress::Silent).unwrap();
-        let exr = d.join(format!("{kind}.exr"));
+        let name = format!("{kind}-{layout}");
+        let exr = d.join(format!("{name}.exr"));
         relit::codec::exr::write(&exr, &fitted.image, relit::storage::Precision::F32).unwrap();
-        relit(d, &["export-web", exr.to_str().unwrap(), kind]);
-        assert_eq!(info_json(&d.join(kind))["type"], kind);
+        let mut args = vec!["export-web", exr.to_str().unwrap(), &name];
+        if layout == "deepzoom" {
+            args.push("--deep-zoom");
+        }
+        relit(d, &args);
+        assert_eq!(info_json(&d.join(&name))["type"], kind);
         cases.push(Case {
-            name: kind.to_string(),
-            folder: d.join(kind),
-            layout: "image",
+            name: name.clone(),
+            folder: d.join(&name),
+            layout,
             size: (160, 120),
             floor: 48.0,
         });
