@@ -1260,21 +1260,54 @@ fn bilinear_planes(
         (0..planes).for_each(|p| project[p * dims + d] = column[p]);
     }
     let mut pixel_major = vec![0.0f32; n * planes];
-    pixel_major
-        .par_chunks_mut(planes)
-        .enumerate()
-        .for_each_init(
-            || vec![0.0; dims],
-            |f, (p, coords)| {
-                node_values(p, f);
-                for (q, v) in coords.iter_mut().enumerate() {
-                    let row = &project[q * dims..(q + 1) * dims];
-                    *v = (0..dims)
-                        .map(|d| row[d] * (f[d] - decoded_mean[d]))
-                        .sum::<f64>() as f32;
+    if linear {
+        pixel_major
+            .par_chunks_mut(planes)
+            .enumerate()
+            .for_each_init(
+                || vec![0.0; dims],
+                |f, (p, coords)| {
+                    node_values(p, f);
+                    for (q, v) in coords.iter_mut().enumerate() {
+                        let row = &project[q * dims..(q + 1) * dims];
+                        *v = (0..dims)
+                            .map(|d| row[d] * (f[d] - decoded_mean[d]))
+                            .sum::<f64>() as f32;
+                    }
+                },
+            );
+    } else {
+        // Display-referred maps are linear all the way to the planes: one `planes × 3k`
+        // matrix from a pixel's coefficients to its planes, instead of the nodes.
+        let mut fold = vec![0.0; planes * 3 * k];
+        let mut offset = vec![0.0; planes];
+        for q in 0..planes {
+            let row = &project[q * dims..(q + 1) * dims];
+            offset[q] = -(0..dims).map(|d| row[d] * decoded_mean[d]).sum::<f64>();
+            for node in 0..nodes {
+                for c in 0..3 {
+                    for i in 0..k {
+                        fold[(q * 3 + c) * k + i] += row[3 * node + c] * weights[node * k + i];
+                    }
                 }
-            },
-        );
+            }
+        }
+        pixel_major
+            .par_chunks_mut(planes)
+            .enumerate()
+            .for_each(|(p, coords)| {
+                for (q, v) in coords.iter_mut().enumerate() {
+                    let mut sum = offset[q];
+                    for c in 0..3 {
+                        let row = &fold[(q * 3 + c) * k..(q * 3 + c + 1) * k];
+                        for (i, m) in row.iter().enumerate() {
+                            sum += m * maps.data[(3 * i + c) * n + p] as f64;
+                        }
+                    }
+                    *v = sum as f32;
+                }
+            });
+    }
     let out: Vec<Vec<f32>> = (0..planes)
         .into_par_iter()
         .map(|q| {
