@@ -1335,11 +1335,15 @@ mod tests {
     use crate::light::{Light, LightRig};
     use crate::sphere::Vec3;
 
+    /// The π OpenLIME's shader code writes: the formulas below are its, not the maths'.
+    #[allow(clippy::approx_constant)]
+    const OPENLIME_PI: f64 = 3.1415;
+
     /// OpenLIME 1.2.6's hemispherical harmonics (`rti` shader's light weights), written
     /// out from its formulas: θ from +z clamped to π/2 − 0.15, φ = atan2(y, x), π taken
     /// as 3.1415.
     fn openlime_hsh(d: Vec3) -> [f64; 9] {
-        let pi = 3.1415f64;
+        let pi = OPENLIME_PI;
         let mut phi = d.y.atan2(d.x);
         if phi < 0.0 {
             phi += 2.0 * pi;
@@ -1362,7 +1366,7 @@ mod tests {
 
     /// OpenLIME's `sh` light weights, from its formulas.
     fn openlime_sh(d: Vec3) -> [f64; 9] {
-        let pi = 3.1415f64;
+        let pi = OPENLIME_PI;
         let (a, b) = (0.5 * (3.0 / pi).sqrt(), 0.5 * (15.0 / pi).sqrt());
         [
             0.5 / pi.sqrt(),
