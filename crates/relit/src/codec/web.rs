@@ -417,6 +417,27 @@ impl TileGrid {
         )
     }
 
+    /// The full-resolution image from every tile (`tile(x, y)` decodes one, naming
+    /// its source). The tiles are decoded first, each within the image decoder's memory
+    /// limits and checked against the grid, so the image is allocated only once real
+    /// tiles cover it, never from the header's size alone.
+    fn assemble(
+        &self,
+        mut tile: impl FnMut(usize, usize) -> Result<(image::RgbImage, String)>,
+    ) -> Result<Vec<u8>> {
+        let mut tiles = Vec::new();
+        for y in 0..self.rows {
+            for x in 0..self.columns {
+                tiles.push((x, y, tile(x, y)?));
+            }
+        }
+        let mut out = vec![0u8; 3 * self.width * self.height];
+        for (x, y, (decoded, source)) in tiles {
+            self.place(x, y, &decoded, &mut out, &source)?;
+        }
+        Ok(out)
+    }
+
     /// Copy tile `(x, y)`'s pixels (RGB, its own size checked) into `out`.
     fn place(
         &self,
@@ -507,17 +528,12 @@ fn deep_zoom(dzi: &Path, files: &Path, w: usize, h: usize) -> Result<Vec<u8>> {
         .filter_map(|e| e.ok()?.file_name().to_str()?.parse::<usize>().ok())
         .max()
         .ok_or_else(|| Error::parse(format!("{}: no levels", files.display())))?;
-    let mut out = vec![0u8; 3 * w * h];
-    for y in 0..grid.rows {
-        for x in 0..grid.columns {
-            let path = files.join(format!("{level}/{x}_{y}.{format}"));
-            let bytes = std::fs::read(&path).map_err(|e| Error::io(&path, "read the tile", e))?;
-            let source = path.display().to_string();
-            let tile = decode_tile(&bytes, grid.tile_size(x, y), &source)?;
-            grid.place(x, y, &tile, &mut out, &source)?;
-        }
-    }
-    Ok(out)
+    grid.assemble(|x, y| {
+        let path = files.join(format!("{level}/{x}_{y}.{format}"));
+        let bytes = std::fs::read(&path).map_err(|e| Error::io(&path, "read the tile", e))?;
+        let source = path.display().to_string();
+        Ok((decode_tile(&bytes, grid.tile_size(x, y), &source)?, source))
+    })
 }
 
 #[derive(Debug, Deserialize)]
@@ -608,17 +624,15 @@ impl Tarzoom {
     /// Plane image `image` (of `stride` per tile) at full resolution.
     fn assemble(&self, tzi: &Path, data: &[u8], image: usize) -> Result<Vec<u8>> {
         let grid = self.grid;
-        let mut out = vec![0u8; 3 * grid.width * grid.height];
-        for y in 0..grid.rows {
-            for x in 0..grid.columns {
-                let i = (self.first + y * grid.columns + x) * self.stride + image;
-                let (a, b) = (self.offsets[i] as usize, self.offsets[i + 1] as usize);
-                let source = format!("{} tile ({x}, {y}) image {image}", tzi.display());
-                let tile = decode_tile(&data[a..b], grid.tile_size(x, y), &source)?;
-                grid.place(x, y, &tile, &mut out, &source)?;
-            }
-        }
-        Ok(out)
+        grid.assemble(|x, y| {
+            let i = (self.first + y * grid.columns + x) * self.stride + image;
+            let (a, b) = (self.offsets[i] as usize, self.offsets[i + 1] as usize);
+            let source = format!("{} tile ({x}, {y}) image {image}", tzi.display());
+            Ok((
+                decode_tile(&data[a..b], grid.tile_size(x, y), &source)?,
+                source,
+            ))
+        })
     }
 }
 
