@@ -171,8 +171,8 @@ pub struct WebArgs {
     /// ptm:6 and hsh:9): principal components, a multiple of 3.
     #[arg(long, default_value_t = 18)]
     pub planes: usize,
-    /// Nodes per side of a `bilinear` web folder's light grid.
-    #[arg(long, default_value_t = 8)]
+    /// Nodes per side of a `bilinear` web folder's light grid (2 to 12; relight writes 8).
+    #[arg(long, default_value_t = 12)]
     pub grid: usize,
     /// Deep Zoom tiles (OpenLIME's `deepzoom` layout) instead of single images.
     #[arg(long)]

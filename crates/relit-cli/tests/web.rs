@@ -270,7 +270,7 @@ fn check_in_openlime(browser: &Browser, cases: &[Case], out: &Path) {
 /// Measured, the canvas against relit reading the same folder (JPEG decoders and the
 /// GPU's arithmetic): 51.5 to 53.7 dB for every type; against relit relighting the
 /// exported file (the export's 8-bit planes included): ptm 48.9/48.0 dB, hsh 48.7/48.0,
-/// sh 42.2/42.4, bilinear 40.2/37.2 (its 8×8 grid between nodes).
+/// sh 42.2/42.4, bilinear 43.4/41.6 (its 12×12 grid between nodes).
 #[test]
 fn openlime_shows_what_relit_relights_for_each_type_relit_writes() {
     let Some(browser) = browser() else {
@@ -313,7 +313,7 @@ fn openlime_shows_what_relit_relights_for_each_type_relit_writes() {
             layout,
             size: (160, 120),
             floor: 48.0,
-            original: Some((exr.clone(), if kind == "bilinear" { 33.0 } else { 39.0 })),
+            original: Some((exr.clone(), if kind == "bilinear" { 38.0 } else { 39.0 })),
         });
     }
     check_in_openlime(&browser, &cases, d);
