@@ -27,6 +27,16 @@ skip_log="$PWD/target/test-skips.txt"
 mkdir -p target && : >"$skip_log"
 export RELIT_SKIP_LOG="$skip_log"
 
+# The OpenLIME test (crates/relit-cli/tests/web.rs) drives Chromium from cargo test with
+# the viewer test's playwright-core: fetched first when npm can (best effort; without it
+# that test logs why it skips).
+if command -v npm >/dev/null 2>&1 && [ ! -d target/viewer-node/node_modules/playwright-core ]; then
+  mkdir -p target/viewer-node
+  (cd target/viewer-node && { [ -f package.json ] || echo '{"private":true}' >package.json; } &&
+    npm install --no-audit --no-fund --silent playwright-core >&2) ||
+    echo "npm could not install playwright-core: the OpenLIME test will skip" >&2
+fi
+
 # Release mode: the real-data tests fit whole captures and are 5-10x faster optimised.
 cargo test --workspace --release --locked "$@"
 

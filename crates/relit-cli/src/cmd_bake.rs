@@ -186,6 +186,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             )
             .map(|_| ())
         }
+        relit::codec::FileForm::Web => {
+            relit::codec::web::write(&args.output, &baked.image, &Default::default()).map(|_| ())
+        }
     }
     .with_context(|| format!("writing {}", args.output.display()))?;
     let bytes = std::fs::metadata(&args.output)

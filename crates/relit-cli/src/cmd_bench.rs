@@ -762,6 +762,11 @@ fn load_times(files: &[std::path::PathBuf], json: bool) -> anyhow::Result<()> {
                         Relighter::new(&image)?.relight_prepared(&light, 0.0)?
                     }
                 }
+                relit::codec::FileForm::Web => {
+                    path = "f32 planes (web folder)";
+                    let image = relit::codec::read(file)?;
+                    Relighter::new(&image)?.relight_prepared(&light, 0.0)?
+                }
             };
             black_box(&frame);
             times.push(start.elapsed().as_secs_f64());

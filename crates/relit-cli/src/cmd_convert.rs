@@ -1,5 +1,5 @@
-//! `relit convert`: between the lossless OpenEXR file, the compressed `.rlz` file and the
-//! RTI tools' `.ptm` and `.rti` files.
+//! `relit convert`: between the lossless OpenEXR file, the compressed `.rlz` file, the
+//! RTI tools' `.ptm` and `.rti` files and the relight/OpenLIME web folder.
 
 use crate::shared::{refuse_overwriting_inputs, CompressArgs};
 use anyhow::Context;
@@ -10,12 +10,15 @@ use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// A relightable file (EXR, .rlz, .ptm or .rti).
+    /// A relightable file (EXR, .rlz, .ptm, .rti or a web folder).
     pub input: PathBuf,
     /// The file to write: `.rlz` compresses, `.ptm` and `.rti` write the RTI tools'
-    /// files (re-expressed in their basis), any other name writes OpenEXR.
+    /// files (re-expressed in their basis), a folder (an existing one, or a name ending
+    /// in `/`) the relight/OpenLIME web format, any other name OpenEXR.
     #[arg(short, long)]
     pub output: PathBuf,
+    #[command(flatten)]
+    pub web: crate::shared::WebArgs,
     #[command(flatten)]
     pub compress: CompressArgs,
     /// The colour layout of a `.ptm` output: lrgb (one luminance polynomial × RGB, as
@@ -35,16 +38,26 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    refuse_overwriting_inputs(
-        std::slice::from_ref(&args.input),
-        &[Output::file(&args.output)],
-    )?;
+    let form = FileForm::for_output(&args.output);
+    let output = if form == FileForm::Web {
+        Output::folder(&args.output)
+    } else {
+        Output::file(&args.output)
+    };
+    refuse_overwriting_inputs(std::slice::from_ref(&args.input), &[output])?;
     let start = std::time::Instant::now();
     let mut image = codec::read(&args.input)?;
     crate::shared::apply_file_space(&args.input, &mut image, args.file_space)?;
     let (w, h) = (image.width(), image.height());
-    let form = FileForm::for_output(&args.output);
     let description = match form {
+        FileForm::Web => {
+            let summary = codec::web::write(&args.output, &image, &args.web.options())
+                .with_context(|| format!("writing {}", args.output.display()))?;
+            format!(
+                "web folder, {} {} with {} planes",
+                summary.kind, summary.colorspace, summary.planes
+            )
+        }
         FileForm::Compressed => {
             let settings = args.compress.settings();
             codec::packed::write(&args.output, &image, &settings)
@@ -64,8 +77,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     };
     let seconds = start.elapsed().as_secs_f64();
-    let bytes_in = std::fs::metadata(&args.input)?.len();
-    let bytes_out = std::fs::metadata(&args.output)?.len();
+    let bytes_in = crate::shared::size_on_disk(&args.input)?;
+    let bytes_out = crate::shared::size_on_disk(&args.output)?;
     let written = codec::read(&args.output)?;
     let basis = written.meta.basis.build()?;
     let bits_per_pixel = |b: u64| 8.0 * b as f64 / (w * h) as f64;

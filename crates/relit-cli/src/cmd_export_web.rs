@@ -1,35 +1,71 @@
-//! `relit export-web`: the viewer and a file's data as a static web folder.
+//! `relit export-web`: a relightable file as a static web folder, by default in the
+//! relight/OpenLIME web format that museum RTI viewers read (`relit::codec::web`), or
+//! with relit's own viewer.
 
-use crate::shared::refuse_overwriting_inputs;
+use crate::shared::{refuse_overwriting_inputs, WebArgs};
+use anyhow::{bail, Context};
 use relit::fsutil::Output;
 use relit::storage::Precision;
 use relit_viewer::{export_web, BundleOptions, PRECISIONS};
 use std::path::PathBuf;
 
+/// The viewer an export is for.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Viewer {
+    /// The relight/OpenLIME web format: `info.json` and JPEG coefficient planes.
+    Openlime,
+    /// relit's own viewer, its page and assets beside the data.
+    Relit,
+}
+
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// A relightable EXR written by `relit fit`.
+    /// A relightable file (EXR, .rlz or a web folder).
     pub file: PathBuf,
-    /// Output folder (created; an earlier export there is replaced).
+    /// Output folder (created; files of an earlier export there are replaced).
     pub dir: PathBuf,
-    /// Precision of the coefficient layers: u8 (8-bit PNG, scale/offset per plane) or
-    /// f16 (half floats).
-    #[arg(long, default_value = "u8")]
-    pub storage: Precision,
-    /// Lat-long environment maps (.hdr/.exr) offered as environment lights. Repeatable.
+    /// Which viewer the folder is for.
+    #[arg(long, value_enum, default_value = "openlime")]
+    pub viewer: Viewer,
+    #[command(flatten)]
+    pub web: WebArgs,
+    /// relit's viewer only: precision of the coefficient layers, u8 (8-bit PNG,
+    /// scale/offset per plane) or f16 (half floats). Default u8.
+    #[arg(long)]
+    pub storage: Option<Precision>,
+    /// relit's viewer only: lat-long environment maps (.hdr/.exr) offered as
+    /// environment lights. Repeatable.
     #[arg(long = "env")]
     pub envs: Vec<PathBuf>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    args.storage
-        .require(&PRECISIONS, "--storage (the viewer)")?;
-    // An earlier export in the folder is replaced whole, so nothing it holds may be read.
     let mut inputs = vec![args.file.clone()];
     inputs.extend(args.envs.iter().cloned());
     refuse_overwriting_inputs(&inputs, &[Output::folder(&args.dir)])?;
+    if args.viewer == Viewer::Openlime {
+        if args.storage.is_some() || !args.envs.is_empty() {
+            bail!("--storage and --env are for relit's viewer: add --viewer relit");
+        }
+        let image = relit::codec::read(&args.file)?;
+        let summary = relit::codec::web::write(&args.dir, &image, &args.web.options())
+            .with_context(|| format!("writing {}", args.dir.display()))?;
+        println!(
+            "wrote {} (relight/OpenLIME web format: {} {}, {} planes, {} files, {:.1} MiB); open it with OpenLIME's `rti` layer, layout `{}`",
+            args.dir.display(),
+            summary.kind,
+            summary.colorspace,
+            summary.planes,
+            summary.files,
+            summary.bytes as f64 / (1024.0 * 1024.0),
+            if args.web.deep_zoom { "deepzoom" } else { "image" }
+        );
+        return Ok(());
+    }
+    let storage = args.storage.unwrap_or(Precision::U8);
+    storage.require(&PRECISIONS, "--storage (the viewer)")?;
     let options = BundleOptions {
-        precision: args.storage,
+        precision: storage,
         environments: args.envs.clone(),
         source_name: String::new(),
     };

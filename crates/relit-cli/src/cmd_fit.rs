@@ -101,6 +101,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             };
             relit::codec::packed::write(&args.output, &output.image, &settings).map(|_| ())
         }
+        relit::codec::FileForm::Web => {
+            relit::codec::web::write(&args.output, &output.image, &Default::default()).map(|_| ())
+        }
     }
     .with_context(|| format!("writing {}", args.output.display()))?;
     let bytes = std::fs::metadata(&args.output)

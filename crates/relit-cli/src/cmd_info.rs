@@ -15,8 +15,9 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let image = codec::read(&args.file)?;
     let meta = &image.meta;
-    let bytes = std::fs::metadata(&args.file)?.len();
+    let bytes = crate::shared::size_on_disk(&args.file)?;
     let storage = match FileForm::of(&args.file)? {
+        FileForm::Web => codec::web::describe(&args.file)?,
         FileForm::Exr => exr::read_metadata_summary(&args.file)?
             .into_iter()
             .find(|(k, _)| k == "relit.storage")

@@ -161,6 +161,48 @@ impl CompressArgs {
     }
 }
 
+/// How a relight/OpenLIME web folder is written (`relit::codec::web`).
+#[derive(Args, Debug, Clone)]
+pub struct WebArgs {
+    /// JPEG quality of a web folder's plane images.
+    #[arg(long, default_value_t = 95, value_parser = clap::value_parser!(u8).range(1..=100))]
+    pub quality: u8,
+    /// Planes of a web folder written as `bilinear` (bases other than display-referred
+    /// ptm:6 and hsh:9): principal components, a multiple of 3.
+    #[arg(long, default_value_t = 18)]
+    pub planes: usize,
+    /// Nodes per side of a `bilinear` web folder's light grid (2 to 12; relight writes 8).
+    #[arg(long, default_value_t = 12)]
+    pub grid: usize,
+    /// Deep Zoom tiles (OpenLIME's `deepzoom` layout) instead of single images.
+    #[arg(long)]
+    pub deep_zoom: bool,
+}
+
+impl WebArgs {
+    pub fn options(&self) -> relit::codec::web::WriteOptions {
+        relit::codec::web::WriteOptions {
+            quality: self.quality,
+            planes: self.planes,
+            resolution: self.grid,
+            deep_zoom: self.deep_zoom,
+        }
+    }
+}
+
+/// Bytes of a file, or of every file in a folder (one level deep and below).
+pub fn size_on_disk(path: &Path) -> std::io::Result<u64> {
+    let meta = std::fs::metadata(path)?;
+    if !meta.is_dir() {
+        return Ok(meta.len());
+    }
+    let mut total = 0;
+    for entry in std::fs::read_dir(path)? {
+        total += size_on_disk(&entry?.path())?;
+    }
+    Ok(total)
+}
+
 /// Progress bars on standard error (hidden when it is not a terminal or when quiet).
 pub struct Bars {
     bar: Mutex<Option<ProgressBar>>,

@@ -79,7 +79,7 @@ fn convert_goes_both_ways_and_every_reader_reads_it() {
         "{info}"
     );
     assert_eq!(info["coefficients"], 4);
-    relit(d, &["export-web", "small.rlz", "site"]);
+    relit(d, &["export-web", "small.rlz", "site", "--viewer", "relit"]);
     assert!(d.join("site/index.html").exists());
 }
 

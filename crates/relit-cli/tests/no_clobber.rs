@@ -799,6 +799,8 @@ fn a_failing_command_leaves_no_partial_output() {
             "export-web",
             "scene.exr",
             "site",
+            "--viewer",
+            "relit",
             "--env",
             "env/missing.exr",
         ],

@@ -833,7 +833,7 @@ try {
   await section('export-web', async () => {
     // `relit export-web` (8-bit quantised planes) hosted by a plain static file server.
     const site = path.join(work, 'site');
-    run('export-web', path.join(work, 'pano.exr'), site, '--storage', 'u8', ...ENVS);
+    run('export-web', path.join(work, 'pano.exr'), site, '--viewer', 'relit', '--storage', 'u8', ...ENVS);
     const types = { html: 'text/html', js: 'text/javascript', css: 'text/css', json: 'application/json', png: 'image/png' };
     const stat = http.createServer((req, res) => {
       const rel = decodeURIComponent(new URL(req.url, 'http://x').pathname).replace(/^\/+/, '') || 'index.html';

@@ -13,7 +13,17 @@
 //! gets on average, so measured nodes keep their values). Light vectors below the
 //! horizon are taken at the horizon (`(x, y)` normalised).
 //!
-//! Stored: `G` and the `K` grids of node values.
+//! Stored: `G` and the `K` grids of node values, and `map` when the grid is not the
+//! square one.
+//!
+//! **The octahedral grid** (`"map": "octahedral"`, read from the relight/OpenLIME web
+//! format, [`crate::codec::web`]): the same `G × G` nodes over `(u, v) ∈ [−1, 1]²` with
+//! `u = (x + y)/s`, `v = (y − x)/s`, `s = |x| + |y| + |z|`: the upper half of the
+//! octahedral map turned by 45°, which fills the square exactly (the corners are the
+//! horizon at ±x, ±y). Its node `(i, j)` is the light vector `((u − v)/2, (u + v)/2,
+//! 1 − max(|u|, |v|))` (normalised). Nothing fits this map; it exists so that the web
+//! format's functions are relit functions exactly. Below the horizon `z` is taken as 0,
+//! which is the horizon direction on this map too.
 
 use super::pca::{self, PcaSpace};
 use super::{Basis, BasisSpec, BuildContext, Domain, Family};
@@ -77,7 +87,7 @@ impl Family for BilinearFamily {
         let c = g * g;
         let mut a = vec![0.0; n * c];
         for (j, d) in dirs.iter().enumerate() {
-            let (nodes, w) = corners(g, *d);
+            let (nodes, w) = corners(g, *d, GridMap::Square);
             for (&node, &wt) in nodes.iter().zip(&w) {
                 a[j * c + node] += wt;
             }
@@ -105,7 +115,11 @@ impl Family for BilinearFamily {
         let t = pca::least_squares_operator(&a, n, c, &laplacian)?;
         let u = pca::principal_directions(&samples, k, space)?;
         let values = pca::component_parameters(&t, c, &u, n);
-        Ok(Box::new(Bilinear { grid: g, values }))
+        Ok(Box::new(Bilinear {
+            grid: g,
+            values,
+            map: GridMap::Square,
+        }))
     }
 
     fn rebuild(
@@ -124,23 +138,85 @@ impl Family for BilinearFamily {
         if values.is_empty() || values.len() % c != 0 || values.len() / c > 64 {
             return Err(bad("`values` must hold K × grid² numbers, K ≤ 64"));
         }
-        if params.len() != 2 {
-            return Err(bad("has only `grid` and `values`"));
+        let map = match params.get("map") {
+            None => GridMap::Square,
+            Some(v) => match v.as_str() {
+                Some("square") => GridMap::Square,
+                Some("octahedral") => GridMap::Octahedral,
+                _ => return Err(bad("`map` is `square` or `octahedral`")),
+            },
+        };
+        if params.len() != 2 + params.contains_key("map") as usize {
+            return Err(bad("has only `grid`, `values` and `map`"));
         }
-        Ok(Box::new(Bilinear { grid: g, values }))
+        Ok(Box::new(Bilinear {
+            grid: g,
+            values,
+            map,
+        }))
     }
 }
 
-/// The four grid nodes around `dir`'s projection and their bilinear weights.
-fn corners(g: usize, dir: Vec3) -> ([usize; 4], [f64; 4]) {
-    let (mut x, mut y) = (dir.x, dir.y);
-    if dir.z < 0.0 {
-        let r = (x * x + y * y).sqrt();
-        if r > 0.0 {
-            x /= r;
-            y /= r;
+/// How a light vector lands on the grid's square (see the module docs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GridMap {
+    /// `(x, y)` of the light vector (the horizon normalised onto the unit circle).
+    Square,
+    /// relight's octahedral diamond, turned 45° to fill the square.
+    Octahedral,
+}
+
+impl GridMap {
+    /// `(u, v) ∈ [−1, 1]²` of the unit vector `dir`.
+    fn uv(self, dir: Vec3) -> (f64, f64) {
+        match self {
+            GridMap::Square => {
+                let (mut x, mut y) = (dir.x, dir.y);
+                if dir.z < 0.0 {
+                    let r = (x * x + y * y).sqrt();
+                    if r > 0.0 {
+                        x /= r;
+                        y /= r;
+                    }
+                }
+                (x, y)
+            }
+            GridMap::Octahedral => {
+                let s = dir.x.abs() + dir.y.abs() + dir.z.max(0.0);
+                if s <= 0.0 {
+                    return (0.0, 0.0);
+                }
+                ((dir.x + dir.y) / s, (dir.y - dir.x) / s)
+            }
         }
     }
+
+    /// The unit light vector of grid node `(i, j)` of a `g × g` grid.
+    pub fn node_direction(self, g: usize, i: usize, j: usize) -> Vec3 {
+        let at = |n: usize| 2.0 * n as f64 / (g - 1) as f64 - 1.0;
+        let (u, v) = (at(i), at(j));
+        let dir = match self {
+            GridMap::Square => Vec3::new(u, v, (1.0 - u * u - v * v).max(0.0).sqrt()),
+            GridMap::Octahedral => {
+                Vec3::new((u - v) / 2.0, (u + v) / 2.0, 1.0 - u.abs().max(v.abs()))
+            }
+        };
+        dir.normalized().unwrap_or(Vec3::new(0.0, 0.0, 1.0))
+    }
+}
+
+/// `K` grids of `g × g` node values (`K × g²`, node `(i, j)` at `j·g + i`) on `map`.
+pub fn grid_basis(g: usize, values: Vec<f64>, map: GridMap) -> Result<Box<dyn Basis>> {
+    let mut params = serde_json::json!({ "grid": g, "values": values });
+    if map == GridMap::Octahedral {
+        params["map"] = "octahedral".into();
+    }
+    BasisSpec::new("bilinear", params).build()
+}
+
+/// The four grid nodes around `dir`'s place on the grid and their bilinear weights.
+fn corners(g: usize, dir: Vec3, map: GridMap) -> ([usize; 4], [f64; 4]) {
+    let (x, y) = map.uv(dir);
     let scale = (g - 1) as f64 / 2.0;
     let (fx, fy) = (
         ((x + 1.0) * scale).clamp(0.0, (g - 1) as f64),
@@ -169,14 +245,16 @@ pub struct Bilinear {
     grid: usize,
     /// `K × G²`, row-major; node `(x, y)` at `y·G + x`.
     values: Vec<f64>,
+    map: GridMap,
 }
 
 impl Basis for Bilinear {
     fn spec(&self) -> BasisSpec {
-        BasisSpec::new(
-            "bilinear",
-            serde_json::json!({ "grid": self.grid, "values": self.values }),
-        )
+        let mut params = serde_json::json!({ "grid": self.grid, "values": self.values });
+        if self.map == GridMap::Octahedral {
+            params["map"] = "octahedral".into();
+        }
+        BasisSpec::new("bilinear", params)
     }
 
     fn family(&self) -> &'static str {
@@ -193,7 +271,7 @@ impl Basis for Bilinear {
 
     fn eval(&self, dir: Vec3, out: &mut [f64]) {
         let c = self.grid * self.grid;
-        let (nodes, w) = corners(self.grid, dir);
+        let (nodes, w) = corners(self.grid, dir, self.map);
         for (o, grid) in out[..self.len()]
             .iter_mut()
             .zip(self.values.chunks_exact(c))
@@ -203,6 +281,9 @@ impl Basis for Bilinear {
     }
 
     fn planar_grid(&self) -> Option<(usize, Vec<f64>)> {
+        if self.map != GridMap::Square {
+            return None;
+        }
         let (k, c) = (self.len(), self.grid * self.grid);
         let nodes = (0..c)
             .flat_map(|node| (0..k).map(move |i| self.values[i * c + node]))
@@ -270,5 +351,37 @@ mod tests {
         assert!((got - target(d)).abs() < 2e-3, "{got} vs {}", target(d));
         let again = basis.spec().build().unwrap();
         assert_eq!(again.values(d), basis.values(d));
+    }
+
+    /// Each node of the octahedral grid sits at its own direction (a one-hot grid is 1
+    /// there), the map fills the square, and light vectors below the horizon take the
+    /// horizon's value.
+    #[test]
+    fn the_octahedral_grid_puts_each_node_at_its_direction() {
+        let g = 5;
+        let c = g * g;
+        let mut values = vec![0.0; c * c];
+        (0..c).for_each(|n| values[n * c + n] = 1.0);
+        let basis = grid_basis(g, values, GridMap::Octahedral).unwrap();
+        assert_eq!(basis.planar_grid(), None);
+        for j in 0..g {
+            for i in 0..g {
+                let d = GridMap::Octahedral.node_direction(g, i, j);
+                assert!(d.z >= 0.0);
+                let w = basis.values(d);
+                assert!(
+                    (w[j * g + i] - 1.0).abs() < 1e-9,
+                    "node ({i}, {j}) at {d:?}"
+                );
+            }
+        }
+        // (u, v) = (1, 1) is +y on the horizon; (1, −1) is +x.
+        assert!((GridMap::Octahedral.node_direction(g, g - 1, g - 1).y - 1.0).abs() < 1e-12);
+        assert!((GridMap::Octahedral.node_direction(g, g - 1, 0).x - 1.0).abs() < 1e-12);
+        let below = Vec3::new(0.6, 0.3, -0.5).normalized().unwrap();
+        let horizon = Vec3::new(0.6, 0.3, 0.0).normalized().unwrap();
+        assert_eq!(basis.values(below), basis.values(horizon));
+        let again = basis.spec().build().unwrap();
+        assert_eq!(again.values(below), basis.values(below));
     }
 }

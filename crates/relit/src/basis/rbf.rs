@@ -12,6 +12,14 @@
 //! light (below the horizon of a dome) the functions fall to zero.
 //!
 //! Stored: the centres, `σ`, and the `K × C` kernel weights of each function.
+//!
+//! **relight's kernel** (`"kernel": "relight"`, read from the relight/OpenLIME web
+//! format, [`crate::codec::web`]; nothing fits it): the centres' Gaussians of the
+//! Euclidean distance `d_c = |ω − μ_c|`, of a width that follows the light,
+//! normalised to sum to one: `φ_c(ω) = exp(−r d_c²) / Σ_c′ exp(−r d_c′²)` with
+//! `r = α / m`, `m = Σ d_c e^{−β d_c} / Σ e^{−β d_c}` a soft nearest distance (OpenLIME:
+//! `α = 8`, `β = 2`). The centres are the file's light vectors as written (relight
+//! rounds them to three decimals; OpenLIME measures from those). `σ` is unused.
 
 use super::pca::{self, PcaSpace};
 use super::{Basis, BasisSpec, BuildContext, Domain, Family};
@@ -88,6 +96,7 @@ impl Family for RbfFamily {
             centres,
             sigma,
             weights,
+            kernel: Kernel::Gaussian,
         }))
     }
 
@@ -105,7 +114,13 @@ impl Family for RbfFamily {
                 let a: [f64; 3] =
                     serde_json::from_value(v.clone()).map_err(|_| bad("a bad centre"))?;
                 let c = Vec3::from(a);
-                if (c.length() - 1.0).abs() > 1e-9 {
+                // relight's centres are unit vectors rounded to three decimals.
+                let slack = if params.contains_key("kernel") {
+                    0.01
+                } else {
+                    1e-9
+                };
+                if !(c.length() - 1.0).abs().le(&slack) {
                     return Err(bad("a centre that is not a unit vector"));
                 }
                 Ok(c)
@@ -121,13 +136,37 @@ impl Family for RbfFamily {
         if c == 0 || weights.is_empty() || weights.len() % c != 0 || weights.len() / c > 64 {
             return Err(bad("`weights` must hold K × centres values, K ≤ 64"));
         }
-        if params.len() != 3 {
-            return Err(bad("has only `centres`, `sigma` and `weights`"));
+        let kernel = match params.get("kernel").map(|v| v.as_str()) {
+            None => Kernel::Gaussian,
+            Some(Some("relight")) => {
+                let number = |key: &str| {
+                    params
+                        .get(key)
+                        .and_then(|v| v.as_f64())
+                        .filter(|v| v.is_finite() && *v > 0.0)
+                        .ok_or_else(|| bad(&format!("relight's kernel needs a positive `{key}`")))
+                };
+                Kernel::Relight {
+                    alpha: number("alpha")?,
+                    beta: number("beta")?,
+                }
+            }
+            Some(_) => return Err(bad("`kernel` is `relight` or absent")),
+        };
+        let expected = match kernel {
+            Kernel::Gaussian => 3,
+            Kernel::Relight { .. } => 6,
+        };
+        if params.len() != expected {
+            return Err(bad(
+                "has only `centres`, `sigma` and `weights` (and `kernel`, `alpha`, `beta`)",
+            ));
         }
         Ok(Box::new(Rbf {
             centres,
             sigma,
             weights,
+            kernel,
         }))
     }
 }
@@ -181,6 +220,15 @@ pub(super) fn mean_nearest_angle(dirs: &[Vec3]) -> f64 {
     (total / dirs.len() as f64).max(1e-3)
 }
 
+/// How the centres' kernels are shaped (see the module docs).
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Kernel {
+    /// `exp(−(1 − ω·μ)/σ²)`.
+    Gaussian,
+    /// relight's normalised Gaussians of a width that follows the light.
+    Relight { alpha: f64, beta: f64 },
+}
+
 /// Gaussian RBF functions: `b_k(ω) = Σ_c weights[k][c] φ(ω, centre_c)`.
 #[derive(Clone, Debug)]
 pub struct Rbf {
@@ -188,18 +236,66 @@ pub struct Rbf {
     sigma: f64,
     /// `K × C`, row-major.
     weights: Vec<f64>,
+    kernel: Kernel,
+}
+
+/// relight's kernel values at `dir` for every centre (see the module docs).
+fn relight_kernels(centres: &[Vec3], dir: Vec3, alpha: f64, beta: f64, out: &mut Vec<f64>) {
+    out.clear();
+    out.extend(centres.iter().map(|c| (dir - *c).length()));
+    let (mut num, mut den) = (0.0, 0.0);
+    for &d in out.iter() {
+        let e = (-beta * d).exp();
+        num += d * e;
+        den += e;
+    }
+    let r = alpha / (num / den).max(1e-12);
+    // Exponents relative to the largest, so that no light far from every centre
+    // underflows them all.
+    let top = out.iter().fold(f64::INFINITY, |m, &d| m.min(d));
+    let mut total = 0.0;
+    for d in out.iter_mut() {
+        *d = (-r * (*d * *d - top * top)).exp();
+        total += *d;
+    }
+    out.iter_mut().for_each(|v| *v /= total);
+}
+
+/// An rbf basis with relight's kernel over `centres` (light vectors as the file gives
+/// them): `weights` is `K × centres`.
+pub fn relight_rbf(
+    centres: Vec<Vec3>,
+    weights: Vec<f64>,
+    alpha: f64,
+    beta: f64,
+) -> Result<Box<dyn Basis>> {
+    BasisSpec::new(
+        "rbf",
+        serde_json::json!({
+            "centres": centres.iter().map(|c| [c.x, c.y, c.z]).collect::<Vec<_>>(),
+            "sigma": 1.0,
+            "weights": weights,
+            "kernel": "relight",
+            "alpha": alpha,
+            "beta": beta,
+        }),
+    )
+    .build()
 }
 
 impl Basis for Rbf {
     fn spec(&self) -> BasisSpec {
-        BasisSpec::new(
-            "rbf",
-            serde_json::json!({
-                "centres": self.centres.iter().map(|c| [c.x, c.y, c.z]).collect::<Vec<_>>(),
-                "sigma": self.sigma,
-                "weights": self.weights,
-            }),
-        )
+        let mut params = serde_json::json!({
+            "centres": self.centres.iter().map(|c| [c.x, c.y, c.z]).collect::<Vec<_>>(),
+            "sigma": self.sigma,
+            "weights": self.weights,
+        });
+        if let Kernel::Relight { alpha, beta } = self.kernel {
+            params["kernel"] = "relight".into();
+            params["alpha"] = alpha.into();
+            params["beta"] = beta.into();
+        }
+        BasisSpec::new("rbf", params)
     }
 
     fn family(&self) -> &'static str {
@@ -222,6 +318,14 @@ impl Basis for Rbf {
         let c = self.centres.len();
         let k = self.len();
         out[..k].fill(0.0);
+        if let Kernel::Relight { alpha, beta } = self.kernel {
+            let mut phi = Vec::with_capacity(c);
+            relight_kernels(&self.centres, dir, alpha, beta, &mut phi);
+            for (o, row) in out[..k].iter_mut().zip(self.weights.chunks_exact(c)) {
+                *o = row.iter().zip(&phi).map(|(a, b)| a * b).sum();
+            }
+            return;
+        }
         for (i, centre) in self.centres.iter().enumerate() {
             let v = kernel(dir, *centre, self.sigma);
             if v < 1e-12 {

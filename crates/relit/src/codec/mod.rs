@@ -7,9 +7,12 @@
 //!
 //! * The RTI tools' interchange files: HP's `.ptm` ([`ptm`]) and HSH `.rti` ([`rti`]),
 //!   display-referred and 8-bit, each with its one basis.
+//! * The relight/OpenLIME web format ([`web`]): a folder with `info.json` and 8-bit
+//!   plane images, what museums publish RTIs in.
 //!
-//! [`read`] opens any of them (by the file's first bytes, not its name), so every
-//! command that reads a relightable file reads them all.
+//! [`read`] opens any of them (a folder holding `info.json` is the web format, a file is
+//! told by its first bytes, not its name), so every command that reads a relightable
+//! file reads all of them.
 
 pub mod exr;
 mod legacy;
@@ -19,6 +22,7 @@ mod reexpress;
 pub mod rti;
 
 pub use reexpress::reexpress;
+pub mod web;
 
 use crate::maps::RelightableImage;
 use crate::storage::{CompactPlanes, Precision};
@@ -34,13 +38,18 @@ pub enum FileForm {
     Ptm,
     /// An HSH `.rti` file.
     Rti,
+    /// The relight/OpenLIME web format (a folder).
+    Web,
 }
 
 impl FileForm {
     /// The form of the file at `path`, from its first bytes.
     pub fn of(path: &Path) -> Result<FileForm> {
         use std::io::Read;
-        // First: a missing or unreadable file gets its clear message here.
+        if web::is_web(path) {
+            return Ok(FileForm::Web);
+        }
+        // A missing or unreadable file gets its clear message here.
         if packed::is_packed(path)? {
             return Ok(FileForm::Compressed);
         }
@@ -58,9 +67,13 @@ impl FileForm {
         })
     }
 
-    /// The form an output path asks for: `.rlz` is compressed, `.ptm` and `.rti` the
-    /// RTI tools' files, anything else EXR.
+    /// The form an output path asks for: a folder (an existing one, or a path ending in
+    /// `/`) is the web format, `.rlz` compressed, `.ptm` and `.rti` the RTI tools' files,
+    /// anything else EXR.
     pub fn for_output(path: &Path) -> FileForm {
+        if path.is_dir() || path.as_os_str().to_string_lossy().ends_with(['/', '\\']) {
+            return FileForm::Web;
+        }
         match path.extension().and_then(|e| e.to_str()) {
             Some(e) if e.eq_ignore_ascii_case("rlz") => FileForm::Compressed,
             Some(e) if e.eq_ignore_ascii_case("ptm") => FileForm::Ptm,
@@ -94,7 +107,7 @@ pub fn write_interchange(
             rti::write(path, image)?;
             Ok("HSH .rti".into())
         }
-        FileForm::Exr | FileForm::Compressed => Err(crate::Error::invalid(
+        FileForm::Exr | FileForm::Compressed | FileForm::Web => Err(crate::Error::invalid(
             "write_interchange writes .ptm and .rti files only",
         )),
     }
@@ -107,6 +120,7 @@ pub fn read(path: &Path) -> Result<RelightableImage> {
         FileForm::Compressed => packed::read(path),
         FileForm::Ptm => ptm::read(path),
         FileForm::Rti => rti::read(path),
+        FileForm::Web => web::read(path),
     }
 }
 
@@ -118,7 +132,7 @@ pub fn read_compact(
 ) -> Result<(RelightableImage, CompactPlanes)> {
     match FileForm::of(path)? {
         FileForm::Exr => exr::read_compact(path, precision),
-        FileForm::Compressed | FileForm::Ptm | FileForm::Rti => {
+        FileForm::Compressed | FileForm::Ptm | FileForm::Rti | FileForm::Web => {
             let mut image = read(path)?;
             let planes = CompactPlanes::from_maps(&image.maps, precision)?;
             image.maps.data = Vec::new();
