@@ -2,7 +2,6 @@
 
 use crate::shared::{mib, refuse_overwriting_inputs, scene_inputs, Bars, CompressArgs};
 use anyhow::Context;
-use relit::codec::exr;
 use relit::envmap::Window;
 use relit::fsutil::Output;
 use relit::storage::Precision;
@@ -171,25 +170,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let bars = Bars::new(args.quiet || args.json);
     let baked = bake(&scene, &camera, &options, &bars)?;
-    match relit::codec::FileForm::for_output(&args.output) {
-        relit::codec::FileForm::Exr => exr::write(&args.output, &baked.image, args.storage),
-        relit::codec::FileForm::Compressed => {
-            relit::codec::packed::write(&args.output, &baked.image, &args.compress.settings())
-                .map(|_| ())
-        }
-        form @ (relit::codec::FileForm::Ptm | relit::codec::FileForm::Rti) => {
-            relit::codec::write_interchange(
-                &args.output,
-                &baked.image,
-                form,
-                relit::codec::ptm::PtmFormat::Lrgb,
-            )
-            .map(|_| ())
-        }
-        relit::codec::FileForm::Web => {
-            relit::codec::web::write(&args.output, &baked.image, &Default::default()).map(|_| ())
-        }
-    }
+    relit::codec::write(
+        &args.output,
+        &baked.image,
+        &relit::codec::WriteOptions {
+            storage: args.storage,
+            compress: args.compress.settings(),
+            ..Default::default()
+        },
+    )
     .with_context(|| format!("writing {}", args.output.display()))?;
     let bytes = std::fs::metadata(&args.output)
         .map(|m| m.len())

@@ -3,7 +3,6 @@
 use crate::shared::{mib, refuse_overwriting_inputs, Bars, CompressArgs, FitArgs};
 use anyhow::Context;
 use relit::capture::Capture;
-use relit::codec::exr;
 use relit::fsutil::Output;
 use relit::storage::Precision;
 use std::path::PathBuf;
@@ -66,7 +65,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let bars = Bars::new(args.quiet || args.json);
     let output = relit::fit::fit(&capture, &options, &bars)?;
     match relit::codec::FileForm::for_output(&args.output) {
-        relit::codec::FileForm::Exr => exr::write(&args.output, &output.image, args.storage),
         relit::codec::FileForm::Compressed if args.budget.is_some() => {
             let budget = args.budget.unwrap_or_default();
             relit::compress::budget::choose(&output.image, &capture, budget, &bars).and_then(
@@ -85,25 +83,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 },
             )
         }
-        form @ (relit::codec::FileForm::Ptm | relit::codec::FileForm::Rti) => {
-            relit::codec::write_interchange(
-                &args.output,
-                &output.image,
-                form,
-                relit::codec::ptm::PtmFormat::Lrgb,
-            )
-            .map(|_| ())
-        }
-        relit::codec::FileForm::Compressed => {
-            let settings = relit::compress::Settings {
-                directions: Some(capture.directions()),
-                ..args.compress.settings()
-            };
-            relit::codec::packed::write(&args.output, &output.image, &settings).map(|_| ())
-        }
-        relit::codec::FileForm::Web => {
-            relit::codec::web::write(&args.output, &output.image, &Default::default()).map(|_| ())
-        }
+        _ => relit::codec::write(
+            &args.output,
+            &output.image,
+            &relit::codec::WriteOptions {
+                storage: args.storage,
+                compress: relit::compress::Settings {
+                    directions: Some(capture.directions()),
+                    ..args.compress.settings()
+                },
+                ..Default::default()
+            },
+        ),
     }
     .with_context(|| format!("writing {}", args.output.display()))?;
     let bytes = std::fs::metadata(&args.output)

@@ -83,6 +83,42 @@ impl FileForm {
     }
 }
 
+/// How [`write`] stores a relightable image, per form (each form reads its part).
+#[derive(Clone, Debug)]
+pub struct WriteOptions {
+    /// OpenEXR: the maps' precision (f32 or f16).
+    pub storage: Precision,
+    /// `.rlz`: the compression settings.
+    pub compress: crate::compress::Settings,
+    /// `.ptm`: RGB or LRGB.
+    pub ptm_format: ptm::PtmFormat,
+    /// Web folders.
+    pub web: web::WriteOptions,
+}
+
+impl Default for WriteOptions {
+    fn default() -> Self {
+        WriteOptions {
+            storage: Precision::F16,
+            compress: Default::default(),
+            ptm_format: ptm::PtmFormat::Lrgb,
+            web: Default::default(),
+        }
+    }
+}
+
+/// Write `image` to `path` in the form its name asks for ([`FileForm::for_output`]).
+pub fn write(path: &Path, image: &RelightableImage, options: &WriteOptions) -> Result<()> {
+    match FileForm::for_output(path) {
+        FileForm::Exr => exr::write(path, image, options.storage),
+        FileForm::Compressed => packed::write(path, image, &options.compress).map(|_| ()),
+        form @ (FileForm::Ptm | FileForm::Rti) => {
+            write_interchange(path, image, form, options.ptm_format).map(|_| ())
+        }
+        FileForm::Web => web::write(path, image, &options.web).map(|_| ()),
+    }
+}
+
 /// Write `image` as one of the RTI tools' files (`form` [`FileForm::Ptm`] or
 /// [`FileForm::Rti`]; a `.ptm` in `ptm_format`), re-expressed in that file's basis.
 /// Returns a short description of what was written.
