@@ -17,7 +17,7 @@
 //! square one.
 //!
 //! **The octahedral grid** (`"map": "octahedral"`, read from the relight/OpenLIME web
-//! format, [`crate::codec::web`]): the same `G × G` nodes over `(u, v) ∈ [−1, 1]²` with
+//! format by `codec/web.rs`): the same `G × G` nodes over `(u, v) ∈ [−1, 1]²` with
 //! `u = (x + y)/s`, `v = (y − x)/s`, `s = |x| + |y| + |z|`: the upper half of the
 //! octahedral map turned by 45°, which fills the square exactly (the corners are the
 //! horizon at ±x, ±y). Its node `(i, j)` is the light vector `((u − v)/2, (u + v)/2,

@@ -14,7 +14,7 @@
 //! Stored: the centres, `σ`, and the `K × C` kernel weights of each function.
 //!
 //! **relight's kernel** (`"kernel": "relight"`, read from the relight/OpenLIME web
-//! format, [`crate::codec::web`]; nothing fits it): the centres' Gaussians of the
+//! format by `codec/web.rs`; nothing fits it): the centres' Gaussians of the
 //! Euclidean distance `d_c = |ω − μ_c|`, of a width that follows the light,
 //! normalised to sum to one: `φ_c(ω) = exp(−r d_c²) / Σ_c′ exp(−r d_c′²)` with
 //! `r = α / m`, `m = Σ d_c e^{−β d_c} / Σ e^{−β d_c}` a soft nearest distance (OpenLIME:
