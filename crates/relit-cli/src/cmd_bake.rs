@@ -6,13 +6,12 @@ use relit::envmap::Window;
 use relit::fsutil::Output;
 use relit::storage::Precision;
 use relit_studio::bake::{bake, BakeOptions, Transfer};
-use relit_studio::setup;
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// The scene: a built-in name (attic, city, box), an .obj file or a .json scene file.
-    pub scene: String,
+    #[command(flatten)]
+    pub scene: crate::shared::SceneArgs,
     /// What to project: visibility (V), diffuse (albedo · cos · V) or bleeding (diffuse
     /// plus one-bounce interreflection, as `render-truth --indirect`).
     #[arg(long, default_value = "diffuse", value_parser = |s: &str| Transfer::parse(s).map_err(|e| e.to_string()))]
@@ -43,13 +42,6 @@ pub struct Args {
     /// it reflect, as a capture would record it.
     #[arg(long)]
     pub lambert: bool,
-    /// Camera: cylindrical[:FOV], equirect, perspective[:FOV] or orthographic[:HEIGHT]
-    /// (default: the scene's own). The scene's eye and orientation are kept.
-    #[arg(long)]
-    pub camera: Option<String>,
-    /// Image size WIDTHxHEIGHT (default: the scene's, or the camera's usual size).
-    #[arg(long)]
-    pub size: Option<String>,
     /// Camera samples per pixel along each axis (2 = 2×2 antialiasing).
     #[arg(long, default_value_t = 1)]
     pub supersample: u32,
@@ -133,20 +125,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     options.validate()?;
     let outputs = [Output::file(&args.output)];
-    refuse_overwriting_inputs(&scene_inputs(&args.scene, None), &outputs)?;
-    let projection = args
-        .camera
-        .as_deref()
-        .map(setup::parse_projection)
-        .transpose()?;
-    let size = args.size.as_deref().map(setup::parse_size).transpose()?;
-    let scene = relit_studio::open_scene(&args.scene)
-        .with_context(|| format!("opening scene `{}`", args.scene))?;
-    refuse_overwriting_inputs(&scene.files, &outputs)?;
-    for warning in &scene.warnings {
-        eprintln!("relit bake: warning: {warning}");
-    }
-    let camera = setup::scene_camera(&scene, projection.as_ref(), size)?;
+    refuse_overwriting_inputs(&scene_inputs(&args.scene.scene, None), &outputs)?;
+    let (scene, camera) = args.scene.open("bake", &outputs)?;
     if !args.json && !args.quiet {
         eprintln!(
             "relit bake: `{}` ({} triangles), {} {}×{}, {} transfer onto sh:{}, {} directions per sample{}",

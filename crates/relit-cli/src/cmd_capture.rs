@@ -6,7 +6,6 @@ use relit::fsutil::Output;
 use relit_studio::capture::{capture_to_folder, ImageFormat};
 use relit_studio::plan::LightPlan;
 use relit_studio::render::RenderOptions;
-use relit_studio::setup;
 use std::path::PathBuf;
 
 /// File format of the reference images.
@@ -20,18 +19,11 @@ pub enum FormatArg {
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// The scene: a built-in name (attic, city, box), an .obj file or a .json scene file.
-    pub scene: String,
+    #[command(flatten)]
+    pub scene: crate::shared::SceneArgs,
     /// Light plan: grid:THETAxPHI, fibonacci:N, hemisphere:N or list:FILE.
     #[arg(long)]
     pub lights: String,
-    /// Camera: cylindrical[:FOV], equirect, perspective[:FOV] or orthographic[:HEIGHT]
-    /// (default: the scene's own). The scene's eye and orientation are kept.
-    #[arg(long)]
-    pub camera: Option<String>,
-    /// Image size WIDTHxHEIGHT (default: the scene's, or the camera's usual size).
-    #[arg(long)]
-    pub size: Option<String>,
     /// Output folder (created if needed).
     #[arg(long)]
     pub out: PathBuf,
@@ -54,26 +46,17 @@ pub struct Args {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let outputs = [Output::folder(&args.out)];
-    refuse_overwriting_inputs(&scene_inputs(&args.scene, Some(&args.lights)), &outputs)?;
+    refuse_overwriting_inputs(
+        &scene_inputs(&args.scene.scene, Some(&args.lights)),
+        &outputs,
+    )?;
     let plan = LightPlan::parse(&args.lights)?;
-    let projection = args
-        .camera
-        .as_deref()
-        .map(setup::parse_projection)
-        .transpose()?;
-    let size = args.size.as_deref().map(setup::parse_size).transpose()?;
     let options = RenderOptions {
         supersample: args.supersample,
         indirect_samples: args.indirect,
     };
     options.validate()?;
-    let scene = relit_studio::open_scene(&args.scene)
-        .with_context(|| format!("opening scene `{}`", args.scene))?;
-    refuse_overwriting_inputs(&scene.files, &outputs)?;
-    for warning in &scene.warnings {
-        eprintln!("relit capture: warning: {warning}");
-    }
-    let camera = setup::scene_camera(&scene, projection.as_ref(), size)?;
+    let (scene, camera) = args.scene.open("capture", &outputs)?;
     let directions = plan.directions();
     if !args.json && !args.quiet {
         eprintln!(

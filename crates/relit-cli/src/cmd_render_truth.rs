@@ -6,13 +6,12 @@ use relit::fsutil::Output;
 use relit::light::{parse_triple, Light};
 use relit_studio::emitter::Emitter;
 use relit_studio::render::{RenderOptions, Renderer};
-use relit_studio::setup;
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// The scene: a built-in name (attic, city, box), an .obj file or a .json scene file.
-    pub scene: String,
+    #[command(flatten)]
+    pub scene: crate::shared::SceneArgs,
     /// A light: `dir:x,y,z` (toward the light), `point:x,y,z` or
     /// `spot:px,py,pz/dx,dy,dz/cone_deg`; repeat for several.
     #[arg(long = "light")]
@@ -23,13 +22,6 @@ pub struct Args {
     /// RGB colour of every --light, `r,g,b` (default white).
     #[arg(long)]
     pub color: Option<String>,
-    /// Camera: cylindrical[:FOV], equirect, perspective[:FOV] or orthographic[:HEIGHT]
-    /// (default: the scene's own). The scene's eye and orientation are kept.
-    #[arg(long)]
-    pub camera: Option<String>,
-    /// Image size WIDTHxHEIGHT (default: the scene's, or the camera's usual size).
-    #[arg(long)]
-    pub size: Option<String>,
     /// The image to write: .exr (linear) or .png/.jpg/.tif (8-bit sRGB).
     #[arg(short, long)]
     pub output: PathBuf,
@@ -53,7 +45,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "--exposure must be a finite number of stops"
     );
     let outputs = [Output::file(&args.output)];
-    let mut inputs = scene_inputs(&args.scene, None);
+    let mut inputs = scene_inputs(&args.scene.scene, None);
     inputs.extend(args.rig.as_deref().map(rig_inputs).unwrap_or_default());
     refuse_overwriting_inputs(&inputs, &outputs)?;
     let color = args
@@ -76,24 +68,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     anyhow::ensure!(!emitters.is_empty(), "give at least one --light or a --rig");
-    let projection = args
-        .camera
-        .as_deref()
-        .map(setup::parse_projection)
-        .transpose()?;
-    let size = args.size.as_deref().map(setup::parse_size).transpose()?;
     let options = RenderOptions {
         supersample: args.supersample,
         indirect_samples: args.indirect,
     };
     options.validate()?;
-    let scene = relit_studio::open_scene(&args.scene)
-        .with_context(|| format!("opening scene `{}`", args.scene))?;
-    refuse_overwriting_inputs(&scene.files, &outputs)?;
-    for warning in &scene.warnings {
-        eprintln!("relit render-truth: warning: {warning}");
-    }
-    let camera = setup::scene_camera(&scene, projection.as_ref(), size)?;
+    let (scene, camera) = args.scene.open("render-truth", &outputs)?;
     let start = std::time::Instant::now();
     let bars = crate::shared::Bars::new(args.quiet);
     let renderer = Renderer::new(&scene, &camera, &options, &bars)?;

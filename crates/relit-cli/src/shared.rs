@@ -321,3 +321,45 @@ pub fn apply_file_space(
     };
     Ok(())
 }
+
+/// A studio scene and the camera that sees it, as every command that renders one takes
+/// them.
+#[derive(clap::Args, Debug)]
+pub struct SceneArgs {
+    /// The scene: a built-in name (attic, city, box), an .obj file or a .json scene file.
+    pub scene: String,
+    /// Camera: cylindrical[:FOV], equirect, perspective[:FOV] or orthographic[:HEIGHT]
+    /// (default: the scene's own). The scene's eye and orientation are kept.
+    #[arg(long)]
+    pub camera: Option<String>,
+    /// Image size WIDTHxHEIGHT (default: the scene's, or the camera's usual size).
+    #[arg(long)]
+    pub size: Option<String>,
+}
+
+impl SceneArgs {
+    /// Parse the camera options, open the scene (refusing `outputs` that would replace
+    /// any file it reads), print its warnings as `command`, and build the camera.
+    pub fn open(
+        &self,
+        command: &str,
+        outputs: &[relit::fsutil::Output],
+    ) -> anyhow::Result<(relit_studio::scene::Scene, relit::camera::Camera)> {
+        use anyhow::Context;
+        use relit_studio::setup;
+        let projection = self
+            .camera
+            .as_deref()
+            .map(setup::parse_projection)
+            .transpose()?;
+        let size = self.size.as_deref().map(setup::parse_size).transpose()?;
+        let scene = relit_studio::open_scene(&self.scene)
+            .with_context(|| format!("opening scene `{}`", self.scene))?;
+        refuse_overwriting_inputs(&scene.files, outputs)?;
+        for warning in &scene.warnings {
+            eprintln!("relit {command}: warning: {warning}");
+        }
+        let camera = setup::scene_camera(&scene, projection.as_ref(), size)?;
+        Ok((scene, camera))
+    }
+}
