@@ -35,7 +35,7 @@ pub struct Args {
     /// Band window applied to the baked coefficients: none, hann, lanczos or
     /// laplacian[:λ] (seed 003 §4.1). The default Laplacian window halves the top band
     /// against ringing around hard shadows; `none` keeps the exact projection.
-    #[arg(long, default_value = "laplacian", value_parser = parse_window)]
+    #[arg(long, default_value = "laplacian", value_parser = |s: &str| Window::parse(s).map_err(|e| e.to_string()))]
     pub window: Window,
     /// Lambertian surfaces only: drop the materials' glossy lobes (seed 003's diffuse
     /// transfer exactly). By default a surface's transfer is everything the camera sees
@@ -74,37 +74,6 @@ fn parse_sh_basis(spec: &str) -> Result<u32, String> {
         return Err(format!("sh:K needs K = 1, 4, 9, …, 64, not {k}"));
     }
     Ok(bands)
-}
-
-/// `none`, `hann`, `lanczos`, `laplacian` or `laplacian:λ`.
-fn parse_window(spec: &str) -> Result<Window, String> {
-    let window = match spec.split_once(':') {
-        None => match spec {
-            "none" => Window::None,
-            "hann" => Window::Hann,
-            "lanczos" => Window::Lanczos,
-            "laplacian" => Window::Laplacian { lambda: None },
-            other => {
-                return Err(format!(
-                    "unknown window `{other}`: use none, hann, lanczos or laplacian[:λ]"
-                ))
-            }
-        },
-        Some(("laplacian", lambda)) => Window::Laplacian {
-            lambda: Some(
-                lambda
-                    .parse()
-                    .map_err(|_| format!("`{lambda}` is not a number"))?,
-            ),
-        },
-        Some(_) => {
-            return Err(format!(
-                "only the laplacian window takes a value, not `{spec}`"
-            ))
-        }
-    };
-    window.validate().map_err(|e| e.to_string())?;
-    Ok(window)
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {

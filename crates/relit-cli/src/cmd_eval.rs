@@ -501,7 +501,7 @@ fn run_scene(args: Args) -> anyhow::Result<()> {
             println!(
                 "  {:<6} {:<10} {:>7.2} {:>13.2} {:>+7.2} {:>10.2} {:>+11.2}",
                 e.light,
-                window_name(&e.window),
+                e.window.name(),
                 e.relit.psnr_linear,
                 e.brute_force.psnr_linear,
                 e.gain_linear_db,
@@ -532,14 +532,4 @@ fn run_scene(args: Args) -> anyhow::Result<()> {
         }
     }
     Ok(())
-}
-
-fn window_name(window: &relit::envmap::Window) -> &'static str {
-    use relit::envmap::Window;
-    match window {
-        Window::None => "none",
-        Window::Hann => "hann",
-        Window::Lanczos => "lanczos",
-        Window::Laplacian { .. } => "laplacian",
-    }
 }

@@ -2,26 +2,10 @@
 //! `relight` under an environment and a point light, `.rlz`), it agrees with the
 //! renderer's ground truth under a sky, and bad requests are refused before any work.
 
+mod common;
+
+use common::{relit, relit_ok as ok};
 use std::path::Path;
-use std::process::Command;
-
-fn relit(dir: &Path, args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_relit"))
-        .current_dir(dir)
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn ok(dir: &Path, args: &[&str]) -> String {
-    let out = relit(dir, args);
-    assert!(
-        out.status.success(),
-        "relit {args:?} failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
 
 /// A Radiance `.hdr` map, 32×16, brighter toward the top (a soft sky).
 fn sky(path: &Path) {
@@ -37,16 +21,21 @@ fn sky(path: &Path) {
     std::fs::write(path, bytes).unwrap();
 }
 
-#[test]
-fn a_baked_file_relights_like_the_truth_under_a_sky() {
-    let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
+/// `d/sky.hdr` and `d/sky.json`, a rig of that sky as an environment light.
+fn sky_rig(d: &Path) {
     sky(&d.join("sky.hdr"));
     std::fs::write(
         d.join("sky.json"),
         r#"{"lights":[{"type":"environment","map":"sky.hdr"}]}"#,
     )
     .unwrap();
+}
+
+#[test]
+fn a_baked_file_relights_like_the_truth_under_a_sky() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    sky_rig(d);
     let summary = ok(
         d,
         &[
@@ -139,12 +128,7 @@ fn a_baked_file_relights_like_the_truth_under_a_sky() {
 fn bleeding_is_closer_to_the_indirect_truth_than_diffuse() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    sky(&d.join("sky.hdr"));
-    std::fs::write(
-        d.join("sky.json"),
-        r#"{"lights":[{"type":"environment","map":"sky.hdr"}]}"#,
-    )
-    .unwrap();
+    sky_rig(d);
     ok(
         d,
         &[

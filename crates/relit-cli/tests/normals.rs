@@ -1,25 +1,10 @@
 //! `relit normals` end to end: from a capture and from the file fitted to it, PNG and
 //! EXR outputs, the albedo, and inputs never overwritten.
 
+mod common;
+
+use common::{relit, relit_ok as ok};
 use std::path::Path;
-use std::process::Command;
-
-fn relit(dir: &Path, args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_relit"))
-        .current_dir(dir)
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn ok(dir: &Path, args: &[&str]) {
-    let out = relit(dir, args);
-    assert!(
-        out.status.success(),
-        "relit {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-}
 
 fn normals_png(path: &Path) -> Vec<[f64; 3]> {
     let image = image::open(path).unwrap().to_rgb8();

@@ -1,22 +1,9 @@
 //! The RTI tools' files through the command line: `fit`/`convert` write them, `info`,
 //! `relight` and `eval --file` read them by their content.
 
-use std::path::Path;
-use std::process::Command;
+mod common;
 
-fn relit(dir: &Path, args: &[&str]) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_relit"))
-        .current_dir(dir)
-        .args(args)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "relit {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
+use common::relit_ok as relit;
 
 #[test]
 fn ptm_and_rti_files_round_trip_through_the_commands() {

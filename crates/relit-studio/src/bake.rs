@@ -310,7 +310,7 @@ pub fn bake(
             0
         },
         supersample: options.supersample,
-        window: window_name(&options.window).to_string(),
+        window: options.window.name().to_string(),
         lambert: options.lambert,
         noise: stats.relative_noise(),
         seconds: total_seconds,
@@ -321,16 +321,6 @@ pub fn bake(
         depth: Some(renderer.depth().to_vec()),
     };
     Ok(Baked { image, stats })
-}
-
-/// The name of a band window as users type it.
-pub fn window_name(window: &Window) -> &'static str {
-    match window {
-        Window::None => "none",
-        Window::Hann => "hann",
-        Window::Lanczos => "lanczos",
-        Window::Laplacian { .. } => "laplacian",
-    }
 }
 
 /// One row's coefficients (pixel-major, then channel, then coefficient) and noise.

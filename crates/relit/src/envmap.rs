@@ -161,6 +161,47 @@ pub enum Window {
 }
 
 impl Window {
+    /// The window's name as users type it (`none`, `hann`, `lanczos`, `laplacian`).
+    pub fn name(&self) -> &'static str {
+        match self {
+            Window::None => "none",
+            Window::Hann => "hann",
+            Window::Lanczos => "lanczos",
+            Window::Laplacian { .. } => "laplacian",
+        }
+    }
+
+    /// Parse `none`, `hann`, `lanczos`, `laplacian` or `laplacian:λ`.
+    pub fn parse(spec: &str) -> Result<Window> {
+        let window = match spec.split_once(':') {
+            None => match spec {
+                "none" => Window::None,
+                "hann" => Window::Hann,
+                "lanczos" => Window::Lanczos,
+                "laplacian" => Window::Laplacian { lambda: None },
+                other => {
+                    return Err(Error::invalid(format!(
+                        "unknown window `{other}`: use none, hann, lanczos or laplacian[:λ]"
+                    )))
+                }
+            },
+            Some(("laplacian", lambda)) => Window::Laplacian {
+                lambda: Some(
+                    lambda
+                        .parse()
+                        .map_err(|_| Error::invalid(format!("`{lambda}` is not a number")))?,
+                ),
+            },
+            Some(_) => {
+                return Err(Error::invalid(format!(
+                    "only the laplacian window takes a value, not `{spec}`"
+                )))
+            }
+        };
+        window.validate()?;
+        Ok(window)
+    }
+
     /// Check the window's parameter.
     pub fn validate(&self) -> Result<()> {
         if let Window::Laplacian {

@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 
 /// Writes `d/cap/dirs.lp` with 12 PNGs of a 24×16 bumpy plane (`cap/light 000.png`…)
 /// and `d/scene.exr`, sh:4 maps fitted from them; returns the plane, to render more.
+#[allow(dead_code)]
 pub fn capture_and_fit(d: &Path) -> BumpyPlane {
     std::fs::create_dir_all(d.join("cap")).unwrap();
     let plane = BumpyPlane {
@@ -33,6 +34,7 @@ pub fn capture_and_fit(d: &Path) -> BumpyPlane {
 }
 
 /// A picture of the plane lit from above, for slides and environment maps.
+#[allow(dead_code)]
 pub fn picture(plane: &BumpyPlane) -> relit::image::ImageRgb {
     plane.render(Vec3::new(0.2, 0.3, 0.9))
 }
@@ -40,6 +42,7 @@ pub fn picture(plane: &BumpyPlane) -> relit::image::ImageRgb {
 /// Every file and link under `dir` with its bytes (a link: where it points), hidden
 /// files included: a comparison before and after finds changed inputs, new outputs and
 /// left-over temporary files alike.
+#[allow(dead_code)]
 pub fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
     let mut files = BTreeMap::new();
     let mut pending = vec![dir.to_path_buf()];
@@ -60,4 +63,26 @@ pub fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
         }
     }
     files
+}
+
+/// Run the `relit` binary in `dir`.
+#[allow(dead_code)]
+pub fn relit(dir: &Path, args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_relit"))
+        .current_dir(dir)
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// Run the `relit` binary in `dir`, require success, and return its standard output.
+#[allow(dead_code)]
+pub fn relit_ok(dir: &Path, args: &[&str]) -> String {
+    let out = relit(dir, args);
+    assert!(
+        out.status.success(),
+        "relit {args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
 }

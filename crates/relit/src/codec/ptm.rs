@@ -267,10 +267,7 @@ fn lrgb_split(maps: &CoefficientMaps, basis: &dyn Basis) -> (Vec<[f32; K]>, Vec<
     let n = maps.pixels();
     // The mean of each basis function over the dome, so that a pixel's mean response
     // is a dot product with its coefficients.
-    let dome: Vec<_> = crate::sphere::fibonacci(400)
-        .into_iter()
-        .filter(|d| d.z >= 0.17)
-        .collect();
+    let dome = super::reexpress::dome_directions();
     let mut mean = [0.0f32; K];
     let mut weights = [0.0f64; K];
     for &d in &dome {

@@ -17,7 +17,7 @@ use rayon::prelude::*;
 
 /// Light directions the re-expression samples: the upper hemisphere down to 10° of
 /// elevation (where RTI domes stop), nearly uniform.
-fn dome_directions() -> Vec<Vec3> {
+pub(crate) fn dome_directions() -> Vec<Vec3> {
     sphere::fibonacci(400)
         .into_iter()
         .filter(|d| d.z >= 0.17)
