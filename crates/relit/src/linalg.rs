@@ -109,6 +109,33 @@ pub fn matmul_bt(m: usize, k: usize, n: usize, a: &[f64], b: &[f64], c: &mut [f6
     }
 }
 
+/// `c = aᵀ · b` for row-major `a` (k×m), `b` (k×n), `c` (m×n), overwriting `c`.
+pub fn matmul_at(m: usize, k: usize, n: usize, a: &[f64], b: &[f64], c: &mut [f64]) {
+    assert!(a.len() >= k * m && b.len() >= k * n && c.len() >= m * n);
+    if m == 0 || n == 0 {
+        return;
+    }
+    // SAFETY: a is read through transposed strides that stay inside its k×m extent.
+    unsafe {
+        matrixmultiply::dgemm(
+            m,
+            k,
+            n,
+            1.0,
+            a.as_ptr(),
+            1,
+            m as isize,
+            b.as_ptr(),
+            n as isize,
+            1,
+            0.0,
+            c.as_mut_ptr(),
+            n as isize,
+            1,
+        );
+    }
+}
+
 /// Eigen-decomposition of the symmetric `n×n` row-major matrix `a` by cyclic Jacobi
 /// rotations (n up to a few hundred): eigenvalues in descending order and the matching
 /// unit eigenvectors, vector `i` at `vectors[i·n..(i+1)·n]`.
@@ -177,23 +204,17 @@ pub fn principal_directions(x: &[f64], rows: usize, n: usize, k: usize) -> Vec<f
     assert_eq!(x.len(), rows * n, "rows of n values");
     let k = k.min(n);
     let gram_times = |q: &[f64], cols: usize| -> Vec<f64> {
-        // (Xᵀ X) Q for Q n×cols stored column-major (column j at q[j·n..]).
-        let partial = x
-            .par_chunks(n * 64)
+        // (Xᵀ X) Q for Q n×cols stored column-major (column j at q[j·n..]), i.e. the
+        // row-major cols×n matrix Qᵀ; the result likewise: Qᵀ XᵀX = (X Q)ᵀ X, summed
+        // over blocks of rows (two GEMMs each).
+        const BLOCK: usize = 256;
+        x.par_chunks(n * BLOCK)
             .map(|block| {
-                let mut acc = vec![0.0; n * cols];
-                for row in block.chunks_exact(n) {
-                    for j in 0..cols {
-                        let dot: f64 = row
-                            .iter()
-                            .zip(&q[j * n..(j + 1) * n])
-                            .map(|(a, b)| a * b)
-                            .sum();
-                        for (o, &r) in acc[j * n..(j + 1) * n].iter_mut().zip(row) {
-                            *o += dot * r;
-                        }
-                    }
-                }
+                let r = block.len() / n;
+                let mut xq = vec![0.0; r * cols];
+                matmul_bt(r, n, cols, block, q, &mut xq);
+                let mut acc = vec![0.0; cols * n];
+                matmul_at(cols, r, n, &xq, block, &mut acc);
                 acc
             })
             .reduce(
@@ -202,8 +223,7 @@ pub fn principal_directions(x: &[f64], rows: usize, n: usize, k: usize) -> Vec<f
                     a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
                     a
                 },
-            );
-        partial
+            )
     };
     if n <= 400 {
         let mut identity = vec![0.0; n * n];

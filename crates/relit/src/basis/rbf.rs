@@ -4,12 +4,17 @@
 //!
 //! Kernel: `φ(ω, μ) = exp(−(1 − ω·μ) / σ²)`, a Gaussian of the chord distance
 //! (`|ω − μ|² = 2(1 − ω·μ)`) of width `σ` radians. The default `σ` is the mean angular
-//! distance from a centre to its nearest neighbour times `width` (option, default 2):
-//! a kernel keeps `e^{−1/8}` of its peak at its neighbour, smooth enough to interpolate without
-//! flattening a shadow edge across several lights. Captures with more than
-//! [`MAX_CENTRES`] lights (option `centres`) use that many centres spread over them
-//! (farthest-point order), fitted by least squares rather than interpolation. Far from every captured
-//! light (below the horizon of a dome) the functions fall to zero.
+//! distance from a captured light to its nearest neighbour times `width` (option,
+//! default 2): a kernel keeps `e^{−1/8}` of its peak at its neighbour, smooth enough to
+//! interpolate without flattening a shadow edge across several lights. Captures with
+//! more than [`MAX_CENTRES`] lights (option `centres`) use that many centres spread over
+//! them (farthest-point order), fitted by least squares rather than interpolation; `σ`
+//! still follows the lights' spacing, which is the detail the data hold, but is never
+//! narrower than the centres' own spacing, which would leave gaps between kernels. (On
+//! the attic with 3072 lights, 64 functions: 256 centres 24.10 dB held-out, 1024 centres
+//! at the centres' spacing 24.26, at 1.5× 24.23, at 2× 24.19; 3072 centres 24.15.)
+//! Far from every captured light (below the horizon of a dome) the functions fall to
+//! zero.
 //!
 //! Stored: the centres, `σ`, and the `K × C` kernel weights of each function.
 //!
@@ -27,8 +32,8 @@ use crate::sphere::Vec3;
 use crate::{Error, Result};
 
 /// The most kernel centres: beyond, interpolation gains nothing a person sees and the
-/// `C × C` solve grows as `C³`.
-pub const MAX_CENTRES: usize = 256;
+/// `C × C` solve grows as `C³` (about a second at 1024 on two cores).
+pub const MAX_CENTRES: usize = 1024;
 
 /// The sizes `rbf:K` offers.
 const SIZES: [usize; 11] = [4, 6, 9, 12, 16, 18, 25, 27, 36, 49, 64];
@@ -77,7 +82,10 @@ impl Family for RbfFamily {
             return Err(Error::invalid("rbf needs at least one centre"));
         }
         let centres = spread(dirs, most);
-        let sigma = width * mean_nearest_angle(&centres);
+        let mut sigma = width * mean_nearest_angle(dirs);
+        if centres.len() < n {
+            sigma = sigma.max(mean_nearest_angle(&centres));
+        }
         let c = centres.len();
         let mut phi = vec![0.0; n * c];
         for (j, d) in dirs.iter().enumerate() {

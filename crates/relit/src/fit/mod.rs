@@ -650,7 +650,7 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
 
     // Pass 1: stream the images, a batch of decoders' worth at a time.
     progress.begin("reading images", design.n as u64);
-    let batch = rayon::current_num_threads().max(1);
+    let batch = image_batch(options.strip_bytes / 2, pixels * 3 * 4);
     for first in (0..design.n).step_by(batch) {
         let indices: Vec<usize> = (first..(first + batch).min(design.n)).collect();
         let images: Vec<ImageRgb> = indices
@@ -840,7 +840,9 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
 /// Pixels per parallel task.
 const CHUNK: usize = 128;
 
-/// Add `q_j B(L_j) I_j` of a batch of images into the pixel-major sums `acc` (pixel, i, c).
+/// Add `q_j B(L_j) I_j` of a batch of images into the pixel-major sums `acc`
+/// (pixel, channel, i). Each pixel's sums stay in cache over the whole batch and the
+/// inner loop runs along the contiguous coefficients, which the compiler vectorises.
 fn accumulate(acc: &mut [f32], design: &Design, indices: &[usize], images: &[ImageRgb]) {
     let k = design.k;
     let rows: Vec<Vec<f32>> = indices
@@ -860,18 +862,26 @@ fn accumulate(acc: &mut [f32], design: &Design, indices: &[usize], images: &[Ima
             for (pl, sums) in out.chunks_exact_mut(3 * k).enumerate() {
                 let p = p0 + pl;
                 for (img, row) in images.iter().zip(&rows) {
-                    let px = [img.data[3 * p], img.data[3 * p + 1], img.data[3 * p + 2]];
-                    for (i, &a) in row.iter().enumerate() {
-                        sums[3 * i] += a * px[0];
-                        sums[3 * i + 1] += a * px[1];
-                        sums[3 * i + 2] += a * px[2];
+                    for (c, channel) in sums.chunks_exact_mut(k).enumerate() {
+                        let v = img.data[3 * p + c];
+                        for (s, &a) in channel.iter_mut().zip(row) {
+                            *s += a * v;
+                        }
                     }
                 }
             }
         });
 }
 
-/// Solve the shared normal equations for every pixel and store planar maps.
+/// Images decoded and accumulated together: enough to keep each pixel's sums in cache
+/// over many images, within `budget` bytes of decoded images, and at least one per thread.
+fn image_batch(budget: usize, image_bytes: usize) -> usize {
+    let threads = rayon::current_num_threads().max(1);
+    (budget / image_bytes.max(1)).clamp(threads, 32.max(threads))
+}
+
+/// Solve the shared normal equations for every pixel (sums (pixel, channel, i) in,
+/// coefficients (pixel, i, c) out) and store planar maps.
 fn solve_shared(
     mut acc: Vec<f32>,
     design: &Design,
@@ -911,9 +921,9 @@ fn solve_shared(
         for r in 0..k {
             let mut s = [0f32; 3];
             for (i, &v) in inv[r * k..(r + 1) * k].iter().enumerate() {
-                s[0] += v * b[3 * i];
-                s[1] += v * b[3 * i + 1];
-                s[2] += v * b[3 * i + 2];
+                s[0] += v * b[i];
+                s[1] += v * b[k + i];
+                s[2] += v * b[2 * k + i];
             }
             sums[3 * r..3 * r + 3].copy_from_slice(&s);
         }
