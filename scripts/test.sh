@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The project's test command: builds everything and runs every test (unit, CLI,
-# doc tests, and the real-data tests when ../shared/data is present).
+# doc tests, the GPU tests on software Vulkan, the browser tests in headless Chromium,
+# and the real-data tests when ../shared/data is present).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -11,30 +12,38 @@ if ! command -v cargo >/dev/null 2>&1; then
   source "$HOME/.cargo/env"
 fi
 
-# The GPU tests run on Mesa's software Vulkan (lavapipe) where no GPU driver is present;
-# without any adapter they print why they skip.
-if command -v apt-get >/dev/null 2>&1 && ! dpkg -s mesa-vulkan-drivers >/dev/null 2>&1; then
-  echo "installing mesa-vulkan-drivers (Vulkan for the GPU tests)" >&2
-  sudo=""; [ "$(id -u)" -ne 0 ] && sudo="sudo -n"
-  { $sudo apt-get update -qq && DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq mesa-vulkan-drivers; } >&2 ||
-    echo "could not install mesa-vulkan-drivers: the GPU tests will skip" >&2
-fi
-
 # Tests that cannot run here (no GPU adapter, no ../shared/data, no Node) say why in
-# this log (relit::skip); the list is printed at the end. RELIT_NO_SKIPS=1 makes each
-# such skip a failure instead.
+# this log (relit::skip); the list is printed at the end. In CI (CI=true, set by
+# .ci/run) a missing tool fails its test instead, and so does missing shared data
+# where ../shared exists; RELIT_NO_SKIPS=1 makes every skip a failure.
 skip_log="$PWD/target/test-skips.txt"
 mkdir -p target && : >"$skip_log"
 export RELIT_SKIP_LOG="$skip_log"
+in_ci() { [ "${CI:-}" = "true" ] || [ "${CI:-}" = "1" ]; }
 
-# The OpenLIME test (crates/relit-cli/tests/web.rs) drives Chromium from cargo test with
-# the viewer test's playwright-core: fetched first when npm can (best effort; without it
-# that test logs why it skips).
+# What the GPU and browser tests need, installed before any test runs: Mesa's software
+# Vulkan (lavapipe) for wgpu, Chromium, Node and npm (apt-get), and playwright-core
+# (npm, into the git-ignored target/viewer-node). Best effort: a test whose tool is
+# still missing skips with the reason (or fails in CI).
+sudo=""
+[ "$(id -u)" -ne 0 ] && sudo="sudo -n"
+missing=()
+dpkg -s mesa-vulkan-drivers >/dev/null 2>&1 || missing+=(mesa-vulkan-drivers)
+if [ "${RELIT_SKIP_VIEWER_TEST:-0}" != "1" ]; then
+  command -v chromium >/dev/null 2>&1 || missing+=(chromium)
+  command -v node >/dev/null 2>&1 || missing+=(nodejs)
+  command -v npm >/dev/null 2>&1 || missing+=(npm)
+fi
+if [ ${#missing[@]} -gt 0 ] && command -v apt-get >/dev/null 2>&1; then
+  echo "installing ${missing[*]} (for the GPU and browser tests)" >&2
+  { $sudo apt-get update -qq && DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "${missing[@]}"; } >&2 ||
+    echo "apt-get could not install ${missing[*]}: the tests that need them will skip" >&2
+fi
 if command -v npm >/dev/null 2>&1 && [ ! -d target/viewer-node/node_modules/playwright-core ]; then
   mkdir -p target/viewer-node
   (cd target/viewer-node && { [ -f package.json ] || echo '{"private":true}' >package.json; } &&
     npm install --no-audit --no-fund --silent playwright-core >&2) ||
-    echo "npm could not install playwright-core: the OpenLIME test will skip" >&2
+    echo "npm could not install playwright-core: the browser tests will skip" >&2
 fi
 
 # Release mode: the real-data tests fit whole captures and are 5-10x faster optimised.
@@ -42,14 +51,12 @@ cargo test --workspace --release --locked "$@"
 
 # The browser viewer (crates/relit-viewer): `relit view` in headless Chromium with
 # SwiftShader WebGL2, driven by Playwright; compares the canvas with `relit relight`.
-# Needs chromium, node and npm (installed with apt-get when missing) and playwright-core
-# (npm, into the git-ignored target/viewer-node). Set RELIT_SKIP_VIEWER_TEST=1 to skip.
-# A skipped viewer test is logged like any other skip (and fails with RELIT_NO_SKIPS=1).
+# Set RELIT_SKIP_VIEWER_TEST=1 to skip it (logged like any other skip).
 viewer_skip() {
   echo "viewer test: SKIPPED — $1" >&2
   echo "viewer test (scripts/test.sh): $1" >>"$skip_log"
-  if [ "${RELIT_NO_SKIPS:-0}" = "1" ]; then
-    echo "viewer test: failing instead (RELIT_NO_SKIPS=1)" >&2
+  if [ "${RELIT_NO_SKIPS:-0}" = "1" ] || in_ci; then
+    echo "viewer test: failing instead (RELIT_NO_SKIPS=1 or CI=true)" >&2
     return 1
   fi
 }
@@ -58,19 +65,6 @@ viewer_test() {
     viewer_skip "RELIT_SKIP_VIEWER_TEST=1"
     return
   fi
-  local sudo=""
-  [ "$(id -u)" -ne 0 ] && sudo="sudo -n"
-  local missing=()
-  command -v chromium >/dev/null 2>&1 || missing+=(chromium)
-  command -v node >/dev/null 2>&1 || missing+=(nodejs)
-  command -v npm >/dev/null 2>&1 || missing+=(npm)
-  if [ ${#missing[@]} -gt 0 ]; then
-    if command -v apt-get >/dev/null 2>&1; then
-      echo "viewer test: installing ${missing[*]}" >&2
-      { $sudo apt-get update -qq && DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "${missing[@]}"; } >&2 ||
-        echo "viewer test: apt-get could not install ${missing[*]}" >&2
-    fi
-  fi
   for tool in chromium node npm; do
     if ! command -v "$tool" >/dev/null 2>&1; then
       viewer_skip "$tool is not installed and could not be installed"
@@ -78,12 +72,8 @@ viewer_test() {
     fi
   done
   if [ ! -d target/viewer-node/node_modules/playwright-core ]; then
-    mkdir -p target/viewer-node
-    if ! (cd target/viewer-node && { [ -f package.json ] || echo '{"private":true}' >package.json; } &&
-      npm install --no-audit --no-fund --silent playwright-core >&2); then
-      viewer_skip "npm could not install playwright-core (no registry access?)"
-      return
-    fi
+    viewer_skip "npm could not install playwright-core (no registry access?)"
+    return
   fi
   cargo build --release --locked -p relit-cli
   node crates/relit-viewer/tests/viewer/viewer.test.mjs --relit target/release/relit \

@@ -103,10 +103,7 @@ fn browser() -> Option<Browser> {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
     let client = root.join("../shared/clients/openlime");
     if !client.join("rti.html").is_file() {
-        relit::skip::skipping(&format!(
-            "the OpenLIME client is not at {}",
-            client.display()
-        ));
+        relit::skip::skipping_shared(&client.join("rti.html"));
         return None;
     }
     if Command::new("node").arg("--version").output().is_err() {
@@ -331,7 +328,7 @@ fn openlime_shows_what_relit_reads_from_relight_folders() {
     let data =
         PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/rti-fitted/openlime");
     if !data.join("ptm/info.json").is_file() {
-        relit::skip::skipping(&format!("{} is not present", data.display()));
+        relit::skip::skipping_shared(&data);
         return;
     }
     let dir = tempfile::tempdir().unwrap();

@@ -456,7 +456,7 @@ fn shared_model(name: &str) -> Option<PathBuf> {
     if path.is_file() {
         Some(path)
     } else {
-        relit::skip::skipping(&format!("{} is not present", path.display()));
+        relit::skip::skipping_shared(&path);
         None
     }
 }

@@ -192,7 +192,7 @@ fn shared_item(name: &str) -> Option<PathBuf> {
     if lp.is_file() {
         Some(lp)
     } else {
-        relit::skip::skipping(&format!("{} is not present", lp.display()));
+        relit::skip::skipping_shared(&lp);
         None
     }
 }

@@ -16,7 +16,7 @@ fn fixture(name: &str) -> Option<PathBuf> {
     if dir.join("info.json").is_file() {
         Some(dir)
     } else {
-        relit::skip::skipping(&format!("{} is not present", dir.display()));
+        relit::skip::skipping_shared(&dir);
         None
     }
 }
@@ -141,7 +141,7 @@ fn a_relit_fit_published_on_the_web_stays_close_to_the_photos() {
     let lp = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .join("../../../shared/data/realrti/item9/dirs.lp");
     if !lp.is_file() {
-        relit::skip::skipping(&format!("{} is not present", lp.display()));
+        relit::skip::skipping_shared(&lp);
         return;
     }
     let capture = relit::capture::Capture::open(&lp).unwrap();
