@@ -85,37 +85,32 @@ pub fn matmul_f32(m: usize, k: usize, n: usize, a: &[f32], b: &[f32], c: &mut [f
 /// `c = a · bᵀ` for row-major `a` (m×k), `b` (n×k), `c` (m×n), overwriting `c`.
 pub fn matmul_bt(m: usize, k: usize, n: usize, a: &[f64], b: &[f64], c: &mut [f64]) {
     assert!(a.len() >= m * k && b.len() >= n * k && c.len() >= m * n);
-    if m == 0 || n == 0 {
-        return;
-    }
-    // SAFETY: b is read through transposed strides that stay inside its n×k extent.
-    unsafe {
-        matrixmultiply::dgemm(
-            m,
-            k,
-            n,
-            1.0,
-            a.as_ptr(),
-            k as isize,
-            1,
-            b.as_ptr(),
-            1,
-            k as isize,
-            0.0,
-            c.as_mut_ptr(),
-            n as isize,
-            1,
-        );
-    }
+    // b is read through transposed strides that stay inside its n×k extent.
+    dgemm(m, k, n, (a, k, 1), (b, 1, k), c);
 }
 
 /// `c = aᵀ · b` for row-major `a` (k×m), `b` (k×n), `c` (m×n), overwriting `c`.
 pub fn matmul_at(m: usize, k: usize, n: usize, a: &[f64], b: &[f64], c: &mut [f64]) {
     assert!(a.len() >= k * m && b.len() >= k * n && c.len() >= m * n);
+    // a is read through transposed strides that stay inside its k×m extent.
+    dgemm(m, k, n, (a, 1, m), (b, n, 1), c);
+}
+
+/// `c = a · b` (m×k by k×n into row-major m×n) with `a` and `b` given as (slice, row
+/// stride, column stride); the callers check that the strides stay inside the slices.
+fn dgemm(
+    m: usize,
+    k: usize,
+    n: usize,
+    (a, rsa, csa): (&[f64], usize, usize),
+    (b, rsb, csb): (&[f64], usize, usize),
+    c: &mut [f64],
+) {
     if m == 0 || n == 0 {
         return;
     }
-    // SAFETY: a is read through transposed strides that stay inside its k×m extent.
+    // SAFETY: the public wrappers assert that every element addressed by these strides
+    // (at most (rows−1)·rs + (cols−1)·cs) lies inside its slice, and c is m×n.
     unsafe {
         matrixmultiply::dgemm(
             m,
@@ -123,11 +118,11 @@ pub fn matmul_at(m: usize, k: usize, n: usize, a: &[f64], b: &[f64], c: &mut [f6
             n,
             1.0,
             a.as_ptr(),
-            1,
-            m as isize,
+            rsa as isize,
+            csa as isize,
             b.as_ptr(),
-            n as isize,
-            1,
+            rsb as isize,
+            csb as isize,
             0.0,
             c.as_mut_ptr(),
             n as isize,
