@@ -101,11 +101,9 @@ struct Browser {
 
 fn browser() -> Option<Browser> {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let client = root.join("../shared/clients/openlime");
-    if !client.join("rti.html").is_file() {
-        relit::skip::skipping_shared(&client.join("rti.html"));
-        return None;
-    }
+    let client = relit::skip::shared("clients/openlime/rti.html")?
+        .parent()?
+        .to_path_buf();
     if Command::new("node").arg("--version").output().is_err() {
         relit::skip::skipping("node is not installed");
         return None;
@@ -325,12 +323,10 @@ fn openlime_shows_what_relit_reads_from_relight_folders() {
     let Some(browser) = browser() else {
         return;
     };
-    let data =
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/rti-fitted/openlime");
-    if !data.join("ptm/info.json").is_file() {
-        relit::skip::skipping_shared(&data);
+    let Some(ptm_info) = relit::skip::shared("data/rti-fitted/openlime/ptm/info.json") else {
         return;
-    }
+    };
+    let data = ptm_info.parent().unwrap().parent().unwrap().to_path_buf();
     let dir = tempfile::tempdir().unwrap();
     let cases: Vec<Case> = [
         ("ptm", "image", 33.0),

@@ -450,15 +450,7 @@ fn a_folder_capture_refuses_a_folder_holding_the_scene_and_leaves_nothing() {
 
 /// The shared models (`../shared/data/models`), when present beside the repository.
 fn shared_model(name: &str) -> Option<PathBuf> {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/data/models")
-        .join(name);
-    if path.is_file() {
-        Some(path)
-    } else {
-        relit::skip::skipping_shared(&path);
-        None
-    }
+    relit::skip::shared(&format!("data/models/{name}"))
 }
 
 #[test]

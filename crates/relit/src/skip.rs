@@ -14,7 +14,7 @@
 //! For the workspace's tests; not part of the library's API.
 
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Record that the calling test skips its remaining checks because a tool or device is
 /// missing (`why`); panics instead in CI or with `RELIT_NO_SKIPS=1`.
@@ -39,6 +39,21 @@ fn shared_folder_present(path: &Path) -> bool {
     path.ancestors()
         .find(|a| a.file_name().is_some_and(|n| n == "shared"))
         .is_some_and(|shared| shared.is_dir())
+}
+
+/// The file or folder `relative` under the shared folder beside the repository
+/// (`../shared`), or `None` after [`skipping_shared`] when it is not there.
+#[doc(hidden)]
+pub fn shared(relative: &str) -> Option<PathBuf> {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared")
+        .join(relative);
+    if path.exists() {
+        Some(path)
+    } else {
+        skipping_shared(&path);
+        None
+    }
 }
 
 /// Whether the tests run in CI: `CI` set to `true` or `1`.

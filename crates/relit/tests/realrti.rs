@@ -5,16 +5,7 @@ use relit::eval::{evaluate, EvalOptions, Holdout};
 use std::path::PathBuf;
 
 fn shared_item(name: &str) -> Option<PathBuf> {
-    let lp = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/data/realrti")
-        .join(name)
-        .join("dirs.lp");
-    if lp.is_file() {
-        Some(lp)
-    } else {
-        relit::skip::skipping_shared(&lp);
-        None
-    }
+    relit::skip::shared(&format!("data/realrti/{name}/dirs.lp"))
 }
 
 /// item1 (60 lights, 487×439, a painted wooden door) under the peer protocol: five

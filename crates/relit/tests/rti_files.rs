@@ -185,16 +185,7 @@ fn rti_rows_run_from_the_top_of_the_image_down() {
 }
 
 fn shared_item(name: &str) -> Option<PathBuf> {
-    let lp = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/data/realrti")
-        .join(name)
-        .join("dirs.lp");
-    if lp.is_file() {
-        Some(lp)
-    } else {
-        relit::skip::skipping_shared(&lp);
-        None
-    }
+    relit::skip::shared(&format!("data/realrti/{name}/dirs.lp"))
 }
 
 /// Mean 8-bit sRGB PSNR of `image` relit at captured lights `lights` against the photos,

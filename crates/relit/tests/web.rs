@@ -10,15 +10,8 @@ use relit::sphere::Vec3;
 use std::path::PathBuf;
 
 fn fixture(name: &str) -> Option<PathBuf> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/data/rti-fitted/openlime")
-        .join(name);
-    if dir.join("info.json").is_file() {
-        Some(dir)
-    } else {
-        relit::skip::skipping_shared(&dir);
-        None
-    }
+    let info = relit::skip::shared(&format!("data/rti-fitted/openlime/{name}/info.json"))?;
+    Some(info.parent()?.to_path_buf())
 }
 
 /// The captured light directions listed in a folder's `info.json`.
@@ -138,12 +131,9 @@ fn the_four_fits_of_one_capture_agree_at_its_lights() {
 /// loses up to 2 dB more at some lights). Floors about 2 dB under the web figures.
 #[test]
 fn a_relit_fit_published_on_the_web_stays_close_to_the_photos() {
-    let lp = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/data/realrti/item9/dirs.lp");
-    if !lp.is_file() {
-        relit::skip::skipping_shared(&lp);
+    let Some(lp) = relit::skip::shared("data/realrti/item9/dirs.lp") else {
         return;
-    }
+    };
     let capture = relit::capture::Capture::open(&lp).unwrap();
     let fitted = relit::fit::fit(&capture, &Default::default(), &relit::progress::Silent)
         .unwrap()

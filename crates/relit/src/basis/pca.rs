@@ -88,14 +88,8 @@ pub(super) fn component_parameters(t: &[f64], c: usize, u: &[f64], n: usize) -> 
 /// it in cache), and `T = L⁻ᵀ L⁻¹ Aᵀ` is two more GEMMs.
 pub(super) fn least_squares_operator(a: &[f64], n: usize, c: usize, r: &[f64]) -> Result<Vec<f64>> {
     use rayon::prelude::*;
-    let mut at = vec![0.0; c * n];
-    for j in 0..n {
-        for p in 0..c {
-            at[p * n + j] = a[j * c + p];
-        }
-    }
     let mut m = vec![0.0; c * c];
-    crate::linalg::matmul_bt(c, n, c, &at, &at, &mut m);
+    crate::linalg::matmul_at(c, n, c, a, a, &mut m); // AᵀA
     m.iter_mut().zip(r).for_each(|(x, y)| *x += y);
     if !crate::linalg::cholesky(&mut m, c) {
         return Err(Error::new(
