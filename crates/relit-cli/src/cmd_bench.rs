@@ -60,8 +60,10 @@
 //!   frame (12 bytes a pixel), which the bound leaves out, so u8 and f16 planes, with
 //!   few bytes read per byte written, cannot quite reach 1.0. On a software adapter
 //!   (lavapipe) GPU memory is host memory, so the rate of planes of the same type and
-//!   size applies; for a discrete GPU the host's bandwidth says nothing and the
-//!   fraction is left out (`null`).
+//!   size applies; a discrete GPU's frames are set against its own plain read of a
+//!   buffer of the planes' size (`GpuRelighter::read_rate`, a grid-strided vec4 sum,
+//!   best of three batches of as many reads as make 16 GiB (8 to 256), once before the
+//!   storage's cases), which the frame's write (12 bytes a pixel) is again left out of.
 //! * **multiply-add peak** — `relit::engine::fma_peak` at the start and at the end of
 //!   the run (best of both): register-only FMA chains on every thread, 16-lane
 //!   (AVX-512F) where the CPU has it, which is then the machine's peak (`fma_peak_gs`);
@@ -198,7 +200,7 @@ struct Row {
     /// The read bandwidth bound, GB/s: the best plain read of these bytes measured in
     /// this run (`Relighter::plane_read_rate`).
     read_bandwidth_gbs: f64,
-    /// `fps × map_bytes ÷ bandwidth`; null where host bandwidth does not bound the device.
+    /// `fps × map_bytes ÷ bandwidth`; null where no bound was measured (`basis_eval`).
     bandwidth_fraction: Option<f64>,
     /// Peak multiply-add rate of this machine measured in this run, G/s.
     fma_peak_gs: f64,
@@ -534,6 +536,13 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
                         let rate = relighter.plane_read_rate(3 * reps);
                         raise(&mut bounds, key, rate);
                     }
+                    let device_bound = if host_bound {
+                        None
+                    } else {
+                        let bytes = gpu.resident_bytes();
+                        let passes = ((16u64 << 30) / bytes.max(1)).clamp(8, 256) as usize;
+                        Some(gpu.read_rate(bytes, passes)?)
+                    };
                     // Area and projector frames take tens of seconds each on a software
                     // adapter at this size: there they run only when asked for by name.
                     let large_on_software = software && n * k as u64 > 64 << 20;
@@ -557,6 +566,10 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
                             &t,
                         );
                         r.host_bound = host_bound;
+                        if let Some(rate) = device_bound {
+                            r.read_bandwidth_gbs = rate / 1e9;
+                            r.bandwidth_fraction = Some(r.fps * r.map_bytes as f64 / rate);
+                        }
                         report(&r, args.json);
                         rows.push(r);
                     }
@@ -1091,8 +1104,17 @@ fn time_batches(
 }
 
 fn time_gpu(gpu: &GpuRelighter, lighting: &Lighting, seconds: f64) -> anyhow::Result<Timing> {
-    let first = gpu.time_frames(lighting, None, 1)?.as_secs_f64();
-    let frames = ((seconds / BATCHES as f64 / first.max(1e-6)) as usize).clamp(1, 100_000);
+    // Warm up for a tenth of a second, doubling the frames per submission: the first
+    // frame pays for buffers made on first use, one frame alone is mostly the
+    // submission's round trip on a fast GPU, and on an H200 the first case after an
+    // upload ran at a third of the later ones' rate until the device had run a while.
+    let (mut spent, mut n, mut each) = (0.0, 1, 0.0);
+    while spent < 0.1 && n <= 4096 {
+        each = gpu.time_frames(lighting, None, n)?.as_secs_f64();
+        spent += each * n as f64;
+        n *= 2;
+    }
+    let frames = ((seconds / BATCHES as f64 / each.max(1e-6)) as usize).clamp(1, 100_000);
     let per_frame = (0..BATCHES)
         .map(|_| Ok(gpu.time_frames(lighting, None, frames)?.as_secs_f64()))
         .collect::<anyhow::Result<Vec<f64>>>()?;

@@ -33,6 +33,8 @@ use std::sync::{mpsc, Arc, Mutex};
 use std::time::{Duration, Instant};
 use wgpu::util::DeviceExt;
 
+mod read_probe;
+
 /// Invocations per workgroup (`@workgroup_size` in relight.wgsl).
 const WORKGROUP: u64 = 256;
 /// The largest buffer a slab uses unless the adapter allows less: large enough that
@@ -172,20 +174,26 @@ pub struct GpuRelighter {
 /// The adapter relit would use, without opening a device: `Err(NoAdapter)` tells a
 /// caller (a test, the benchmark) to skip GPU work, with the reason.
 pub fn probe() -> Result<AdapterSummary> {
-    let instance =
-        wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
-    let adapter = request_adapter(&instance)?;
+    let adapter = request_adapter(instance())?;
     Ok(AdapterSummary::from(&adapter.get_info()))
 }
 
 /// Every adapter wgpu finds on this machine, on any backend (what `probe` chooses from).
 pub fn adapters() -> Vec<AdapterSummary> {
-    let instance =
-        wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
-    pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()))
+    pollster::block_on(instance().enumerate_adapters(wgpu::Backends::all()))
         .iter()
         .map(|a| AdapterSummary::from(&a.get_info()))
         .collect()
+}
+
+/// The process' one wgpu instance. A new instance per engine made NVIDIA's Vulkan
+/// driver (580, an H200) refuse the 25th in one process ("vulkan drivers/libraries
+/// could not be loaded"); engines and probes now share this one.
+fn instance() -> &'static wgpu::Instance {
+    static INSTANCE: std::sync::OnceLock<wgpu::Instance> = std::sync::OnceLock::new();
+    INSTANCE.get_or_init(|| {
+        wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env())
+    })
 }
 
 fn request_adapter(instance: &wgpu::Instance) -> Result<wgpu::Adapter> {
@@ -246,9 +254,7 @@ impl GpuRelighter {
             Err(why) => (None, Some(why)),
         };
 
-        let instance =
-            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
-        let adapter = request_adapter(&instance)?;
+        let adapter = request_adapter(instance())?;
         let summary = AdapterSummary::from(&adapter.get_info());
         let limits = adapter.limits();
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {

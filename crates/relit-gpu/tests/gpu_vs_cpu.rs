@@ -945,3 +945,30 @@ fn bad_requests_are_clear_errors() {
         &cpu(&img, &dir_only, 0.0),
     );
 }
+
+#[test]
+fn the_read_probe_measures_a_rate_and_refuses_nothing_to_read() {
+    let img = image(8, 6, sh(4).as_ref(), MapSpace::Linear);
+    let Some(gpu) = gpu_or_skip(&img, sh(4), GpuOptions::default()) else {
+        return;
+    };
+    // An odd size: the probe reads whole vec4 values, rounding down.
+    let rate = gpu.read_rate((4 << 20) + 7, 2).unwrap();
+    assert!(rate.is_finite() && rate > 1e6, "{rate} bytes/s");
+    assert!(gpu.read_rate(15, 1).is_err());
+    assert!(gpu.read_rate(1 << 20, 0).is_err());
+}
+
+/// One process opens many engines in turn (a viewer serving many files, these tests):
+/// each must find the adapter as the first did.
+#[test]
+fn many_engines_in_one_process_each_find_the_adapter() {
+    let img = image(4, 3, sh(4).as_ref(), MapSpace::Linear);
+    for i in 0..48 {
+        let Some(gpu) = gpu_or_skip(&img, sh(4), GpuOptions::default()) else {
+            assert_eq!(i, 0, "the adapter went away after {i} engines");
+            return;
+        };
+        drop(gpu);
+    }
+}

@@ -1,0 +1,125 @@
+//! The device's plain read rate: the bound `relit bench` sets a hardware adapter's
+//! frames against, as it sets the CPU engine's against the host's (a software adapter
+//! reads host memory, so there the host's rate is the bound).
+
+use super::GpuRelighter;
+use crate::error::{invalid, GpuError, Result};
+use std::time::Instant;
+
+const WORKGROUP: u64 = 256;
+/// Host bytes written per upload while the probe buffer is filled.
+const FILL_CHUNK: u64 = 64 << 20;
+/// Invocations per workgroup-sized share of the buffer: enough loads in flight per
+/// invocation to hide the memory latency, few enough that every unit has work.
+const VALUES_PER_INVOCATION: u64 = 16;
+
+impl GpuRelighter {
+    /// The best rate, in bytes per second, at which this device reads a buffer of
+    /// `bytes` (capped by the largest buffer it binds): the best of three batches of
+    /// `passes` full reads, after one warm-up read.
+    pub fn read_rate(&self, bytes: u64, passes: usize) -> Result<f64> {
+        let size = bytes.min(self.max_binding).min(u32::MAX as u64) / 16 * 16;
+        if size == 0 || passes == 0 {
+            return Err(invalid(
+                "the read probe needs at least 16 bytes and one pass",
+            ));
+        }
+        let device = &self.device;
+        let source = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("relit read probe"),
+            size,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        // Values that are not zero, so that no memory system can answer from a
+        // compressed or cleared state.
+        let pattern: Vec<f32> = (0..FILL_CHUNK.min(size) / 4)
+            .map(|i| 1.0 + (i % 251) as f32 * 1e-3)
+            .collect();
+        let mut at = 0;
+        while at < size {
+            let n = (size - at).min(FILL_CHUNK);
+            self.queue.write_buffer(
+                &source,
+                at,
+                bytemuck::cast_slice(&pattern[..(n / 4) as usize]),
+            );
+            at += n;
+        }
+        let sink = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("relit read probe sink"),
+            size: 64 * 16,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
+        let count = size / 16;
+        let groups = count
+            .div_ceil(WORKGROUP * VALUES_PER_INVOCATION)
+            .clamp(1, self.max_groups as u64);
+        let threads = groups * WORKGROUP;
+        let params = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("relit read probe parameters"),
+            size: 16,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let words = [count as u32, threads as u32, 0, 0];
+        self.queue
+            .write_buffer(&params, 0, bytemuck::cast_slice(&words));
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("relit read probe"),
+            source: wgpu::ShaderSource::Wgsl(include_str!("../../shaders/read_probe.wgsl").into()),
+        });
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("relit read probe"),
+            layout: None,
+            module: &module,
+            entry_point: Some("main"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("relit read probe"),
+            layout: &pipeline.get_bind_group_layout(0),
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: source.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: sink.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: params.as_entire_binding(),
+                },
+            ],
+        });
+        let run = |reads: usize| -> Result<f64> {
+            let mut encoder = device.create_command_encoder(&Default::default());
+            for _ in 0..reads {
+                let mut pass = encoder.begin_compute_pass(&Default::default());
+                pass.set_pipeline(&pipeline);
+                pass.set_bind_group(0, &group, &[]);
+                pass.dispatch_workgroups(groups as u32, 1, 1);
+            }
+            let start = Instant::now();
+            self.queue.submit([encoder.finish()]);
+            self.wait()?;
+            Ok(start.elapsed().as_secs_f64())
+        };
+        run(1)?;
+        self.check_errors()?;
+        let mut best = 0f64;
+        for _ in 0..3 {
+            let seconds = run(passes)?;
+            best = best.max((size * passes as u64) as f64 / seconds.max(1e-9));
+        }
+        self.check_errors()?;
+        if !best.is_finite() || best <= 0.0 {
+            return Err(GpuError::Device("the read probe measured no time".into()));
+        }
+        Ok(best)
+    }
+}
