@@ -3,7 +3,7 @@
 
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
-use relit::fit::{BasisRequest, FitOptions, Lambda, Objective, Regularizer};
+use relit::fit::{BasisRequest, Criterion, FitOptions, Lambda, Objective, Regularizer};
 use relit::fsutil::{check_outputs, Output, OutputKind};
 use relit::light::RigFile;
 use relit::maps::MapSpace;
@@ -39,6 +39,17 @@ pub enum RegularizerArg {
     Ridge,
 }
 
+/// What `--basis auto` judges its validation error in.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum CriterionArg {
+    /// Linear radiance for radiance images (EXR, HDR), display values otherwise.
+    Auto,
+    /// sRGB display values clipped to white: the error a person sees on a screen.
+    Display,
+    /// Linear radiance, highlights above white included.
+    Linear,
+}
+
 /// A `--basis` value, checked while parsing the command line (a bad one is a usage error).
 pub fn parse_basis(s: &str) -> Result<BasisRequest, String> {
     BasisRequest::parse(s).map_err(|e| e.to_string())
@@ -70,6 +81,10 @@ pub struct FitArgs {
     /// Reweighting passes of the perceptual objective.
     #[arg(long, default_value_t = 1)]
     pub reweights: usize,
+    /// What `--basis auto` judges candidates by: `auto` is linear radiance for captures
+    /// of radiance images (EXR, HDR), the sRGB error on screen for photographs.
+    #[arg(long, value_enum, default_value_t = CriterionArg::Auto)]
+    pub criterion: CriterionArg,
 }
 
 impl FitArgs {
@@ -105,6 +120,11 @@ impl FitArgs {
             },
             lambda,
             reweights: self.reweights,
+            criterion: match self.criterion {
+                CriterionArg::Auto => None,
+                CriterionArg::Display => Some(Criterion::Display),
+                CriterionArg::Linear => Some(Criterion::Linear),
+            },
             ..FitOptions::default()
         })
     }

@@ -55,7 +55,8 @@ impl ImageRgb {
 }
 
 /// Image file formats relit reads, by what their samples are.
-fn is_float_format(path: &Path) -> bool {
+/// Whether `path` names a floating-point image format (values proportional to radiance).
+pub(crate) fn is_float_format(path: &Path) -> bool {
     matches!(extension(path).as_deref(), Some("exr" | "hdr" | "pic"))
 }
 

@@ -69,6 +69,18 @@ pub struct Capture {
 }
 
 impl Capture {
+    /// Whether every image holds linear radiance (floating-point files, files declared
+    /// linear, images rendered or held in memory) rather than display-encoded values
+    /// (8- and 16-bit photographs): what the basis choice judges its error in.
+    pub fn radiance_images(&self) -> bool {
+        self.lights.iter().all(|l| match &l.image {
+            ImageSource::File { path, encoding } => {
+                *encoding == Some(Encoding::Linear) || image::is_float_format(path)
+            }
+            ImageSource::Memory(_) | ImageSource::Generated(_) => true,
+        })
+    }
+
     /// Read a capture from an RTI `.lp` file or a relit JSON manifest (`.json`).
     ///
     /// Every image is checked to exist and to share one size before this returns, so a

@@ -404,3 +404,37 @@ fn webp_planes_relight_close_in_a_version_2_file() {
     let e = relit_error(&img, &back);
     assert!(e < 0.1, "webp: {e}");
 }
+
+#[test]
+fn the_budget_keeps_the_best_candidate_that_fits_and_more_bits_never_score_less() {
+    let plane = crate::synth::BumpyPlane {
+        width: 128,
+        height: 96,
+    };
+    let dirs = crate::sphere::hemisphere_fibonacci(40);
+    let capture = plane.capture(&dirs);
+    let options = crate::fit::FitOptions {
+        basis: crate::fit::BasisRequest::parse("sh:16").unwrap(),
+        ..Default::default()
+    };
+    let fitted = crate::fit::fit(&capture, &options, &crate::progress::Silent).unwrap();
+    let pixels = (128 * 96) as f64;
+    let mut last = f64::NEG_INFINITY;
+    for budget in [12.0, 64.0] {
+        let choice =
+            budget::choose(&fitted.image, &capture, budget, &crate::progress::Silent).unwrap();
+        let bytes = packed::to_bytes(&choice.packed).unwrap().len();
+        assert_eq!(choice.bits_per_pixel, 8.0 * bytes as f64 / pixels);
+        assert!(choice.bits_per_pixel <= budget, "{budget}: {choice:?}");
+        assert!(choice.within > 0 && choice.score.is_finite());
+        assert!(
+            choice.score >= last,
+            "{budget} bits/px scored {} < {last}",
+            choice.score
+        );
+        last = choice.score;
+    }
+    assert!(last > 30.0, "{last} dB at 64 bits/px");
+    let err = budget::choose(&fitted.image, &capture, 0.01, &crate::progress::Silent).unwrap_err();
+    assert!(err.to_string().contains("no compression fits"), "{err}");
+}

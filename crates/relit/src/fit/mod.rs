@@ -54,7 +54,7 @@
 mod select;
 mod spill;
 
-pub use select::{candidates, CandidateScore, VALIDATION_LADDER};
+pub use select::{candidates, CandidateScore, Criterion, VALIDATION_LADDER};
 
 use crate::basis::{Basis, BasisChoice, Samples};
 use crate::capture::Capture;
@@ -205,6 +205,9 @@ pub struct FitOptions {
     pub strip_bytes: usize,
     /// Pixels in the subsample used to choose λ and estimate the training residual.
     pub subsample: usize,
+    /// What `auto`'s validation error is measured in; `None`: from the capture
+    /// ([`Criterion::for_capture`]: linear for radiance images, display otherwise).
+    pub criterion: Option<Criterion>,
 }
 
 impl Default for FitOptions {
@@ -219,6 +222,7 @@ impl Default for FitOptions {
             reweights: 1,
             strip_bytes: 64 << 20,
             subsample: 1024,
+            criterion: None,
         }
     }
 }
@@ -419,6 +423,7 @@ type ChosenBasis = (
 fn choose_basis(
     request: &BasisRequest,
     options: &FitOptions,
+    criterion: Criterion,
     objective: Objective,
     dirs: &[Vec3],
     sub: Option<&[f32]>,
@@ -469,7 +474,8 @@ fn choose_basis(
     for (i, choice) in choices.iter().enumerate() {
         let mut own: Option<CandidateScore> = None;
         for &o in objectives {
-            let score = select::validate(choice, o, options.regularizer, dirs, &q, &view)?;
+            let score =
+                select::validate(choice, o, options.regularizer, criterion, dirs, &q, &view)?;
             if !matches!(&best, Some((_, _, b)) if !score.beats(b)) {
                 best = Some((i, o, score.clone()));
             }
@@ -617,9 +623,13 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
     if early {
         stages.end("subsample");
     }
+    let criterion = options
+        .criterion
+        .unwrap_or_else(|| Criterion::for_capture(capture));
     let (basis, validated, basis_scores) = choose_basis(
         &options.basis,
         options,
+        criterion,
         objective,
         &dirs,
         early_sub.as_deref(),

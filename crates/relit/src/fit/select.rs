@@ -6,10 +6,13 @@
 //! Every candidate is therefore judged the same honest way: the captured lights are
 //! split into folds; for each fold the basis is *built* from the other folds' lights
 //! only (directions and, for data-driven families, samples), the pixel subsample is
-//! fitted there and predicted at the fold's lights, and the error a person sees —
-//! sRGB-encoded, negative radiance shown as black, lights that do not reach the scene
-//! left out — is summed over folds. The evaluation hold-outs of `relit eval` never take
-//! part: they are not in the capture the fit sees.
+//! fitted there and predicted at the fold's lights, and the error is summed over
+//! folds, lights that do not reach the scene left out. The error is judged as the
+//! capture's images hold it ([`Criterion`]): for photographs (8- and 16-bit, sRGB),
+//! the error a person sees — sRGB-encoded, negative radiance shown as black; for
+//! radiance images (EXR, HDR, rendered), the error in linear radiance, whose highlights
+//! above display white the sRGB error would clip away. The evaluation hold-outs of
+//! `relit eval` never take part: they are not in the capture the fit sees.
 
 use super::{
     brightness_kept, light_relevance, perceptual_weight, srgb_on_screen, Objective, Regularizer,
@@ -26,9 +29,34 @@ pub const VALIDATION_LADDER: [f64; 6] = [1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1];
 
 const LADDER: usize = VALIDATION_LADDER.len();
 
-/// Per held-out light: squared display errors per λ, summed predictions per λ and the
-/// summed observation (linear radiance).
-const SLOTS: usize = 2 * LADDER + 1;
+/// Per held-out light: squared display errors per λ, summed predictions per λ, the
+/// summed observation (linear radiance) and squared linear errors per λ.
+const SLOTS: usize = 3 * LADDER + 1;
+
+/// Where the squared linear errors start in a light's slots.
+const LINEAR: usize = 2 * LADDER + 1;
+
+/// What the validation error is measured in.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Criterion {
+    /// 8-bit-style display values: sRGB-encoded, clipped to `[0, 1]` (photographs).
+    #[default]
+    Display,
+    /// Linear radiance, unclipped above white (radiance images).
+    Linear,
+}
+
+impl Criterion {
+    /// The criterion for a capture: linear where its images hold radiance.
+    pub fn for_capture(capture: &crate::capture::Capture) -> Criterion {
+        if capture.radiance_images() {
+            Criterion::Linear
+        } else {
+            Criterion::Display
+        }
+    }
+}
 
 /// Folds of the captured lights (fewer for captures of very few lights).
 const FOLDS: usize = 10;
@@ -56,8 +84,11 @@ pub struct CandidateScore {
     pub lambda: f64,
     /// Root-mean-square display error at that λ over every light (sRGB values, 0–1).
     pub display_rmse: f64,
-    /// The mean over the captured lights of each light's display PSNR (peak 1) when
-    /// held out: what the choice maximises, comparable to `relit eval`'s figures.
+    /// What `psnr` measures.
+    pub criterion: Criterion,
+    /// The mean over the captured lights of each light's PSNR (peak 1) when held out,
+    /// in display values or linear radiance as `criterion` says: what the choice
+    /// maximises, comparable to `relit eval`'s figures.
     pub psnr: f64,
     /// Mean held-out prediction over mean observation, linear radiance (1: unbiased);
     /// candidates beyond a factor `MAX_MEAN_BIAS` lose to every unbiased one.
@@ -118,11 +149,14 @@ pub(super) struct Subsample<'a> {
 }
 
 /// Validate `choice` under `objective` (linear or perceptual) on `sub`, lit from `dirs`
-/// with quadrature weights `q`; returns the best λ of [`VALIDATION_LADDER`] and its error.
+/// with quadrature weights `q`; returns the best λ of [`VALIDATION_LADDER`] by
+/// `criterion` and its error.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn validate(
     choice: &BasisChoice,
     objective: Objective,
     regularizer: Regularizer,
+    criterion: Criterion,
     dirs: &[Vec3],
     q: &[f64],
     sub: &Subsample,
@@ -192,11 +226,15 @@ pub(super) fn validate(
     // not reach the scene do not count.
     let weights: Vec<f64> = (0..n).map(|j| q[j] * relevance[j]).collect();
     let total: f64 = weights.iter().sum::<f64>().max(1e-300);
+    let judged = match criterion {
+        Criterion::Display => 0,
+        Criterion::Linear => LINEAR,
+    };
     let score = |li: usize| -> (f64, f64, f64) {
         let (mut psnr, mut pooled, mut pred, mut obs) = (0.0, 0.0, 0.0, 0.0);
         for (e, &w) in per_light.iter().zip(&weights) {
             let mse = e[li] / series as f64;
-            psnr += w * crate::metrics::psnr(mse, 1.0);
+            psnr += w * crate::metrics::psnr(e[judged + li] / series as f64, 1.0);
             pooled += w * mse;
             pred += w * e[LADDER + li];
             obs += w * e[2 * LADDER];
@@ -223,6 +261,7 @@ pub(super) fn validate(
         basis: choice.name(),
         lambda: VALIDATION_LADDER[best],
         display_rmse: rmse,
+        criterion,
         psnr,
         mean_bias: bias,
     })
@@ -340,6 +379,8 @@ fn fold_errors(
                         let o = sub.values[(p * sub.n + j) * 3 + c] as f64;
                         let d = srgb_on_screen(pred) - srgb_on_screen(o);
                         acc[h][li] += d * d;
+                        let d = pred - o;
+                        acc[h][LINEAR + li] += d * d;
                         acc[h][LADDER + li] += pred;
                         if li == 0 {
                             acc[h][2 * LADDER] += o;

@@ -216,18 +216,24 @@ fn below_the_horizon_stays_bounded() {
     };
     let capture = plane.capture(&hemisphere_fibonacci(60));
     let out = fit(&capture, &FitOptions::default(), &Silent).unwrap();
-    let sh = BasisSpec::named("sh:25").unwrap().build().unwrap();
+    // Evaluated in the basis the fit chose (whatever `auto` picked).
+    let basis = out.image.meta.basis.build().unwrap();
+    let k = basis.len();
     let mut worst = 0.0f64;
     for d in fibonacci(200).into_iter().filter(|d| d.z < -0.2) {
-        let y = sh.values(d);
+        let y = basis.values(d);
         for p in 0..out.image.maps.pixels() {
-            let v: f64 = (0..25)
+            let v: f64 = (0..k)
                 .map(|i| out.image.maps.plane(i, 1)[p] as f64 * y[i])
                 .sum();
             worst = worst.max(v.abs());
         }
     }
-    assert!(worst < 3.0, "below-horizon magnitude {worst}");
+    assert!(
+        worst < 3.0,
+        "below-horizon magnitude {worst} ({})",
+        out.report.basis
+    );
 }
 
 #[test]
@@ -472,4 +478,55 @@ fn shared_leave_one_out_equals_the_per_pixel_one() {
             "{a:?} {b:?}"
         );
     }
+}
+
+#[test]
+fn the_basis_choice_judges_radiance_captures_in_linear_and_photographs_on_screen() {
+    let plane = crate::synth::BumpyPlane {
+        width: 16,
+        height: 12,
+    };
+    let dirs = hemisphere_fibonacci(40);
+    let few = |criterion| FitOptions {
+        max_coefficients: 9,
+        criterion,
+        ..FitOptions::default()
+    };
+    // Rendered in memory: radiance.
+    let rendered = plane.capture(&dirs);
+    assert!(rendered.radiance_images());
+    let linear = fit(&rendered, &few(None), &Silent).unwrap();
+    assert!(linear
+        .report
+        .candidates
+        .iter()
+        .all(|c| c.criterion == Criterion::Linear));
+    // The same candidates judged on screen score other PSNRs.
+    let display = fit(&rendered, &few(Some(Criterion::Display)), &Silent).unwrap();
+    assert!(display
+        .report
+        .candidates
+        .iter()
+        .all(|c| c.criterion == Criterion::Display));
+    let psnr_of = |out: &FitOutput, name: &str| {
+        out.report
+            .candidates
+            .iter()
+            .find(|c| c.basis == name)
+            .map(|c| c.psnr)
+            .unwrap()
+    };
+    let name = &linear.report.candidates[0].basis;
+    assert!((psnr_of(&linear, name) - psnr_of(&display, name)).abs() > 0.1);
+    // 8-bit photographs of the same scene: judged on screen.
+    let dir = tempfile::tempdir().unwrap();
+    let lp = plane.write_lp_capture(dir.path(), &dirs).unwrap();
+    let photos = Capture::open(&lp).unwrap();
+    assert!(!photos.radiance_images());
+    let judged = fit(&photos, &few(None), &Silent).unwrap();
+    assert!(judged
+        .report
+        .candidates
+        .iter()
+        .all(|c| c.criterion == Criterion::Display));
 }
