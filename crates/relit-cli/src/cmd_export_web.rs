@@ -58,7 +58,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             summary.planes,
             summary.files,
             summary.bytes as f64 / (1024.0 * 1024.0),
-            if args.web.deep_zoom { "deepzoom" } else { "image" }
+            args.web.layout().name()
         );
         return Ok(());
     }

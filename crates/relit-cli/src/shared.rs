@@ -194,18 +194,42 @@ pub struct WebArgs {
     /// Nodes per side of a `bilinear` web folder's light grid (2 to 12; relight writes 8).
     #[arg(long, default_value_t = 12)]
     pub grid: usize,
-    /// Deep Zoom tiles (OpenLIME's `deepzoom` layout) instead of single images.
-    #[arg(long)]
+    /// How a web folder's plane images are laid out, by OpenLIME's layout names: single
+    /// images, or tiled pyramids for big images (Deep Zoom files, or one tarzoom file
+    /// per plane image, or one itarzoom file for all).
+    #[arg(long, value_enum, default_value_t = WebLayoutArg::Image)]
+    pub web_layout: WebLayoutArg,
+    /// The same as `--web-layout deepzoom`.
+    #[arg(long, conflicts_with = "web_layout")]
     pub deep_zoom: bool,
 }
 
+/// OpenLIME's layouts that relit writes.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum WebLayoutArg {
+    Image,
+    Deepzoom,
+    Tarzoom,
+    Itarzoom,
+}
+
 impl WebArgs {
+    pub fn layout(&self) -> relit::codec::web::Layout {
+        use relit::codec::web::Layout;
+        match (self.deep_zoom, self.web_layout) {
+            (true, _) | (_, WebLayoutArg::Deepzoom) => Layout::DeepZoom,
+            (_, WebLayoutArg::Image) => Layout::Image,
+            (_, WebLayoutArg::Tarzoom) => Layout::Tarzoom,
+            (_, WebLayoutArg::Itarzoom) => Layout::Itarzoom,
+        }
+    }
+
     pub fn options(&self) -> relit::codec::web::WriteOptions {
         relit::codec::web::WriteOptions {
             quality: self.quality,
             planes: self.planes,
             resolution: self.grid,
-            deep_zoom: self.deep_zoom,
+            layout: self.layout(),
         }
     }
 }

@@ -261,7 +261,8 @@ fn check_in_openlime(browser: &Browser, cases: &[Case], out: &Path) {
 }
 
 /// relit's exports of each type it writes (ptm, hsh, sh from display-referred fits; sh:9
-/// in linear radiance as bilinear; hsh in Deep Zoom tiles too), 160×120, in OpenLIME.
+/// in linear radiance as bilinear), 160×120, and in each tiled layout (hsh in Deep Zoom
+/// and tarzoom, bilinear in itarzoom), 520×300, in OpenLIME.
 /// Measured, the canvas against relit reading the same folder (JPEG decoders and the
 /// GPU's arithmetic): 51.5 to 53.7 dB for every type; against relit relighting the
 /// exported file (the export's 8-bit planes included): ptm 48.9/48.0 dB, hsh 48.7/48.0,
@@ -273,11 +274,16 @@ fn openlime_shows_what_relit_relights_for_each_type_relit_writes() {
     };
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let plane = relit::synth::BumpyPlane {
-        width: 160,
-        height: 120,
-    };
-    let capture = plane.capture(&hemisphere_fibonacci(30));
+    let small = (160, 120);
+    // Tiled layouts at a size of three levels (256-pixel tiles, 2×2 of them at full
+    // resolution), so that OpenLIME finds each level's tiles where relit put them.
+    let large = (520, 300);
+    let captures: Vec<_> = [small, large]
+        .iter()
+        .map(|&(width, height)| {
+            relit::synth::BumpyPlane { width, height }.capture(&hemisphere_fibonacci(30))
+        })
+        .collect();
     let mut cases = Vec::new();
     for (basis, space, kind, layout) in [
         ("ptm:6", MapSpace::Srgb, "ptm", "image"),
@@ -285,28 +291,35 @@ fn openlime_shows_what_relit_relights_for_each_type_relit_writes() {
         ("sh:9", MapSpace::Srgb, "sh", "image"),
         ("sh:9", MapSpace::Linear, "bilinear", "image"),
         ("hsh:9", MapSpace::Srgb, "hsh", "deepzoom"),
+        ("hsh:9", MapSpace::Srgb, "hsh", "tarzoom"),
+        ("sh:9", MapSpace::Linear, "bilinear", "itarzoom"),
     ] {
+        let size = if layout == "image" { small } else { large };
+        let capture = &captures[usize::from(layout != "image")];
         let options = relit::fit::FitOptions {
             basis: relit::fit::BasisRequest::parse(basis).unwrap(),
             color_space: space,
             lambda: relit::fit::Lambda::Fixed(1e-3),
             ..Default::default()
         };
-        let fitted = relit::fit::fit(&capture, &options, &relit::progress::Silent).unwrap();
+        let fitted = relit::fit::fit(capture, &options, &relit::progress::Silent).unwrap();
         let name = format!("{kind}-{layout}");
         let exr = d.join(format!("{name}.exr"));
         relit::codec::exr::write(&exr, &fitted.image, relit::storage::Precision::F32).unwrap();
-        let mut args = vec!["export-web", exr.to_str().unwrap(), &name];
-        if layout == "deepzoom" {
-            args.push("--deep-zoom");
-        }
+        let args = vec![
+            "export-web",
+            exr.to_str().unwrap(),
+            &name,
+            "--web-layout",
+            layout,
+        ];
         relit(d, &args);
         assert_eq!(info_json(&d.join(&name))["type"], kind);
         cases.push(Case {
             name: name.clone(),
             folder: d.join(&name),
             layout,
-            size: (160, 120),
+            size,
             floor: 48.0,
             original: Some((exr.clone(), if kind == "bilinear" { 38.0 } else { 39.0 })),
         });

@@ -903,9 +903,37 @@ pub struct WriteOptions {
     /// (RealRTI item1, rbf:16 fitted by relit, against its photos at five captured
     /// lights: 32.4–39.3 dB at 8, 32.7–40.7 dB at 12; the EXR itself 33.3–42.5 dB).
     pub resolution: usize,
-    /// Deep Zoom tiles (`plane_N.dzi`, OpenLIME's `deepzoom` layout) instead of single
-    /// images (its `image` layout).
-    pub deep_zoom: bool,
+    /// How the plane images are laid out: OpenLIME's `image`, `deepzoom`, `tarzoom` or
+    /// `itarzoom`.
+    pub layout: Layout,
+}
+
+/// The layouts of a web folder's plane images, as OpenLIME names them.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Layout {
+    /// One JPEG per plane image (`plane_N.jpg`).
+    #[default]
+    Image,
+    /// A Deep Zoom pyramid per plane image (`plane_N.dzi`, `plane_N_files/L/X_Y.jpg`).
+    DeepZoom,
+    /// A pyramid per plane image in one file (`plane_N.tzb`) with its tiles' byte
+    /// offsets in `plane_N.tzi`: one request per tile instead of a file.
+    Tarzoom,
+    /// One pyramid for all plane images (`planes.tzb`, `planes.tzi`): each tile's images
+    /// side by side, fetched in one request.
+    Itarzoom,
+}
+
+impl Layout {
+    /// The name OpenLIME's `layout` option takes.
+    pub fn name(self) -> &'static str {
+        match self {
+            Layout::Image => "image",
+            Layout::DeepZoom => "deepzoom",
+            Layout::Tarzoom => "tarzoom",
+            Layout::Itarzoom => "itarzoom",
+        }
+    }
 }
 
 impl Default for WriteOptions {
@@ -914,7 +942,7 @@ impl Default for WriteOptions {
             quality: 95,
             planes: 18,
             resolution: 12,
-            deep_zoom: false,
+            layout: Layout::Image,
         }
     }
 }
@@ -933,20 +961,17 @@ fn encode_jpeg(rgb: &[u8], w: usize, h: usize, quality: u8) -> Result<Vec<u8>> {
     Ok(out)
 }
 
-/// A plane image as Deep Zoom files (name relative to the folder, bytes): the `.dzi`
-/// and every level's tiles, halving (2×2 means) down to one tile. Levels are numbered
-/// as OpenLIME counts them, from the one-tile level, and the tile side is the least
-/// power of two covering a small image, whose level count OpenLIME would otherwise
-/// make zero.
-fn deep_zoom_files(
-    stem: &str,
-    rgb: &[u8],
-    w: usize,
-    h: usize,
-    quality: u8,
-) -> Result<Vec<(String, Vec<u8>)>> {
+/// The tile side and the levels of a written pyramid: relight's 256-pixel tiles, or the
+/// least power of two covering a small image (whose level count OpenLIME would
+/// otherwise make zero), halving down to the one-tile level.
+fn pyramid_shape(w: usize, h: usize) -> Result<(usize, usize)> {
     let tile = DEEP_ZOOM_TILE.min(w.max(h).next_power_of_two());
-    let levels = TileGrid::new(w, h, tile, 0)?.levels();
+    Ok((tile, TileGrid::new(w, h, tile, 0)?.levels()))
+}
+
+/// A plane image's levels, finest first: each the 2×2 means of the one before, sizes
+/// rounded up.
+fn pyramid(rgb: &[u8], w: usize, h: usize, levels: usize) -> Vec<(usize, usize, Vec<u8>)> {
     let mut pyramid = vec![(w, h, rgb.to_vec())];
     for _ in 1..levels {
         let (pw, ph, prev) = pyramid.last().expect("a level");
@@ -973,14 +998,23 @@ fn deep_zoom_files(
         }
         pyramid.push((nw, nh, next));
     }
-    let mut files = vec![(
-        format!("{stem}.dzi"),
-        format!(
-            "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<Image xmlns=\"http://schemas.microsoft.com/deepzoom/2008\" Format=\"jpg\" Overlap=\"0\" TileSize=\"{tile}\">\n  <Size Height=\"{h}\" Width=\"{w}\"/>\n</Image>\n"
-        )
-        .into_bytes(),
-    )];
-    for (level, (lw, lh, pixels)) in pyramid.iter().rev().enumerate() {
+    pyramid
+}
+
+/// One JPEG tile of a pyramid: its level (0 at the one-tile level), column and row.
+struct PyramidTile {
+    level: usize,
+    x: usize,
+    y: usize,
+    jpeg: Vec<u8>,
+}
+
+/// Every tile of a plane image, in the order OpenLIME numbers them: level by level from
+/// the one-tile level, rows top to bottom, columns left to right.
+fn pyramid_tiles(rgb: &[u8], w: usize, h: usize, quality: u8) -> Result<Vec<PyramidTile>> {
+    let (tile, levels) = pyramid_shape(w, h)?;
+    let mut tiles = Vec::new();
+    for (level, (lw, lh, pixels)) in pyramid(rgb, w, h, levels).iter().rev().enumerate() {
         for ty in 0..lh.div_ceil(tile) {
             for tx in 0..lw.div_ceil(tile) {
                 let (x0, y0) = (tx * tile, ty * tile);
@@ -989,14 +1023,81 @@ fn deep_zoom_files(
                 for y in y0..y0 + ch {
                     cut.extend_from_slice(&pixels[3 * (y * lw + x0)..3 * (y * lw + x0 + cw)]);
                 }
-                files.push((
-                    format!("{stem}_files/{level}/{tx}_{ty}.jpg"),
-                    encode_jpeg(&cut, cw, ch, quality)?,
-                ));
+                tiles.push(PyramidTile {
+                    level,
+                    x: tx,
+                    y: ty,
+                    jpeg: encode_jpeg(&cut, cw, ch, quality)?,
+                });
             }
         }
     }
+    Ok(tiles)
+}
+
+/// A plane image as Deep Zoom files (name relative to the folder, bytes): the `.dzi`
+/// and every level's tiles, levels numbered as OpenLIME counts them, from the one-tile
+/// level.
+fn deep_zoom_files(
+    stem: &str,
+    rgb: &[u8],
+    w: usize,
+    h: usize,
+    quality: u8,
+) -> Result<Vec<(String, Vec<u8>)>> {
+    let (tile, _) = pyramid_shape(w, h)?;
+    let mut files = vec![(
+        format!("{stem}.dzi"),
+        format!(
+            "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<Image xmlns=\"http://schemas.microsoft.com/deepzoom/2008\" Format=\"jpg\" Overlap=\"0\" TileSize=\"{tile}\">\n  <Size Height=\"{h}\" Width=\"{w}\"/>\n</Image>\n"
+        )
+        .into_bytes(),
+    )];
+    for t in pyramid_tiles(rgb, w, h, quality)? {
+        files.push((
+            format!("{stem}_files/{}/{}_{}.jpg", t.level, t.x, t.y),
+            t.jpeg,
+        ));
+    }
     Ok(files)
+}
+
+/// A tarzoom pair (`STEM.tzi`, `STEM.tzb`) holding `images` tile lists (each in
+/// [`pyramid_tiles`]' order) interleaved: tile 0 of every image, then tile 1, …
+/// (`stride` = the number of images; 1 is plain tarzoom, more is itarzoom).
+fn tarzoom_files(
+    stem: &str,
+    images: &[Vec<PyramidTile>],
+    w: usize,
+    h: usize,
+) -> Result<Vec<(String, Vec<u8>)>> {
+    let (tile, levels) = pyramid_shape(w, h)?;
+    let tiles = images.first().map_or(0, |t| t.len());
+    let mut data = Vec::new();
+    let mut offsets = vec![0u64];
+    for t in 0..tiles {
+        for image in images {
+            data.extend_from_slice(&image[t].jpeg);
+            offsets.push(data.len() as u64);
+        }
+    }
+    let mut index = serde_json::json!({
+        "tilesize": tile,
+        "overlap": 0,
+        "format": "jpg",
+        "width": w,
+        "height": h,
+        "nlevels": levels,
+        "offsets": offsets,
+    });
+    if images.len() > 1 {
+        index["stride"] = images.len().into();
+    }
+    let index = serde_json::to_vec(&index).map_err(|e| Error::invalid(e.to_string()))?;
+    Ok(vec![
+        (format!("{stem}.tzi"), index),
+        (format!("{stem}.tzb"), data),
+    ])
 }
 
 /// What [`write`] wrote.
@@ -1064,29 +1165,44 @@ pub fn write(
         quantised.iter().map(|q| q.2).collect::<Vec<_>>().into(),
     );
     let staged = StagedFolder::new(folder)?;
-    let encoded: Vec<Vec<(String, Vec<u8>)>> = quantised
-        .par_chunks(3)
-        .enumerate()
-        .map(|(j, three)| {
-            let mut rgb = vec![0u8; 3 * w * h];
-            for (c, (codes, _, _)) in three.iter().enumerate() {
-                rgb.iter_mut()
-                    .skip(c)
-                    .step_by(3)
-                    .zip(codes)
-                    .for_each(|(o, v)| *o = *v);
-            }
-            let stem = format!("plane_{j}");
-            if options.deep_zoom {
-                deep_zoom_files(&stem, &rgb, w, h, options.quality)
-            } else {
-                Ok(vec![(
-                    format!("{stem}.jpg"),
-                    encode_jpeg(&rgb, w, h, options.quality)?,
-                )])
-            }
-        })
-        .collect::<Result<_>>()?;
+    let interleave = |three: &[(Vec<u8>, f64, f64)]| {
+        let mut rgb = vec![0u8; 3 * w * h];
+        for (c, (codes, _, _)) in three.iter().enumerate() {
+            rgb.iter_mut()
+                .skip(c)
+                .step_by(3)
+                .zip(codes)
+                .for_each(|(o, v)| *o = *v);
+        }
+        rgb
+    };
+    let encoded: Vec<Vec<(String, Vec<u8>)>> = if options.layout == Layout::Itarzoom {
+        let tiles: Vec<_> = quantised
+            .par_chunks(3)
+            .map(|three| pyramid_tiles(&interleave(three), w, h, options.quality))
+            .collect::<Result<_>>()?;
+        vec![tarzoom_files("planes", &tiles, w, h)?]
+    } else {
+        quantised
+            .par_chunks(3)
+            .enumerate()
+            .map(|(j, three)| {
+                let rgb = interleave(three);
+                let stem = format!("plane_{j}");
+                match options.layout {
+                    Layout::Image => Ok(vec![(
+                        format!("{stem}.jpg"),
+                        encode_jpeg(&rgb, w, h, options.quality)?,
+                    )]),
+                    Layout::DeepZoom => deep_zoom_files(&stem, &rgb, w, h, options.quality),
+                    Layout::Tarzoom | Layout::Itarzoom => {
+                        let tiles = pyramid_tiles(&rgb, w, h, options.quality)?;
+                        tarzoom_files(&stem, &[tiles], w, h)
+                    }
+                }
+            })
+            .collect::<Result<_>>()?
+    };
     let mut bytes = 0u64;
     let mut files = 1;
     for (name, data) in encoded.iter().flatten() {
@@ -1924,7 +2040,7 @@ mod tests {
             ..Default::default()
         };
         write(&dir.path().join("single"), &image, &options).unwrap();
-        options.deep_zoom = true;
+        options.layout = Layout::DeepZoom;
         let summary = write(&dir.path().join("tiled"), &image, &options).unwrap();
         // 6 images × (1 + 2 + 6 tiles + the .dzi) + info.json.
         assert_eq!(summary.files, 6 * 10 + 1);
@@ -1936,5 +2052,30 @@ mod tests {
             tiled > 45.0 && (tiled - single).abs() < 0.5,
             "single {single:.2} dB, tiled {tiled:.2} dB"
         );
+        // The same tiles in tarzoom files (one per plane image, and one for all).
+        let deep = read(&dir.path().join("tiled")).unwrap();
+        for (layout, files, offsets) in [
+            (Layout::Tarzoom, 6 * 2 + 1, 9 + 1),
+            (Layout::Itarzoom, 3, 9 * 6 + 1),
+        ] {
+            options.layout = layout;
+            let folder = dir.path().join(layout.name());
+            let summary = write(&folder, &image, &options).unwrap();
+            assert_eq!(summary.files, files, "{layout:?}");
+            let index = if layout == Layout::Tarzoom {
+                "plane_5.tzi"
+            } else {
+                "planes.tzi"
+            };
+            let index: serde_json::Value =
+                serde_json::from_slice(&std::fs::read(folder.join(index)).unwrap()).unwrap();
+            assert_eq!(
+                index["offsets"].as_array().unwrap().len(),
+                offsets,
+                "{layout:?}"
+            );
+            assert_eq!(index["nlevels"], 3);
+            assert_eq!(read(&folder).unwrap().maps, deep.maps, "{layout:?}");
+        }
     }
 }
