@@ -7,9 +7,10 @@
 //! broken, under an address-space limit of 1 GiB, and checks: exit code 1 (no panic, no
 //! abort), a message naming the file (and, where the case says, the line or field),
 //! every file in the folder byte-identical afterwards and nothing new left behind.
-//! Not covered here: read-only folders (the tests may run as root, whom permissions do
-//! not stop) and a full disk (needs a mount); writers go through one temporary file
-//! renamed into place (`no_clobber.rs` checks a failing command leaves nothing).
+//! A full disk and a read-only output folder have a test of their own
+//! (`a_full_disk_and_a_read_only_folder_fail_cleanly`): the disk is a file-size limit
+//! (`ulimit -f`, its signal ignored, so a write past it fails as on a full disk), the
+//! folder a mode of 0555 with the command run as `nobody` when the tests run as root.
 
 mod common;
 
@@ -766,4 +767,102 @@ fn every_bad_input_gets_one_clear_error_and_changes_nothing() {
         CASES.len(),
         failures.join("\n")
     );
+}
+
+/// Commands that write, run where writing fails: past a file-size limit of 2 KiB (a
+/// full disk as the writer sees it: the write fails) and into a folder it may not
+/// write. Each must exit 1 naming what it could not write, and leave every file as it
+/// was, no partial output included.
+#[test]
+fn a_full_disk_and_a_read_only_folder_fail_cleanly() {
+    let root = running_as_root();
+    let writers: [&[&str]; 4] = [
+        &[
+            "relight",
+            "scene.exr",
+            "--light",
+            "dir:0,0,1",
+            "-o",
+            "OUT/frame.exr",
+        ],
+        &["fit", "cap/dirs.lp", "--basis", "sh:9", "-o", "OUT/fit.exr"],
+        &["convert", "scene.exr", "-o", "OUT/scene.rlz"],
+        &["export-web", "scene.exr", "OUT/site"],
+    ];
+    let mut failures = Vec::new();
+    for (limit, wrapper) in [
+        (
+            "full disk",
+            "trap '' XFSZ; ulimit -f 4 && exec \"$0\" \"$@\"",
+        ),
+        ("read-only folder", "exec \"$0\" \"$@\""),
+    ] {
+        for args in writers {
+            let dir = fixture();
+            let d = dir.path();
+            std::fs::create_dir(d.join("OUT")).unwrap();
+            let mut command = Command::new("sh");
+            if limit == "read-only folder" {
+                use std::os::unix::fs::PermissionsExt;
+                let mode = |p: &Path, m: u32| {
+                    std::fs::set_permissions(p, std::fs::Permissions::from_mode(m)).unwrap()
+                };
+                for path in snapshot(d).keys() {
+                    let folder = d.join(path).is_dir();
+                    mode(&d.join(path), if folder { 0o755 } else { 0o644 });
+                }
+                mode(d, 0o755);
+                mode(&d.join("OUT"), 0o555);
+                if root {
+                    command = Command::new("setpriv");
+                    command.args(["--reuid=65534", "--regid=65534", "--clear-groups", "sh"]);
+                }
+            }
+            let before = snapshot(d);
+            let out = command
+                .arg("-c")
+                .arg(wrapper)
+                .arg(env!("CARGO_BIN_EXE_relit"))
+                .args(args)
+                .current_dir(d)
+                .output()
+                .unwrap();
+            let stderr = String::from_utf8_lossy(&out.stderr);
+            let mut wrong = Vec::new();
+            if out.status.code() != Some(1) {
+                wrong.push(format!("exit {:?}", out.status.code()));
+            }
+            if stderr.contains("panicked") {
+                wrong.push("a panic".to_string());
+            }
+            // What could not be written: the output, or the fit's spill file, which
+            // the disk refuses first.
+            let spill = args[0] == "fit" && limit == "full disk";
+            let named = if spill { "spill file in" } else { "OUT" };
+            if !stderr.contains(named) {
+                wrong.push(format!("no `{named}` in the message"));
+            }
+            if snapshot(d) != before {
+                wrong.push("files changed or left behind".to_string());
+            }
+            if !wrong.is_empty() {
+                failures.push(format!(
+                    "{limit}: relit {}: {}\n    {}",
+                    args.join(" "),
+                    wrong.join("; "),
+                    stderr.trim().replace('\n', "\n    ")
+                ));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// Whether this process runs as root (whom file modes do not stop).
+fn running_as_root() -> bool {
+    Command::new("id")
+        .arg("-u")
+        .output()
+        .map(|o| String::from_utf8_lossy(&o.stdout).trim() == "0")
+        .unwrap_or(false)
 }

@@ -92,7 +92,10 @@ impl Spill {
 fn spill_error(e: std::io::Error) -> Error {
     Error::new(
         ErrorKind::Io,
-        "the fit's temporary spill file failed (is the temporary folder full?)",
+        format!(
+            "the fit's temporary spill file in {} failed (is that folder full? TMPDIR names another)",
+            std::env::temp_dir().display()
+        ),
     )
     .with_source(e)
 }
