@@ -202,6 +202,11 @@ pub struct WebArgs {
     /// The same as `--web-layout deepzoom`.
     #[arg(long, conflicts_with = "web_layout")]
     pub deep_zoom: bool,
+    /// Write display-referred ptm, hsh and sh maps in relight's `lrgb` colour space (one
+    /// colour image times a luminance per function: about a third of the planes, the
+    /// colour no longer varying with the light) instead of `rgb`.
+    #[arg(long)]
+    pub lrgb: bool,
 }
 
 /// OpenLIME's layouts that relit writes.
@@ -230,6 +235,7 @@ impl WebArgs {
             planes: self.planes,
             resolution: self.grid,
             layout: self.layout(),
+            lrgb: self.lrgb,
         }
     }
 }

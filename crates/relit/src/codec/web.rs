@@ -906,6 +906,9 @@ pub struct WriteOptions {
     /// How the plane images are laid out: OpenLIME's `image`, `deepzoom`, `tarzoom` or
     /// `itarzoom`.
     pub layout: Layout,
+    /// Write `ptm`, `hsh` and `sh` files as `lrgb` (one colour image times luminance
+    /// coefficients, a third of the planes) instead of `rgb`.
+    pub lrgb: bool,
 }
 
 /// The layouts of a web folder's plane images, as OpenLIME names them.
@@ -943,6 +946,7 @@ impl Default for WriteOptions {
             planes: 18,
             resolution: 12,
             layout: Layout::Image,
+            lrgb: false,
         }
     }
 }
@@ -1144,6 +1148,11 @@ pub fn write(
         _ => None,
     };
     let (mut info, planes) = match fixed {
+        Some((kind, k)) if options.lrgb => {
+            let (mut info, planes) = fixed_planes(image, kind, k)?;
+            info["colorspace"] = "lrgb".into();
+            (info, lrgb_planes(&planes))
+        }
         Some((kind, k)) => fixed_planes(image, kind, k)?,
         None => bilinear_planes(image, basis.as_ref(), options)?,
     };
@@ -1277,6 +1286,44 @@ fn fixed_planes(
         "materials": [{}],
     });
     Ok((info, planes))
+}
+
+/// How much brighter than the pixel the written luminance is (and the colour darker):
+/// OpenLIME returns the luminance as the fragment's alpha, so a luminance under 1 shows
+/// the page through the image; at this scale only a pixel darker than 1/255 of white is
+/// not opaque.
+const LRGB_LUMINANCE_SCALE: f64 = 255.0;
+
+/// `rgb` planes (three per function) as `lrgb`: a colour (planes 0–2) times one
+/// luminance coefficient per function (planes 3…, padded with zeros to whole images).
+/// Each pixel's colour and luminances are the least-squares rank-one factors of its
+/// functions × channels, the luminance being the channels' mean (times
+/// [`LRGB_LUMINANCE_SCALE`]): exact where a pixel's channels are one function scaled, as
+/// in a PTM LRGB file.
+fn lrgb_planes(rgb: &[Vec<f32>]) -> Vec<Vec<f32>> {
+    let k = rgb.len() / 3;
+    let n = rgb.first().map_or(0, |p| p.len());
+    let images = k.div_ceil(3);
+    let mut out = vec![vec![0f32; n]; 3 + 3 * images];
+    let (colour, rest) = out.split_at_mut(3);
+    for i in 0..n {
+        let mut norm = 0.0f64;
+        for j in 0..k {
+            let lum =
+                LRGB_LUMINANCE_SCALE * (0..3).map(|c| rgb[3 * j + c][i] as f64).sum::<f64>() / 3.0;
+            rest[j][i] = lum as f32;
+            norm += lum * lum;
+        }
+        if norm > 0.0 {
+            for (c, plane) in colour.iter_mut().enumerate() {
+                let dot: f64 = (0..k)
+                    .map(|j| rgb[3 * j + c][i] as f64 * rest[j][i] as f64)
+                    .sum();
+                plane[i] = (dot / norm) as f32;
+            }
+        }
+    }
+    out
 }
 
 /// Any basis as `bilinear` + `mrgb` (see the module docs): the pixels' functions at the
@@ -2014,6 +2061,41 @@ mod tests {
     /// Deep Zoom: a 600×300 image (three levels, 3×2 full-resolution tiles with partial
     /// ones at the edges) reads back as the single-image layout does. Measured: the same
     /// PSNR (51.0 dB both: smooth maps, 8-bit codes and JPEG at quality 100).
+    #[test]
+    fn lrgb_writing_keeps_a_colour_times_a_luminance_exactly() {
+        let (w, h) = (64, 48);
+        let mut maps = CoefficientMaps::zeros(w, h, 6);
+        for p in 0..w * h {
+            let (x, y) = ((p % w) as f32 / w as f32, (p / w) as f32 / h as f32);
+            let colour = [0.9 - 0.5 * x, 0.4 + 0.3 * y, 0.2 + 0.6 * x * y];
+            for i in 0..6 {
+                let lum = 0.3 * ((3.0 * x + i as f32).sin() + 0.2 * i as f32 * y);
+                for c in 0..3 {
+                    maps.plane_mut(i, c)[p] = colour[c] * lum;
+                }
+            }
+        }
+        let image = RelightableImage {
+            meta: Metadata::new(
+                BasisSpec::named("ptm:6").unwrap(),
+                MapSpace::Srgb,
+                Projection::default(),
+            ),
+            maps,
+            depth: None,
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let options = WriteOptions {
+            quality: 100,
+            lrgb: true,
+            ..Default::default()
+        };
+        let summary = write(&dir.path().join("lrgb"), &image, &options).unwrap();
+        assert_eq!((summary.colorspace.as_str(), summary.planes), ("lrgb", 9));
+        let psnr = worst_psnr(&image, &read(&dir.path().join("lrgb")).unwrap());
+        assert!(psnr > 40.0, "{psnr:.2} dB");
+    }
+
     #[test]
     fn deep_zoom_tiles_read_back_like_single_images() {
         let (w, h) = (600, 300);
