@@ -2070,8 +2070,8 @@ mod tests {
             let colour = [0.9 - 0.5 * x, 0.4 + 0.3 * y, 0.2 + 0.6 * x * y];
             for i in 0..6 {
                 let lum = 0.3 * ((3.0 * x + i as f32).sin() + 0.2 * i as f32 * y);
-                for c in 0..3 {
-                    maps.plane_mut(i, c)[p] = colour[c] * lum;
+                for (c, tint) in colour.iter().enumerate() {
+                    maps.plane_mut(i, c)[p] = tint * lum;
                 }
             }
         }
