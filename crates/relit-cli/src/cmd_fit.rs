@@ -25,6 +25,11 @@ pub struct Args {
     /// Precision of the stored maps: f16 (alias half) or f32 (alias float).
     #[arg(long, default_value = "f16")]
     pub storage: Precision,
+    /// Fit only part I of N (`I/N`, from 0): that band of rows, with the whole capture's
+    /// choices, into an EXR that `relit merge` joins with the other parts into the
+    /// single fit's file (docs/cluster.md: a Slurm job array).
+    #[arg(long = "tile", value_name = "I/N", value_parser = parse_part)]
+    pub part: Option<(usize, usize)>,
     /// Print the summary as JSON.
     #[arg(long)]
     pub json: bool,
@@ -33,10 +38,37 @@ pub struct Args {
     pub quiet: bool,
 }
 
+/// `I/N` of `--tile`.
+fn parse_part(s: &str) -> Result<(usize, usize), String> {
+    let (i, n) = s
+        .split_once('/')
+        .ok_or_else(|| format!("expected I/N (part I of N, from 0), got `{s}`"))?;
+    let parse = |v: &str| {
+        v.trim()
+            .parse::<usize>()
+            .map_err(|_| format!("expected I/N with whole numbers, got `{s}`"))
+    };
+    let (i, n) = (parse(i)?, parse(n)?);
+    if n == 0 || i >= n {
+        return Err(format!(
+            "part {i} of {n} does not exist: I runs from 0 to N−1"
+        ));
+    }
+    Ok((i, n))
+}
+
 pub fn run(args: Args) -> anyhow::Result<()> {
     args.storage
         .require(&[Precision::F32, Precision::F16], "--storage (OpenEXR)")?;
-    let options = args.fit.to_options()?;
+    let mut options = args.fit.to_options()?;
+    options.shard = args.part;
+    anyhow::ensure!(
+        args.part.is_none()
+            || (args.budget.is_none()
+                && relit::codec::FileForm::for_output(&args.output) == relit::codec::FileForm::Exr),
+        "--tile writes one part of the lossless file: name the output `*.exr` (compress \
+         the merged file, `relit merge … -o X.rlz`)"
+    );
     anyhow::ensure!(
         args.budget.is_none()
             || relit::codec::FileForm::for_output(&args.output)
@@ -106,6 +138,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         value["output"] = serde_json::json!(args.output.display().to_string());
         value["file_bytes"] = serde_json::json!(bytes);
         value["bytes_per_pixel"] = serde_json::json!(bytes as f64 / (r.width * r.height) as f64);
+        if let Some(shard) = output.image.meta.fit.as_ref().and_then(|f| f.shard) {
+            value["shard"] = serde_json::to_value(shard)?;
+        }
         println!("{}", serde_json::to_string_pretty(&value)?);
     } else {
         println!(
@@ -126,16 +161,28 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 ""
             },
             r.lambda,
-            if r.lambda_scores.is_empty() {
-                " (fixed)"
-            } else {
+            if !r.lambda_scores.is_empty() {
                 " (chosen by leave-one-out)"
+            } else if !r.candidates.is_empty() {
+                " (chosen with the basis, by validation)"
+            } else {
+                " (fixed)"
             }
         );
         println!(
             "training residual: RMSE (linear) R {:.4} G {:.4} B {:.4}; 8-bit sRGB PSNR {:.2} dB",
             r.rmse_linear[0], r.rmse_linear[1], r.rmse_linear[2], r.psnr_srgb8
         );
+        if let Some(shard) = output.image.meta.fit.as_ref().and_then(|f| f.shard) {
+            println!(
+                "part {} of {}: rows {}..{} of {} (join the parts with `relit merge`)",
+                shard.index,
+                shard.count,
+                shard.rows().start,
+                shard.rows().end,
+                shard.full_height
+            );
+        }
     }
     Ok(())
 }

@@ -14,6 +14,7 @@ mod cmd_eval_rd;
 mod cmd_export_web;
 mod cmd_fit;
 mod cmd_info;
+mod cmd_merge;
 mod cmd_normals;
 mod cmd_relight;
 mod cmd_render_truth;
@@ -45,6 +46,8 @@ enum Command {
     Normals(cmd_normals::Args),
     /// Convert between the lossless EXR and the compressed .rlz file.
     Convert(cmd_convert::Args),
+    /// Join the parts of a sharded fit (`relit fit --tile I/N`) into the single fit's file.
+    Merge(cmd_merge::Args),
     /// Compare two images: PSNR (linear and 8-bit sRGB), SSIM, absolute errors, a
     /// difference picture.
     Compare(cmd_compare::Args),
@@ -126,6 +129,7 @@ fn main() {
         Command::Normals(args) => cmd_normals::run(args),
         Command::Compare(args) => cmd_compare::run(args),
         Command::Convert(args) => cmd_convert::run(args),
+        Command::Merge(args) => cmd_merge::run(args),
         Command::Eval(args) => cmd_eval::run(*args),
         Command::Demo(args) => cmd_demo::run(args),
         Command::Capture(args) => cmd_capture::run(args),

@@ -151,8 +151,8 @@ pub struct CompressArgs {
     /// (lossy 8-bit planes; WebP about a third smaller at equal error).
     #[arg(long, default_value = "zstd:12", value_parser = |s: &str| relit::compress::TileCodec::parse(s).map_err(|e| e.to_string()))]
     pub codec: relit::compress::TileCodec,
-    /// Tile side in pixels.
-    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(16..=4096))]
+    /// Tile side in pixels of a compressed file (each tile is read and decoded alone).
+    #[arg(long = "tile-size", default_value_t = 512, value_parser = clap::value_parser!(u32).range(16..=4096))]
     pub tile: u32,
     /// Vector quantisation (seed 004): every pixel an index into a codebook of this
     /// many entries (2–65536; zstd only). Directional and environment frames then

@@ -55,6 +55,7 @@ pub mod metrics;
 pub mod normals;
 pub mod progress;
 #[doc(hidden)]
+pub mod shard;
 pub mod skip;
 pub mod sphere;
 pub mod storage;

@@ -50,6 +50,54 @@ pub struct FitInfo {
     pub psnr_srgb8: f64,
     /// Wall time of the fit in seconds.
     pub seconds: f64,
+    /// Present when the file holds one band of rows of a sharded fit (`relit fit
+    /// --tile i/N`), which `relit merge` joins with the others.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shard: Option<ShardInfo>,
+}
+
+/// Which band of rows of a sharded fit a file holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ShardInfo {
+    /// Part `index` (from 0) of `count`.
+    pub index: usize,
+    pub count: usize,
+    /// The band's first row in the whole image.
+    pub row0: usize,
+    /// Rows of the whole image.
+    pub full_height: usize,
+}
+
+impl ShardInfo {
+    /// Part `index` of `count` equal bands of an image `height` rows tall, or why there
+    /// is no such part.
+    pub fn new(index: usize, count: usize, height: usize) -> std::result::Result<Self, String> {
+        if count == 0 || index >= count {
+            return Err(format!(
+                "part {index} of {count} does not exist (parts are numbered 0 to N−1)"
+            ));
+        }
+        if count > height {
+            return Err(format!(
+                "{count} parts of an image of {height} rows would leave some empty"
+            ));
+        }
+        Ok(ShardInfo {
+            index,
+            count,
+            row0: Self::first_row(index, count, height),
+            full_height: height,
+        })
+    }
+
+    fn first_row(index: usize, count: usize, height: usize) -> usize {
+        index * height / count
+    }
+
+    /// The rows of the whole image this part holds.
+    pub fn rows(&self) -> std::ops::Range<usize> {
+        self.row0..Self::first_row(self.index + 1, self.count, self.full_height)
+    }
 }
 
 /// How a set of maps was baked from geometry (`relit bake`), kept for provenance.

@@ -486,6 +486,7 @@ mod tests {
             rmse_linear: [0.01, 0.02, 0.03],
             psnr_srgb8: 35.5,
             seconds: 1.25,
+            shard: Some(crate::maps::ShardInfo::new(1, 2, 6).unwrap()),
         });
         meta.camera = Some(crate::camera::CameraSpec {
             projection: Projection::Cylindrical {

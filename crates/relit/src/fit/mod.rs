@@ -61,7 +61,7 @@ use crate::capture::Capture;
 use crate::color;
 use crate::image::ImageRgb;
 use crate::linalg;
-use crate::maps::{CoefficientMaps, FitInfo, MapSpace, Metadata, RelightableImage};
+use crate::maps::{CoefficientMaps, FitInfo, MapSpace, Metadata, RelightableImage, ShardInfo};
 use crate::metrics;
 use crate::progress::Progress;
 use crate::sphere;
@@ -208,6 +208,10 @@ pub struct FitOptions {
     /// What `auto`'s validation error is measured in; `None`: from the capture
     /// ([`Criterion::for_capture`]: linear for radiance images, display otherwise).
     pub criterion: Option<Criterion>,
+    /// Fit only this part of the image's rows (a shard): every choice (basis, objective,
+    /// λ) is still made on the whole image's subsample, so each pixel's coefficients
+    /// are those of the whole fit (`relit merge` joins the parts).
+    pub shard: Option<(usize, usize)>,
 }
 
 impl Default for FitOptions {
@@ -223,6 +227,7 @@ impl Default for FitOptions {
             strip_bytes: 64 << 20,
             subsample: 1024,
             criterion: None,
+            shard: None,
         }
     }
 }
@@ -597,6 +602,14 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
     if pixels == 0 {
         return Err(Error::invalid("the capture's images are empty"));
     }
+    let shard = options
+        .shard
+        .map(|(index, count)| ShardInfo::new(index, count, h).map_err(Error::invalid))
+        .transpose()?;
+    // The rows fitted: all of them, or the shard's band (pixels `band.start..band.end`
+    // of the whole image); the subsample and every choice stay those of the whole image.
+    let rows = shard.map_or(0..h, |s| s.rows());
+    let band = rows.start * w..rows.end * w;
     // Display-referred maps are fitted to display values, so only the plain objective applies.
     let mut objective = match options.color_space {
         MapSpace::Srgb => Objective::Linear,
@@ -652,10 +665,15 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
     let mut accum = None;
     let mut spill = None;
     if objective != Objective::Linear {
-        spill = Some(spill::Spill::create(w, h, design.n, options.strip_bytes)?);
+        spill = Some(spill::Spill::create(
+            w,
+            rows.len(),
+            design.n,
+            options.strip_bytes,
+        )?);
     }
     if objective != Objective::Perceptual {
-        accum = Some(vec![0f32; pixels * design.k * 3]);
+        accum = Some(vec![0f32; band.len() * design.k * 3]);
     }
 
     // Pass 1: stream the images, a batch of decoders' worth at a time.
@@ -663,25 +681,37 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
     let batch = image_batch(options.strip_bytes / 2, pixels * 3 * 4);
     for first in (0..design.n).step_by(batch) {
         let indices: Vec<usize> = (first..(first + batch).min(design.n)).collect();
-        let images: Vec<ImageRgb> = indices
+        // Each image's band of rows, and its subsample pixels where still unread.
+        let images: Vec<(Vec<f32>, Vec<f32>)> = indices
             .par_iter()
             .map(|&j| {
-                let img = to_target(capture.load(j)?, options.color_space);
+                let mut img = to_target(capture.load(j)?, options.color_space).data;
+                let samples: Vec<f32> = if have_sub {
+                    Vec::new()
+                } else {
+                    sub_idx
+                        .iter()
+                        .flat_map(|&p| img[3 * p..3 * p + 3].iter().copied())
+                        .collect()
+                };
+                img.truncate(3 * band.end);
+                img.drain(..3 * band.start);
                 if let Some(spill) = &spill {
-                    spill.write_image(j, &img.data)?;
+                    spill.write_image(j, &img)?;
                 }
                 progress.advance(1);
-                Ok(img)
+                Ok((img, samples))
             })
             .collect::<Result<_>>()?;
-        for (&j, img) in indices.iter().zip(&images).filter(|_| !have_sub) {
-            for (s, &p) in sub_idx.iter().enumerate() {
+        for (&j, (_, samples)) in indices.iter().zip(&images).filter(|_| !have_sub) {
+            for s in 0..sub_idx.len() {
                 let o = (s * design.n + j) * 3;
-                sub[o..o + 3].copy_from_slice(&img.data[3 * p..3 * p + 3]);
+                sub[o..o + 3].copy_from_slice(&samples[3 * s..3 * s + 3]);
             }
         }
         if let Some(acc) = accum.as_mut() {
-            accumulate(acc, &design, &indices, &images);
+            let bands: Vec<&[f32]> = images.iter().map(|(img, _)| img.as_slice()).collect();
+            accumulate(acc, &design, &indices, &bands);
         }
     }
     progress.end();
@@ -779,7 +809,7 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
     }
 
     stages.end("objective and λ");
-    let mut maps = CoefficientMaps::zeros(w, h, design.k);
+    let mut maps = CoefficientMaps::zeros(w, rows.len(), design.k);
     if let Some(acc) = accum.take() {
         solve_shared(acc, &design, lambda, &mut maps)?;
     } else if let Some(spill) = spill.as_ref() {
@@ -794,8 +824,14 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
     }
 
     stages.end("solve");
-    let (rmse_linear, psnr_srgb8) =
-        training_residual(&design, &maps, &sub, &sub_idx, options.color_space);
+    let (rmse_linear, psnr_srgb8) = training_residual(
+        &design,
+        &maps,
+        &sub,
+        &sub_idx,
+        band.clone(),
+        options.color_space,
+    );
     stages.end("residual");
     let seconds = start.elapsed().as_secs_f64();
     let mut meta = Metadata::new(
@@ -819,6 +855,7 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
         rmse_linear,
         psnr_srgb8,
         seconds,
+        shard,
     });
     let report = FitReport {
         basis: design.basis.name(),
@@ -840,7 +877,10 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
         rmse_linear,
         psnr_srgb8,
     };
-    let depth = capture.depth.as_ref().map(|d| d.as_ref().clone());
+    let depth = capture
+        .depth
+        .as_ref()
+        .map(|d| d.get(band.clone()).unwrap_or_default().to_vec());
     Ok(FitOutput {
         image: RelightableImage { meta, maps, depth },
         report,
@@ -853,7 +893,7 @@ const CHUNK: usize = 128;
 /// Add `q_j B(L_j) I_j` of a batch of images into the pixel-major sums `acc`
 /// (pixel, channel, i). Each pixel's sums stay in cache over the whole batch and the
 /// inner loop runs along the contiguous coefficients, which the compiler vectorises.
-fn accumulate(acc: &mut [f32], design: &Design, indices: &[usize], images: &[ImageRgb]) {
+fn accumulate(acc: &mut [f32], design: &Design, indices: &[usize], images: &[&[f32]]) {
     let k = design.k;
     let rows: Vec<Vec<f32>> = indices
         .iter()
@@ -873,7 +913,7 @@ fn accumulate(acc: &mut [f32], design: &Design, indices: &[usize], images: &[Ima
                 let p = p0 + pl;
                 for (img, row) in images.iter().zip(&rows) {
                     for (c, channel) in sums.chunks_exact_mut(k).enumerate() {
-                        let v = img.data[3 * p + c];
+                        let v = img[3 * p + c];
                         for (s, &a) in channel.iter_mut().zip(row) {
                             *s += a * v;
                         }
@@ -1476,12 +1516,19 @@ fn training_residual(
     maps: &CoefficientMaps,
     sub: &[f32],
     sub_idx: &[usize],
+    band: std::ops::Range<usize>,
     space: MapSpace,
 ) -> ([f64; 3], f64) {
     let (k, n) = (design.k, design.n);
     let mut sq = [0.0f64; 3];
     let mut sq8 = 0.0f64;
+    let mut count = 0usize;
     for (s, &p) in sub_idx.iter().enumerate() {
+        if !band.contains(&p) {
+            continue;
+        }
+        count += n;
+        let p = p - band.start;
         for c in 0..3 {
             let coef: Vec<f64> = (0..k).map(|i| maps.plane(i, c)[p] as f64).collect();
             for j in 0..n {
@@ -1500,7 +1547,12 @@ fn training_residual(
             }
         }
     }
-    let count = (sub_idx.len() * n) as f64;
+    if count == 0 {
+        // A shard narrower than the subsample's spacing: nothing measured (`relit merge`
+        // pools the parts that measured theirs).
+        return ([0.0; 3], 0.0);
+    }
+    let count = count as f64;
     let rmse = sq.map(|v| (v / count).sqrt());
     let mse8 = sq8 / (3.0 * count);
     (rmse, metrics::psnr(mse8, 255.0))

@@ -1,0 +1,104 @@
+//! `relit merge`: join the parts of a sharded fit (`relit fit --tile I/N`) into one file.
+
+use crate::shared::{refuse_overwriting_inputs, CompressArgs};
+use anyhow::Context;
+use relit::codec::{self, FileForm};
+use relit::fsutil::Output;
+use relit::storage::Precision;
+use std::path::PathBuf;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Every part's EXR, in any order (`shard_*.exr`).
+    #[arg(required = true)]
+    pub parts: Vec<PathBuf>,
+    /// The joined file: OpenEXR, or compressed when it ends in `.rlz`.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    #[command(flatten)]
+    pub compress: CompressArgs,
+    /// Precision of an EXR output: f16 or f32; default the parts' own (f32 if any part
+    /// holds f32, so that nothing is rounded on the way).
+    #[arg(long)]
+    pub storage: Option<Precision>,
+    /// Print the summary as JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// The precision an EXR part stores its maps at, from its header.
+fn stored_precision(path: &std::path::Path) -> Option<Precision> {
+    let summary = codec::exr::read_metadata_summary(path).ok()?;
+    let (_, value) = summary.iter().find(|(k, _)| k == "relit.storage")?;
+    value.parse().ok()
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let form = FileForm::for_output(&args.output);
+    anyhow::ensure!(
+        matches!(form, FileForm::Exr | FileForm::Compressed),
+        "relit merge writes OpenEXR or a compressed `.rlz`: name the output `*.exr` or `*.rlz`"
+    );
+    refuse_overwriting_inputs(&args.parts, &[Output::file(&args.output)])?;
+    let start = std::time::Instant::now();
+    let names: Vec<String> = args.parts.iter().map(|p| p.display().to_string()).collect();
+    let parts = args
+        .parts
+        .iter()
+        .map(|p| codec::read(p).with_context(|| format!("reading {}", p.display())))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let count = parts.len();
+    let image = relit::shard::merge(parts, &names)?;
+    let storage = args.storage.unwrap_or_else(|| {
+        if args
+            .parts
+            .iter()
+            .any(|p| stored_precision(p) == Some(Precision::F32))
+        {
+            Precision::F32
+        } else {
+            Precision::F16
+        }
+    });
+    let description = match form {
+        FileForm::Compressed => {
+            let settings = args.compress.settings();
+            codec::packed::write(&args.output, &image, &settings)
+                .with_context(|| format!("writing {}", args.output.display()))?;
+            settings.describe()
+        }
+        _ => {
+            storage.require(&[Precision::F32, Precision::F16], "--storage (OpenEXR)")?;
+            codec::exr::write(&args.output, &image, storage)
+                .with_context(|| format!("writing {}", args.output.display()))?;
+            format!("OpenEXR {storage}")
+        }
+    };
+    let bytes = crate::shared::size_on_disk(&args.output)?;
+    let seconds = start.elapsed().as_secs_f64();
+    let basis = image.meta.basis.build()?.name();
+    if args.json {
+        let value = serde_json::json!({
+            "output": args.output.display().to_string(),
+            "parts": count,
+            "width": image.width(),
+            "height": image.height(),
+            "basis": basis,
+            "settings": description,
+            "bytes": bytes,
+            "fit_seconds": image.meta.fit.as_ref().map(|f| f.seconds),
+            "seconds": seconds,
+        });
+        println!("{}", serde_json::to_string_pretty(&value)?);
+    } else {
+        println!(
+            "wrote {} ({description}, basis {basis}, {}×{}) from {count} parts: {} bytes, {:.2} s",
+            args.output.display(),
+            image.width(),
+            image.height(),
+            bytes,
+            seconds
+        );
+    }
+    Ok(())
+}

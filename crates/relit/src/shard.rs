@@ -1,0 +1,320 @@
+//! Sharded fits: the bands of rows that `fit` wrote part by part
+//! ([`crate::fit::FitOptions::shard`]), joined back into one relightable image.
+//!
+//! Every part makes the whole image's choices (basis and its tables, objective, λ) on
+//! the whole image's pixel subsample, and each pixel's coefficients depend only on that
+//! pixel's samples, so the joined maps are the single fit's maps value for value. The
+//! join therefore refuses parts that were fitted differently: a part of another capture
+//! or of other options would otherwise leave a seam no one sees until it is relit.
+
+use crate::error::{Error, Result};
+use crate::maps::{CoefficientMaps, FitInfo, RelightableImage, ShardInfo};
+
+/// The shard description of a part, or why it is not one.
+fn shard_of(part: &RelightableImage, name: &str) -> Result<ShardInfo> {
+    part.meta.fit.as_ref().and_then(|f| f.shard).ok_or_else(|| {
+        Error::invalid(format!(
+            "{name} is not a part of a sharded fit (no shard in its fit metadata; \
+                 write parts with `relit fit --tile i/N`)"
+        ))
+    })
+}
+
+/// The metadata a part shares with every other part: its own timing, residual and
+/// place left out.
+fn shared_fit(fit: &FitInfo) -> FitInfo {
+    FitInfo {
+        rmse_linear: [0.0; 3],
+        psnr_srgb8: 0.0,
+        seconds: 0.0,
+        shard: None,
+        ..fit.clone()
+    }
+}
+
+/// Join the parts of one sharded fit (in any order; `names` name them in messages)
+/// into the whole image.
+pub fn merge(parts: Vec<RelightableImage>, names: &[String]) -> Result<RelightableImage> {
+    let name = |i: usize| names.get(i).cloned().unwrap_or_else(|| format!("part {i}"));
+    let first = parts
+        .first()
+        .ok_or_else(|| Error::invalid("no parts to merge"))?;
+    let head = shard_of(first, &name(0))?;
+    let width = first.width();
+    let k = first.maps.k;
+    let mut slots: Vec<Option<usize>> = vec![None; head.count];
+    for (i, part) in parts.iter().enumerate() {
+        let shard = shard_of(part, &name(i))?;
+        if shard.count != head.count || shard.full_height != head.full_height {
+            return Err(Error::invalid(format!(
+                "{} is part {} of {} of an image {} rows tall, {} part {} of {} of {} rows: \
+                 they are not parts of one fit",
+                name(i),
+                shard.index,
+                shard.count,
+                shard.full_height,
+                name(0),
+                head.index,
+                head.count,
+                head.full_height
+            )));
+        }
+        let expected = ShardInfo::new(shard.index, shard.count, shard.full_height)
+            .map_err(|e| Error::invalid(format!("{}: {e}", name(i))))?;
+        if shard != expected || part.height() != shard.rows().len() {
+            return Err(Error::invalid(format!(
+                "{} claims rows {}..{} of part {} of {} but holds {} rows from row {}",
+                name(i),
+                expected.rows().start,
+                expected.rows().end,
+                shard.index,
+                shard.count,
+                part.height(),
+                shard.row0
+            )));
+        }
+        if part.width() != width || part.maps.k != k {
+            return Err(Error::invalid(format!(
+                "{} is {} pixels wide with {} coefficients, {} {} with {}",
+                name(i),
+                part.width(),
+                part.maps.k,
+                name(0),
+                width,
+                k
+            )));
+        }
+        let differs = |what: &str| {
+            Error::invalid(format!(
+                "{} was fitted with another {what} than {}: parts of one fit share every \
+                 choice (re-fit the parts with the same capture and options)",
+                name(i),
+                name(0)
+            ))
+        };
+        if part.meta.basis != first.meta.basis {
+            return Err(differs("basis"));
+        }
+        let (ours, theirs) = (part.meta.fit.as_ref(), first.meta.fit.as_ref());
+        if ours.map(shared_fit) != theirs.map(shared_fit) {
+            return Err(differs("objective, λ or image count"));
+        }
+        let mut meta = part.meta.clone();
+        meta.fit.clone_from(&first.meta.fit);
+        if meta != first.meta {
+            return Err(differs("colour space, projection or camera"));
+        }
+        if part.depth.is_some() != first.depth.is_some() {
+            return Err(differs("depth map (one has it, the other not)"));
+        }
+        if let Some(other) = slots[shard.index].replace(i) {
+            return Err(Error::invalid(format!(
+                "{} and {} are both part {} of {}",
+                name(other),
+                name(i),
+                shard.index,
+                shard.count
+            )));
+        }
+    }
+    let missing: Vec<String> = (0..head.count)
+        .filter(|&s| slots[s].is_none())
+        .map(|s| s.to_string())
+        .collect();
+    if !missing.is_empty() {
+        return Err(Error::invalid(format!(
+            "part{} {} of {} missing",
+            if missing.len() > 1 { "s" } else { "" },
+            missing.join(", "),
+            head.count
+        )));
+    }
+    let order: Vec<usize> = slots.into_iter().flatten().collect();
+    let height = head.full_height;
+    let mut maps = CoefficientMaps::zeros(width, height, k);
+    let plane_len = width * height;
+    for (plane, out) in maps.data.chunks_exact_mut(plane_len).enumerate() {
+        for &i in &order {
+            let part = &parts[i];
+            let rows = shard_of(part, "")?.rows();
+            let n = part.maps.pixels();
+            out[rows.start * width..rows.end * width]
+                .copy_from_slice(&part.maps.data[plane * n..(plane + 1) * n]);
+        }
+    }
+    let depth = first.depth.as_ref().map(|_| {
+        order
+            .iter()
+            .flat_map(|&i| parts[i].depth.clone().unwrap_or_default())
+            .collect()
+    });
+    let mut meta = first.meta.clone();
+    if let Some(fit) = meta.fit.as_mut() {
+        // The residual pooled over the parts that measured one (each measures the
+        // subsample pixels in its rows), weighted by their rows; the time is the total.
+        let measured: Vec<(f64, &FitInfo)> = order
+            .iter()
+            .filter_map(|&i| parts[i].meta.fit.as_ref())
+            .filter(|f| f.psnr_srgb8 > 0.0)
+            .map(|f| (f.shard.map_or(0, |s| s.rows().len()) as f64, f))
+            .collect();
+        let rows: f64 = measured.iter().map(|(r, _)| r).sum();
+        if rows > 0.0 {
+            for c in 0..3 {
+                let mse: f64 = measured
+                    .iter()
+                    .map(|(r, f)| r * f.rmse_linear[c].powi(2))
+                    .sum();
+                fit.rmse_linear[c] = (mse / rows).sqrt();
+            }
+            let mse8: f64 = measured
+                .iter()
+                .map(|(r, f)| r * 10f64.powf(-f.psnr_srgb8 / 10.0))
+                .sum();
+            fit.psnr_srgb8 = -10.0 * (mse8 / rows).log10();
+        }
+        fit.seconds = order
+            .iter()
+            .filter_map(|&i| parts[i].meta.fit.as_ref())
+            .map(|f| f.seconds)
+            .sum();
+        fit.shard = None;
+    }
+    Ok(RelightableImage { meta, maps, depth })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::capture::Capture;
+    use crate::fit::{fit, BasisRequest, FitOptions, Objective};
+    use crate::progress::Silent;
+    use std::sync::Arc;
+
+    fn capture() -> Capture {
+        let dirs = crate::sphere::hemisphere_fibonacci(40);
+        let mut capture = crate::synth::bumpy_plane(37, 23, &dirs);
+        let pixels = capture.width * capture.height;
+        capture.depth = Some(Arc::new((0..pixels).map(|p| 1.0 + p as f32).collect()));
+        capture
+    }
+
+    fn parts(capture: &Capture, options: &FitOptions, count: usize) -> Vec<RelightableImage> {
+        (0..count)
+            .map(|i| {
+                let options = FitOptions {
+                    shard: Some((i, count)),
+                    ..options.clone()
+                };
+                fit(capture, &options, &Silent).unwrap().image
+            })
+            .collect()
+    }
+
+    fn names(count: usize) -> Vec<String> {
+        (0..count).map(|i| format!("part{i}.exr")).collect()
+    }
+
+    /// The joined parts hold the single fit's maps bit for bit, whatever the basis, the
+    /// objective and the strips the perceptual fit streams in.
+    #[test]
+    fn merged_parts_equal_the_single_fit() {
+        let capture = capture();
+        // `auto` chooses on every part again, so it runs in fewer parts.
+        let cases = [
+            (
+                FitOptions {
+                    max_coefficients: 9,
+                    ..Default::default()
+                },
+                &[3][..],
+            ),
+            (
+                FitOptions {
+                    basis: BasisRequest::parse("sh:9").unwrap(),
+                    objective: Objective::Linear,
+                    ..Default::default()
+                },
+                &[1, 2, 23],
+            ),
+            (
+                FitOptions {
+                    basis: BasisRequest::parse("rbf:9").unwrap(),
+                    objective: Objective::Perceptual,
+                    strip_bytes: 40 * 37 * 3 * 4 * 2, // two rows of all images per strip
+                    ..Default::default()
+                },
+                &[4],
+            ),
+        ];
+        for (options, counts) in cases {
+            let whole = fit(&capture, &options, &Silent).unwrap().image;
+            for &count in counts {
+                let mut pieces = parts(&capture, &options, count);
+                pieces.reverse(); // any order
+                let merged = merge(pieces, &names(count)).unwrap();
+                assert_eq!(merged.meta.basis, whole.meta.basis);
+                assert!(merged.maps.data.len() == whole.maps.data.len());
+                assert!(
+                    merged
+                        .maps
+                        .data
+                        .iter()
+                        .zip(&whole.maps.data)
+                        .all(|(a, b)| a.to_bits() == b.to_bits()),
+                    "{:?} in {count} parts differs from the single fit",
+                    options.basis
+                );
+                assert_eq!(merged.depth, whole.depth);
+                let (m, w) = (merged.meta.fit.unwrap(), whole.meta.fit.clone().unwrap());
+                assert_eq!(
+                    (m.lambda, m.objective, m.shard),
+                    (w.lambda, w.objective, None)
+                );
+                assert!((m.psnr_srgb8 - w.psnr_srgb8).abs() < 1.0, "pooled residual");
+            }
+        }
+    }
+
+    #[test]
+    fn parts_that_do_not_make_one_fit_are_refused() {
+        let capture = capture();
+        let options = FitOptions {
+            basis: BasisRequest::parse("sh:9").unwrap(),
+            ..Default::default()
+        };
+        let three = parts(&capture, &options, 3);
+        let message =
+            |parts: Vec<RelightableImage>| merge(parts, &names(3)).unwrap_err().to_string();
+        assert!(message(three[..2].to_vec()).contains("part 2 of 3 missing"));
+        assert!(
+            message(vec![three[0].clone(), three[1].clone(), three[1].clone()])
+                .contains("both part 1")
+        );
+        let mut other = three.clone();
+        other[1].meta.fit.as_mut().unwrap().lambda *= 10.0;
+        assert!(message(other).contains("part1.exr was fitted with another objective, λ"));
+        let mut other = three.clone();
+        other[2].meta.basis = crate::basis::BasisSpec::named("sh:16").unwrap();
+        assert!(message(other).contains("another basis"));
+        let whole = fit(&capture, &options, &Silent).unwrap().image;
+        assert!(message(vec![whole]).contains("not a part of a sharded fit"));
+        let mut wrong = three.clone();
+        wrong[0].maps = CoefficientMaps::zeros(37, 5, 9);
+        assert!(message(wrong).contains("holds 5 rows"));
+        let two = parts(&capture, &options, 2);
+        assert!(message(vec![three[0].clone(), two[1].clone()]).contains("not parts of one fit"));
+    }
+
+    #[test]
+    fn a_part_that_does_not_exist_is_refused_by_the_fit() {
+        let capture = capture();
+        for shard in [(3, 3), (0, 0), (0, 24)] {
+            let options = FitOptions {
+                shard: Some(shard),
+                ..Default::default()
+            };
+            assert!(fit(&capture, &options, &Silent).is_err(), "{shard:?}");
+        }
+    }
+}
