@@ -81,6 +81,29 @@ viewer_test() {
 }
 viewer_test
 
+# The sharded fit on a real Slurm (docs/cluster.md): a one-node cluster on localhost,
+# a job array of parts, a dependent merge, identical relit images (about a minute).
+# It starts daemons as root; RELIT_SKIP_SLURM_TEST=1 skips it (logged).
+slurm_test() {
+  local why=""
+  if [ "${RELIT_SKIP_SLURM_TEST:-0}" = "1" ]; then
+    why="RELIT_SKIP_SLURM_TEST=1"
+  elif [ "$(id -u)" -ne 0 ]; then
+    why="it starts slurmctld and slurmd as root (run as root, or scripts/cluster/slurm_test.sh with sudo)"
+  fi
+  if [ -n "$why" ]; then
+    echo "slurm test: SKIPPED — $why" >&2
+    echo "slurm test (scripts/test.sh): $why" >>"$skip_log"
+    if [ "${RELIT_NO_SKIPS:-0}" = "1" ] || in_ci; then
+      echo "slurm test: failing instead (RELIT_NO_SKIPS=1 or CI=true)" >&2
+      return 1
+    fi
+    return
+  fi
+  RELIT="$PWD/target/release/relit" scripts/cluster/slurm_test.sh
+}
+slurm_test
+
 if [ -s "$skip_log" ]; then
   echo "tests skipped ($(sort -u "$skip_log" | wc -l)), because something they need is missing here:" >&2
   sort -u "$skip_log" | sed 's/^/  /' >&2

@@ -30,6 +30,10 @@ pub struct Args {
     /// single fit's file (docs/cluster.md: a Slurm job array).
     #[arg(long = "tile", value_name = "I/N", value_parser = parse_part)]
     pub part: Option<(usize, usize)>,
+    /// Reuse the choices (basis, objective, λ) that `relit plan` made once for this
+    /// capture instead of making them again: each `--tile` part then costs only its rows.
+    #[arg(long, value_name = "PLAN.json")]
+    pub plan: Option<PathBuf>,
     /// Print the summary as JSON.
     #[arg(long)]
     pub json: bool,
@@ -62,6 +66,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .require(&[Precision::F32, Precision::F16], "--storage (OpenEXR)")?;
     let mut options = args.fit.to_options()?;
     options.shard = args.part;
+    if let Some(path) = &args.plan {
+        let plan = crate::cmd_plan::read_plan(path)?;
+        // The plan's settings are the fit's: its colour space, regulariser, reweighting.
+        options.color_space = plan.color_space;
+        options.regularizer = plan.regularizer;
+        options.reweights = plan.reweights;
+        options.plan = Some(plan);
+    }
     anyhow::ensure!(
         args.part.is_none()
             || (args.budget.is_none()
@@ -76,7 +88,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "--budget writes a compressed file: name the output `*.rlz`"
     );
     let outputs = [Output::file(&args.output)];
-    refuse_overwriting_inputs(std::slice::from_ref(&args.capture), &outputs)?;
+    let inputs: Vec<PathBuf> = std::iter::once(args.capture.clone())
+        .chain(args.plan.clone())
+        .collect();
+    refuse_overwriting_inputs(&inputs, &outputs)?;
     let capture = Capture::open(&args.capture)?;
     refuse_overwriting_inputs(&capture.input_files(), &outputs)?;
     if !args.json && !args.quiet {

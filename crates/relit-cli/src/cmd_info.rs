@@ -120,6 +120,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "  residual      RMSE (linear) R {:.4} G {:.4} B {:.4}; training 8-bit sRGB PSNR {:.2} dB",
             fit.rmse_linear[0], fit.rmse_linear[1], fit.rmse_linear[2], fit.psnr_srgb8
         );
+        if let Some(shard) = fit.shard {
+            println!(
+                "  part          {} of {}: rows {}..{} of {} (join the parts with `relit merge`)",
+                shard.index,
+                shard.count,
+                shard.rows().start,
+                shard.rows().end,
+                shard.full_height
+            );
+        }
     }
     if let Some(bake) = &meta.bake {
         let bounces = if bake.indirect > 0 {

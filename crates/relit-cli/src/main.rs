@@ -16,6 +16,7 @@ mod cmd_fit;
 mod cmd_info;
 mod cmd_merge;
 mod cmd_normals;
+mod cmd_plan;
 mod cmd_relight;
 mod cmd_render_truth;
 mod cmd_view;
@@ -46,6 +47,9 @@ enum Command {
     Normals(cmd_normals::Args),
     /// Convert between the lossless EXR and the compressed .rlz file.
     Convert(cmd_convert::Args),
+    /// Make a capture's fit choices (basis, objective, λ) once, for the parts of a
+    /// sharded fit to reuse (`relit fit --plan PLAN --tile I/N`).
+    Plan(cmd_plan::Args),
     /// Join the parts of a sharded fit (`relit fit --tile I/N`) into the single fit's file.
     Merge(cmd_merge::Args),
     /// Compare two images: PSNR (linear and 8-bit sRGB), SSIM, absolute errors, a
@@ -130,6 +134,7 @@ fn main() {
         Command::Compare(args) => cmd_compare::run(args),
         Command::Convert(args) => cmd_convert::run(args),
         Command::Merge(args) => cmd_merge::run(args),
+        Command::Plan(args) => cmd_plan::run(args),
         Command::Eval(args) => cmd_eval::run(*args),
         Command::Demo(args) => cmd_demo::run(args),
         Command::Capture(args) => cmd_capture::run(args),

@@ -249,8 +249,15 @@ mod tests {
         ];
         for (options, counts) in cases {
             let whole = fit(&capture, &options, &Silent).unwrap().image;
-            for &count in counts {
-                let mut pieces = parts(&capture, &options, count);
+            // The same parts fitted from a plan made once (through its JSON form).
+            let plan = crate::fit::plan(&capture, &options, &Silent).unwrap();
+            let json = serde_json::to_string(&plan).unwrap();
+            let planned = FitOptions {
+                plan: Some(serde_json::from_str(&json).unwrap()),
+                ..options.clone()
+            };
+            for (count, options) in counts.iter().map(|&c| (c, &options)).chain([(3, &planned)]) {
+                let mut pieces = parts(&capture, options, count);
                 pieces.reverse(); // any order
                 let merged = merge(pieces, &names(count)).unwrap();
                 assert_eq!(merged.meta.basis, whole.meta.basis);
@@ -304,6 +311,37 @@ mod tests {
         assert!(message(wrong).contains("holds 5 rows"));
         let two = parts(&capture, &options, 2);
         assert!(message(vec![three[0].clone(), two[1].clone()]).contains("not parts of one fit"));
+    }
+
+    #[test]
+    fn a_plan_for_another_capture_or_setting_is_refused() {
+        let capture = capture();
+        let options = FitOptions {
+            basis: BasisRequest::parse("sh:4").unwrap(),
+            ..Default::default()
+        };
+        let plan = crate::fit::plan(&capture, &options, &Silent).unwrap();
+        let other = crate::synth::bumpy_plane(37, 22, &crate::sphere::hemisphere_fibonacci(40));
+        let with = |plan: crate::fit::Plan, options: &FitOptions| FitOptions {
+            plan: Some(plan),
+            ..options.clone()
+        };
+        let err = fit(&other, &with(plan.clone(), &options), &Silent).unwrap_err();
+        assert!(
+            err.to_string().contains("made for 40 images of 37×23"),
+            "{err}"
+        );
+        let srgb = FitOptions {
+            color_space: crate::maps::MapSpace::Srgb,
+            ..options.clone()
+        };
+        assert!(fit(&capture, &with(plan.clone(), &srgb), &Silent).is_err());
+        let mut bad = plan.clone();
+        bad.lambda = f64::NAN;
+        assert!(fit(&capture, &with(bad, &options), &Silent).is_err());
+        let mut bad = plan;
+        bad.format = "something".into();
+        assert!(fit(&capture, &with(bad, &options), &Silent).is_err());
     }
 
     #[test]

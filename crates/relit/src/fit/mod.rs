@@ -56,7 +56,7 @@ mod spill;
 
 pub use select::{candidates, CandidateScore, Criterion, VALIDATION_LADDER};
 
-use crate::basis::{Basis, BasisChoice, Samples};
+use crate::basis::{Basis, BasisChoice, BasisSpec, Samples};
 use crate::capture::Capture;
 use crate::color;
 use crate::image::ImageRgb;
@@ -212,6 +212,100 @@ pub struct FitOptions {
     /// λ) is still made on the whole image's subsample, so each pixel's coefficients
     /// are those of the whole fit (`relit merge` joins the parts).
     pub shard: Option<(usize, usize)>,
+    /// Choices made once for the capture ([`plan`]): the fit skips every choice and
+    /// fits the plan's basis with its objective and λ (a shard then costs only its rows).
+    pub plan: Option<Plan>,
+}
+
+/// A capture's choices, made once on the whole capture and reused by every part of a
+/// sharded fit: the built basis (tables included), the objective and λ.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Plan {
+    /// `relit-plan`, so that other JSON is refused by name.
+    pub format: String,
+    pub version: u32,
+    /// The capture the choices were made on: images and size.
+    pub images: usize,
+    pub width: usize,
+    pub height: usize,
+    pub basis: BasisSpec,
+    pub objective: Objective,
+    pub lambda: f64,
+    pub color_space: MapSpace,
+    pub regularizer: Regularizer,
+    pub reweights: usize,
+    /// `auto`'s candidates and their validation scores, best first, for the record
+    /// (written, not read back: a score may be infinite, which JSON writes as null).
+    #[serde(default, skip_deserializing)]
+    pub candidates: Vec<CandidateScore>,
+}
+
+impl Plan {
+    pub const FORMAT: &'static str = "relit-plan";
+    pub const VERSION: u32 = 1;
+
+    /// Whether the plan was made for `capture`, or why not.
+    fn check(&self, capture: &Capture, options: &FitOptions) -> Result<()> {
+        if self.format != Self::FORMAT || self.version != Self::VERSION {
+            return Err(Error::invalid(format!(
+                "not a relit plan of version {} (format `{}` version {})",
+                Self::VERSION,
+                self.format,
+                self.version
+            )));
+        }
+        if (self.images, self.width, self.height) != (capture.len(), capture.width, capture.height)
+        {
+            return Err(Error::invalid(format!(
+                "the plan was made for {} images of {}×{}, the capture has {} of {}×{}",
+                self.images,
+                self.width,
+                self.height,
+                capture.len(),
+                capture.width,
+                capture.height
+            )));
+        }
+        if (self.color_space, self.regularizer, self.reweights)
+            != (options.color_space, options.regularizer, options.reweights)
+        {
+            return Err(Error::invalid(
+                "the plan was made with another colour space, regulariser or reweighting",
+            ));
+        }
+        if !(self.lambda >= 0.0 && self.lambda.is_finite()) || self.objective == Objective::Auto {
+            return Err(Error::invalid(
+                "the plan's λ must be a non-negative number and its objective linear or perceptual",
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Make `capture`'s choices (basis, objective, λ) as [`fit`] makes them, once: what
+/// every part of a sharded fit then reuses (`FitOptions::plan`). It fits one row only,
+/// so it costs the choices and one pass over the images.
+pub fn plan(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> Result<Plan> {
+    let one_row = FitOptions {
+        shard: Some((0, capture.height.max(1))),
+        plan: None,
+        ..options.clone()
+    };
+    let out = fit(capture, &one_row, progress)?;
+    Ok(Plan {
+        format: Plan::FORMAT.into(),
+        version: Plan::VERSION,
+        images: capture.len(),
+        width: capture.width,
+        height: capture.height,
+        basis: out.image.meta.basis,
+        objective: out.report.objective,
+        lambda: out.report.lambda,
+        color_space: options.color_space,
+        regularizer: options.regularizer,
+        reweights: options.reweights,
+        candidates: out.report.candidates,
+    })
 }
 
 impl Default for FitOptions {
@@ -228,6 +322,7 @@ impl Default for FitOptions {
             subsample: 1024,
             criterion: None,
             shard: None,
+            plan: None,
         }
     }
 }
@@ -619,10 +714,14 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
     let dirs = capture.directions();
     let sub_idx = subsample_indices(pixels, options.subsample);
     // `auto` and data-driven families see the subsample before the basis exists.
-    let early = match &options.basis {
-        BasisRequest::Auto => true,
-        BasisRequest::Fixed(choice) => choice.needs_samples(),
-    };
+    if let Some(plan) = &options.plan {
+        plan.check(capture, options)?;
+    }
+    let early = options.plan.is_none()
+        && match &options.basis {
+            BasisRequest::Auto => true,
+            BasisRequest::Fixed(choice) => choice.needs_samples(),
+        };
     let early_sub = if early {
         Some(read_subsample(
             capture,
@@ -639,18 +738,25 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
     let criterion = options
         .criterion
         .unwrap_or_else(|| Criterion::for_capture(capture));
-    let (basis, validated, basis_scores) = choose_basis(
-        &options.basis,
-        options,
-        criterion,
-        objective,
-        &dirs,
-        early_sub.as_deref(),
-        sub_idx.len(),
-    )?;
+    let (basis, validated, basis_scores) = match &options.plan {
+        Some(plan) => (
+            plan.basis.build()?,
+            Some((plan.objective, plan.lambda)),
+            Vec::new(),
+        ),
+        None => choose_basis(
+            &options.basis,
+            options,
+            criterion,
+            objective,
+            &dirs,
+            early_sub.as_deref(),
+            sub_idx.len(),
+        )?,
+    };
     if let Some((chosen, lambda)) = validated {
         objective = chosen;
-        if matches!(lambda_option, Lambda::Auto) {
+        if matches!(lambda_option, Lambda::Auto) || options.plan.is_some() {
             lambda_option = Lambda::Fixed(lambda);
         }
     }
@@ -844,7 +950,9 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
         objective: objective.name().into(),
         regularizer: options.regularizer.name().into(),
         lambda,
-        lambda_choice: if !basis_scores.is_empty() && matches!(options.lambda, Lambda::Auto) {
+        lambda_choice: if options.plan.is_some() {
+            "plan".into()
+        } else if !basis_scores.is_empty() && matches!(options.lambda, Lambda::Auto) {
             "validated".into()
         } else if matches!(options.lambda, Lambda::Auto) {
             "auto".into()

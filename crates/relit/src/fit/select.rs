@@ -22,7 +22,7 @@ use crate::linalg;
 use crate::sphere::Vec3;
 use crate::Result;
 use rayon::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// The λ values each candidate is validated at.
 pub const VALIDATION_LADDER: [f64; 6] = [1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1];
@@ -37,7 +37,7 @@ const SLOTS: usize = 3 * LADDER + 1;
 const LINEAR: usize = 2 * LADDER + 1;
 
 /// What the validation error is measured in.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Criterion {
     /// 8-bit-style display values: sRGB-encoded, clipped to `[0, 1]` (photographs).
@@ -76,7 +76,7 @@ fn perceptual_pixels(count: usize, n: usize, k: usize) -> usize {
 }
 
 /// One candidate's validation score.
-#[derive(Clone, Debug, Serialize, PartialEq)]
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct CandidateScore {
     /// `family:K`.
     pub basis: String,

@@ -1,0 +1,145 @@
+//! `relit fit --tile I/N`, `relit plan` and `relit merge` from the command line: the
+//! joined parts relight exactly as the single fit, and misuse is refused without
+//! writing anything (docs/cluster.md).
+
+mod common;
+use common::{capture_and_fit, relit, relit_ok, snapshot};
+
+#[test]
+fn parts_fitted_apart_merge_into_the_single_fit() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    capture_and_fit(d);
+    let fit = ["--basis", "sh:9"];
+    relit_ok(
+        d,
+        &[&["fit", "cap/dirs.lp", "-o", "single.exr", "-q"][..], &fit].concat(),
+    );
+    relit_ok(
+        d,
+        &[&["plan", "cap/dirs.lp", "-o", "plan.json", "-q"][..], &fit].concat(),
+    );
+    for i in 0..3 {
+        let part = format!("{i}/3");
+        let out = format!("part{i}.exr");
+        let args = ["fit", "cap/dirs.lp", "--tile", &part, "-o", &out, "-q"];
+        relit_ok(d, &[&args[..], &fit].concat());
+        let out = format!("planned{i}.exr");
+        let args = [
+            "fit",
+            "cap/dirs.lp",
+            "--tile",
+            &part,
+            "--plan",
+            "plan.json",
+            "-o",
+            &out,
+        ];
+        let printed = relit_ok(d, &[&args[..], &["-q"], &fit].concat());
+        assert!(printed.contains(&format!("part {i} of 3")), "{printed}");
+    }
+    let info = relit_ok(d, &["info", "part1.exr"]);
+    assert!(
+        info.contains("part          1 of 3: rows 5..10 of 16"),
+        "{info}"
+    );
+    // In any order.
+    relit_ok(
+        d,
+        &[
+            "merge",
+            "part2.exr",
+            "part0.exr",
+            "part1.exr",
+            "-o",
+            "merged.exr",
+        ],
+    );
+    relit_ok(
+        d,
+        &[
+            "merge",
+            "planned1.exr",
+            "planned0.exr",
+            "planned2.exr",
+            "-o",
+            "planned.exr",
+        ],
+    );
+    for light in ["dir:0.3,0.4,0.8", "dir:-0.7,0.1,0.4"] {
+        relit_ok(
+            d,
+            &["relight", "single.exr", "--light", light, "-o", "a.exr"],
+        );
+        for merged in ["merged.exr", "planned.exr"] {
+            relit_ok(d, &["relight", merged, "--light", light, "-o", "b.exr"]);
+            let report = relit_ok(d, &["compare", "b.exr", "a.exr", "--json"]);
+            let value: serde_json::Value = serde_json::from_str(&report).unwrap();
+            assert_eq!(value["max_abs_error"], 0.0, "{merged} at {light}: {report}");
+        }
+    }
+}
+
+#[test]
+fn misused_parts_are_refused_and_nothing_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    capture_and_fit(d);
+    for i in 0..2 {
+        let part = format!("{i}/2");
+        relit_ok(
+            d,
+            &[
+                "fit",
+                "cap/dirs.lp",
+                "--basis",
+                "sh:4",
+                "--tile",
+                &part,
+                "-o",
+                &format!("p{i}.exr"),
+                "-q",
+            ],
+        );
+    }
+    std::fs::write(d.join("not-a-plan.json"), "{\"format\": \"something\"}").unwrap();
+    let before = snapshot(d);
+    let cases: [(&[&str], &str); 7] = [
+        (&["merge", "p0.exr", "-o", "m.exr"], "part 1 of 2 missing"),
+        (
+            &["merge", "p0.exr", "scene.exr", "-o", "m.exr"],
+            "not a part of a sharded fit",
+        ),
+        (&["merge", "p0.exr", "p1.exr", "-o", "p0.exr"], "p0.exr"),
+        (
+            &["fit", "cap/dirs.lp", "--tile", "2/2", "-o", "x.exr"],
+            "does not exist",
+        ),
+        (
+            &["fit", "cap/dirs.lp", "--tile", "1/2", "-o", "x.rlz"],
+            "`*.exr`",
+        ),
+        (
+            &["fit", "cap/dirs.lp", "--tile", "0/17", "-o", "x.exr"],
+            "16 rows",
+        ),
+        (
+            &[
+                "fit",
+                "cap/dirs.lp",
+                "--plan",
+                "not-a-plan.json",
+                "-o",
+                "x.exr",
+            ],
+            "not a relit plan",
+        ),
+    ];
+    for (args, needle) in cases {
+        let out = relit(d, args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} succeeded");
+        assert!(stderr.contains(needle), "{args:?}: {stderr}");
+        assert_eq!(snapshot(d), before, "{args:?} changed the folder");
+    }
+}
