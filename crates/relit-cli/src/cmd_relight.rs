@@ -207,6 +207,31 @@ fn relight_codebook(
     Ok(Some(()))
 }
 
+/// Whether `--roi` on this file and these lights reads only the region's tiles: a
+/// compressed file of planes, under lights that are the same at every pixel (lights
+/// with a position need the whole image's camera and depth), one frame.
+fn reads_region(args: &Args, rig_file: Option<&RigFile>, extra: &[Light]) -> anyhow::Result<bool> {
+    let mut lights = extra.to_vec();
+    match rig_file {
+        Some(RigFile::Rig(rig)) => lights.extend(rig.lights.iter().cloned()),
+        Some(RigFile::Animation(_)) => return Ok(false),
+        None => {}
+    }
+    Ok(!lights.is_empty()
+        && LookupRelighter::draws(&LightRig::new(lights))
+        && args.file_space.is_none()
+        && relit::codec::FileForm::of(&args.file)? == relit::codec::FileForm::Compressed)
+}
+
+/// The region `roi` of a compressed file, read tile by tile, with the bytes read and
+/// the file's size.
+fn read_region(path: &Path, roi: Roi) -> anyhow::Result<(RelightableImage, (u64, u64))> {
+    let (image, read, total) =
+        relit::codec::packed::read_region(path, (roi.x, roi.y, roi.width, roi.height))
+            .context("--roi")?;
+    Ok((image, (read, total)))
+}
+
 /// Write the frame and say so (`how` it was drawn, after the time).
 fn save_frame(
     output: &Path,
@@ -278,22 +303,41 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(result) = relight_codebook(&args, rig_file.as_ref(), &extra, &options)? {
         return Ok(result);
     }
-    let (mut image, compact) = if storage != Precision::F32 && !args.gpu && !args.compare {
+    let requested = args.roi.as_deref().map(Roi::parse).transpose()?;
+    let (region, region_bytes) = match requested {
+        Some(roi) if reads_region(&args, rig_file.as_ref(), &extra)? => {
+            let (image, bytes) = read_region(&args.file, roi)?;
+            (Some(image), Some(bytes))
+        }
+        _ => (None, None),
+    };
+    let (mut image, compact) = if let Some(image) = region {
+        (image, None)
+    } else if storage != Precision::F32 && !args.gpu && !args.compare {
         let (image, planes) = relit::codec::read_compact(&args.file, storage)?;
         (image, Some(planes))
     } else {
         (relit::codec::read(&args.file)?, None)
     };
     crate::shared::apply_file_space(&args.file, &mut image, args.file_space)?;
-    let roi = match &args.roi {
-        Some(s) => {
-            let roi = Roi::parse(s)?;
+    let roi = match requested {
+        // The region read is the whole image now.
+        Some(_) if region_bytes.is_some() => Roi::full(image.width(), image.height()),
+        Some(roi) => {
             roi.validate(image.width(), image.height())
                 .context("--roi")?;
             roi
         }
         None => Roi::full(image.width(), image.height()),
     };
+    if let Some((read, total)) = region_bytes {
+        println!(
+            "read {read} of {} bytes of {} ({:.1} %): the tiles of the region only",
+            total,
+            args.file.display(),
+            100.0 * read as f64 / total.max(1) as f64
+        );
+    }
     let relighter = build_engine(&image, compact, &args)?;
 
     if let Some(RigFile::Animation(anim)) = &rig_file {

@@ -84,6 +84,60 @@ fn convert_goes_both_ways_and_every_reader_reads_it() {
 }
 
 #[test]
+fn a_region_is_read_tile_by_tile_and_relights_as_that_crop() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    common::capture_and_fit(d); // 24×16
+    relit(
+        d,
+        &[
+            "convert",
+            "scene.exr",
+            "-o",
+            "tiled.rlz",
+            "--tile-size",
+            "16",
+        ],
+    );
+    let whole = frame(d, "tiled.rlz", "whole");
+    let light = ["--light", "dir:0.3,0.2,0.93"];
+    let said = relit(
+        d,
+        &[
+            &[
+                "relight",
+                "tiled.rlz",
+                "--roi",
+                "2,3,10,9",
+                "-o",
+                "part.exr",
+            ][..],
+            &light,
+        ]
+        .concat(),
+    );
+    let total = std::fs::metadata(d.join("tiled.rlz")).unwrap().len();
+    let read: u64 = said
+        .split_whitespace()
+        .nth(1)
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("no bytes read in: {said}"));
+    assert!(said.starts_with("read ") && read < total, "{said}");
+    let part = relit::image::load_linear(&d.join("part.exr"), None).unwrap();
+    assert_eq!((part.width, part.height), (10, 9));
+    let peak = whole.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+    for y in 0..9 {
+        for x in 0..10 {
+            for c in 0..3 {
+                let a = part.data[3 * (y * 10 + x) + c];
+                let b = whole[3 * ((y + 3) * 24 + x + 2) + c];
+                assert!((a - b).abs() <= 1e-6 * peak, "({x},{y}) {a} {b}");
+            }
+        }
+    }
+}
+
+#[test]
 fn a_fit_writes_a_compressed_file_when_asked() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();

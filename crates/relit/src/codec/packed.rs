@@ -72,6 +72,30 @@ pub fn read(path: &Path) -> Result<RelightableImage> {
         .map_err(|e| Error::new(e.kind(), format!("{}: {e}", path.display())))
 }
 
+/// The region `(x, y, w, h)` of a compressed file's maps, reading only the sections
+/// of the tiles it touches ([`compress::unpack_region`]: no camera or depth, for lights
+/// that are the same at every pixel). Also returns the bytes read and the file's size.
+pub fn read_region(
+    path: &Path,
+    region: (usize, usize, usize, usize),
+) -> Result<(RelightableImage, u64, u64)> {
+    let open_error = |e: std::io::Error| {
+        Error::new(
+            ErrorKind::Io,
+            format!("cannot read {}: {e}", path.display()),
+        )
+    };
+    let mut file = std::io::BufReader::new(std::fs::File::open(path).map_err(open_error)?);
+    let len = file.get_ref().metadata().map_err(open_error)?.len();
+    let name = path.display().to_string();
+    let (packed, read) = compress::container::read_from(&mut file, len, &name, &|h, s| {
+        compress::section_needed(h, s, region)
+    })?;
+    let image = compress::unpack_region(&packed, region)
+        .map_err(|e| Error::new(e.kind(), format!("{}: {e}", path.display())))?;
+    Ok((image, read, len))
+}
+
 /// Write `packed` to `path` (atomically: a temporary file renamed into place).
 pub fn write_packed(path: &Path, packed: &Packed) -> Result<()> {
     let bytes = to_bytes(packed)?;

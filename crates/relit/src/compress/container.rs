@@ -3,7 +3,7 @@
 
 use super::{Header, Packed};
 use crate::{Error, ErrorKind, Result};
-use std::io::Read;
+use std::io::{Read, Seek, SeekFrom};
 
 /// The first eight bytes of every compressed file.
 pub const MAGIC: [u8; 8] = *b"\x89RLZ\r\n\x1a\n";
@@ -62,40 +62,50 @@ pub fn to_bytes(packed: &Packed) -> Result<Vec<u8>> {
 
 /// Parse a file's bytes, checking every length and checksum.
 pub fn from_bytes(bytes: &[u8], name: &str) -> Result<Packed> {
+    let mut cursor = std::io::Cursor::new(bytes);
+    read_from(&mut cursor, bytes.len() as u64, name, &|_, _| true).map(|(packed, _)| packed)
+}
+
+/// Parse a file of `file_len` bytes from `src`, reading only the sections `wanted`
+/// names (given the header and the section's number; the others are left empty) and
+/// checking every length and checksum of what it reads. Returns the file and the
+/// bytes read. No length from the file is allocated before it is checked against
+/// `file_len`.
+pub fn read_from<R: Read + Seek>(
+    src: &mut R,
+    file_len: u64,
+    name: &str,
+    wanted: &dyn Fn(&Header, usize) -> bool,
+) -> Result<(Packed, u64)> {
     let bad = |why: String| Error::parse(format!("{name}: {why}"));
-    let mut at = 0usize;
-    let mut take = |len: usize, what: &str| -> Result<&[u8]> {
-        let end = at
-            .checked_add(len)
-            .filter(|&e| e <= bytes.len())
-            .ok_or_else(|| {
-                bad(format!(
-                    "truncated in the {what} (file of {} bytes)",
-                    bytes.len()
-                ))
-            })?;
-        let out = &bytes[at..end];
-        at = end;
-        Ok(out)
+    let mut file = Bounded {
+        src,
+        at: 0,
+        read: 0,
+        len: file_len,
+    };
+    let take = |file: &mut Bounded<R>, len: u64, what: &str| -> Result<Vec<u8>> {
+        file.take(len)
+            .map_err(|e| bad(format!("{e} in the {what} (file of {file_len} bytes)")))
     };
     let u32_at = |b: &[u8]| u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
-    if take(8, "magic")? != MAGIC {
+    if take(&mut file, 8, "magic")? != MAGIC {
         return Err(bad("not a compressed relit file (wrong magic)".into()));
     }
-    let version = u32_at(take(4, "version")?);
+    let version = u32_at(&take(&mut file, 4, "version")?);
     if !(1..=VERSION).contains(&version) {
         return Err(bad(format!(
             "layout version {version}; this build reads versions 1 to {VERSION}"
         )));
     }
-    let header_len = u32_at(take(4, "header length")?) as usize;
-    let header_crc = u32_at(take(4, "header checksum")?);
-    let header_bytes = take(header_len, "header")?;
-    if crc32fast::hash(header_bytes) != header_crc {
+    let header_len = u32_at(&take(&mut file, 4, "header length")?) as u64;
+    let header_crc = u32_at(&take(&mut file, 4, "header checksum")?);
+    let header_bytes = take(&mut file, header_len, "header")?;
+    if crc32fast::hash(&header_bytes) != header_crc {
         return Err(bad("the header's checksum does not match".into()));
     }
     let mut json = Vec::new();
-    zstd::stream::read::Decoder::new(header_bytes)
+    zstd::stream::read::Decoder::new(&header_bytes[..])
         .and_then(|d| d.take(MAX_HEADER_JSON).read_to_end(&mut json))
         .map_err(|e| bad(format!("the header does not decompress: {e}")))?;
     let header: Header = serde_json::from_slice(&json).map_err(|e| bad(format!("header: {e}")))?;
@@ -104,24 +114,23 @@ pub fn from_bytes(bytes: &[u8], name: &str) -> Result<Packed> {
             "a version {version} file cannot hold a codebook or WebP tiles (version 2 added them)"
         )));
     }
-    let sections = u32_at(take(4, "section count")?) as usize;
+    let sections = u32_at(&take(&mut file, 4, "section count")?) as usize;
     if sections != header.sections() {
         return Err(bad(format!(
             "{sections} sections, but the header implies {}",
             header.sections()
         )));
     }
-    let index_len = sections
-        .checked_mul(ENTRY)
+    let index_len = (sections as u64)
+        .checked_mul(ENTRY as u64)
         .ok_or_else(|| bad("section count overflows".into()))?;
-    let index = take(index_len, "section index")?;
-    let index_crc = u32_at(take(4, "index checksum")?);
-    if crc32fast::hash(index) != index_crc {
+    let index = take(&mut file, index_len, "section index")?;
+    let index_crc = u32_at(&take(&mut file, 4, "index checksum")?);
+    if crc32fast::hash(&index) != index_crc {
         return Err(bad("the section index's checksum does not match".into()));
     }
-    let data_start = at;
     let mut out = Vec::with_capacity(sections);
-    let mut expected = data_start as u64;
+    let mut expected = file.at;
     for (s, entry) in index.chunks_exact(ENTRY).enumerate() {
         let offset = u64::from_le_bytes(entry[0..8].try_into().expect("8 bytes"));
         let len = u64::from_le_bytes(entry[8..16].try_into().expect("8 bytes"));
@@ -129,30 +138,65 @@ pub fn from_bytes(bytes: &[u8], name: &str) -> Result<Packed> {
         if offset != expected {
             return Err(bad(format!("section {s} is out of order")));
         }
-        if offset
-            .checked_add(len)
-            .is_none_or(|e| e > bytes.len() as u64)
-        {
+        if offset.checked_add(len).is_none_or(|e| e > file_len) {
             return Err(bad(format!(
-                "truncated: section {s} ends past the file's {} bytes",
-                bytes.len()
+                "truncated: section {s} ends past the file's {file_len} bytes"
             )));
         }
-        let section = &bytes[offset as usize..(offset + len) as usize];
-        if crc32fast::hash(section) != crc {
-            return Err(bad(format!("section {s}'s checksum does not match")));
+        if wanted(&header, s) {
+            if file.at != offset {
+                file.src
+                    .seek(SeekFrom::Start(offset))
+                    .map_err(|e| bad(format!("cannot seek to section {s}: {e}")))?;
+                file.at = offset;
+            }
+            let section = take(&mut file, len, "sections")?;
+            if crc32fast::hash(&section) != crc {
+                return Err(bad(format!("section {s}'s checksum does not match")));
+            }
+            out.push(section);
+        } else {
+            out.push(Vec::new());
         }
-        out.push(section.to_vec());
         expected = offset + len;
     }
-    if expected != bytes.len() as u64 {
+    if expected != file_len {
         return Err(bad(format!(
             "{} bytes after the last section",
-            bytes.len() as u64 - expected
+            file_len - expected
         )));
     }
-    Ok(Packed {
-        header,
-        sections: out,
-    })
+    Ok((
+        Packed {
+            header,
+            sections: out,
+        },
+        file.read,
+    ))
+}
+
+/// A source of known length, read forward; counts what it reads.
+struct Bounded<'a, R> {
+    src: &'a mut R,
+    at: u64,
+    read: u64,
+    len: u64,
+}
+
+impl<R: Read> Bounded<'_, R> {
+    /// The next `len` bytes, allocated only once they are known to be in the file.
+    fn take(&mut self, len: u64) -> std::result::Result<Vec<u8>, String> {
+        let end = self
+            .at
+            .checked_add(len)
+            .filter(|&e| e <= self.len)
+            .ok_or("truncated")?;
+        let mut out = vec![0u8; len as usize];
+        self.src
+            .read_exact(&mut out)
+            .map_err(|e| format!("cannot read ({e})"))?;
+        self.at = end;
+        self.read += len;
+        Ok(out)
+    }
 }

@@ -767,6 +767,104 @@ pub fn unpack(packed: &Packed) -> Result<RelightableImage> {
     })
 }
 
+/// Whether section `s` of a file holds data of the region `(x, y, w, h)`: a tile it
+/// touches, of any plane or of depth. A codebook file's sections are all needed (its
+/// index tiles decode into the whole index plane).
+pub fn section_needed(header: &Header, s: usize, region: (usize, usize, usize, usize)) -> bool {
+    if header.codebook.is_some() {
+        return true;
+    }
+    let (across, down) = header.tiles();
+    let tiles = (across * down).max(1);
+    tile_overlap(header, s % tiles, region).is_some()
+}
+
+/// The part of tile `t` inside `region`, as `(x0, y0, w, h)` in image pixels.
+fn tile_overlap(
+    header: &Header,
+    t: usize,
+    (x, y, w, h): (usize, usize, usize, usize),
+) -> Option<(usize, usize, usize, usize)> {
+    let (tx, ty, tw, th) = header.tile_rect(t);
+    let (x0, y0) = (tx.max(x), ty.max(y));
+    let (x1, y1) = ((tx + tw).min(x + w), (ty + th).min(y + h));
+    (x1 > x0 && y1 > y0).then_some((x0, y0, x1 - x0, y1 - y0))
+}
+
+/// The region `(x, y, w, h)` of a file's maps, from the sections
+/// [`section_needed`] names (the others may be empty): the tiles it touches, decoded
+/// and cropped. The result is a `w × h` image with no camera or depth, for lights
+/// that are the same at every pixel (directional, environment); it equals that crop
+/// of [`unpack`].
+pub fn unpack_region(
+    packed: &Packed,
+    region: (usize, usize, usize, usize),
+) -> Result<RelightableImage> {
+    let header = &packed.header;
+    let (x, y, w, h) = region;
+    if w == 0
+        || h == 0
+        || x.checked_add(w).is_none_or(|e| e > header.width)
+        || y.checked_add(h).is_none_or(|e| e > header.height)
+    {
+        return Err(Error::invalid(format!(
+            "region {x},{y} {w}×{h} is not inside the {}×{} image",
+            header.width, header.height
+        )));
+    }
+    let crop = |image: RelightableImage| {
+        let maps = &image.maps;
+        let mut out = CoefficientMaps::zeros(w, h, maps.k);
+        let n = maps.pixels();
+        for (plane, dst) in out.data.chunks_exact_mut(w * h).enumerate() {
+            for r in 0..h {
+                let src = plane * n + (y + r) * maps.width + x;
+                dst[r * w..(r + 1) * w].copy_from_slice(&maps.data[src..src + w]);
+            }
+        }
+        out
+    };
+    let kp = checked(packed)?;
+    let maps = if header.codebook.is_some() {
+        crop(indexed_checked(packed, kp)?.expand())
+    } else {
+        let tiles = header.tiles().0 * header.tiles().1;
+        let touched: Vec<usize> = (0..tiles)
+            .filter(|&t| tile_overlap(header, t, region).is_some())
+            .collect();
+        let decoded: Vec<Vec<u16>> = (0..header.planes.len() * touched.len())
+            .into_par_iter()
+            .map(|i| {
+                let (p, t) = (i / touched.len(), touched[i % touched.len()]);
+                let q = &header.planes[p].quantizer;
+                decode_codes(packed, p * tiles + t, t, q.width(), q.levels)
+            })
+            .collect::<Result<_>>()?;
+        assemble(header, kp, w, h, |p, out| {
+            let coding = header.planes[p].quantizer.coding;
+            for (i, &t) in touched.iter().enumerate() {
+                let (tx, ty, tw, _) = header.tile_rect(t);
+                let (ox, oy, ow, oh) = tile_overlap(header, t, region).expect("touched");
+                let codes = &decoded[p * touched.len() + i];
+                for r in 0..oh {
+                    let src = (oy + r - ty) * tw + (ox - tx);
+                    let dst = (oy + r - y) * w + (ox - x);
+                    for (o, &q) in out[dst..dst + ow].iter_mut().zip(&codes[src..src + ow]) {
+                        *o = coding.decode(q as f32);
+                    }
+                }
+            }
+        })
+    };
+    let mut meta = header.meta.clone();
+    meta.camera = None;
+    Ok(RelightableImage {
+        meta,
+        maps,
+        depth: None,
+    })
+}
+
 /// A codebook file as an indexed image (entries relit once a frame, pixels looked up:
 /// [`crate::engine::lookup`]); depth is not read.
 pub fn indexed(packed: &Packed) -> Result<crate::engine::lookup::IndexedImage> {

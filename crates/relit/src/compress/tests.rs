@@ -438,3 +438,78 @@ fn the_budget_keeps_the_best_candidate_that_fits_and_more_bits_never_score_less(
     let err = budget::choose(&fitted.image, &capture, 0.01, &crate::progress::Silent).unwrap_err();
     assert!(err.to_string().contains("no compression fits"), "{err}");
 }
+
+#[test]
+fn a_region_reads_only_its_tiles_and_equals_that_crop_of_the_whole_file() {
+    let img = image("sh:9", 70, 45);
+    let jpeg = TileCodec::parse("jpeg:90").unwrap();
+    let layouts = [
+        (Layout::Rgb, TileCodec::Zstd { level: 12 }, None),
+        (Layout::Ycc, jpeg, None),
+        (Layout::Lrgb, TileCodec::Zstd { level: 12 }, None),
+        (Layout::Rgb, TileCodec::Zstd { level: 12 }, Some(32)),
+    ];
+    for (layout, codec, codebook) in layouts {
+        let settings = Settings {
+            layout,
+            codec,
+            codebook,
+            components: Some(5),
+            tile: 16,
+            ..Settings::default()
+        };
+        let bytes = packed::to_bytes(&pack(&img, &settings).unwrap()).unwrap();
+        let whole = unpack(&packed::from_bytes(&bytes, "test").unwrap()).unwrap();
+        // Inside one tile, across tile borders, along the image's edges, the whole image.
+        for region in [
+            (3, 2, 5, 4),
+            (10, 12, 30, 20),
+            (60, 40, 10, 5),
+            (0, 0, 70, 45),
+        ] {
+            let mut cursor = std::io::Cursor::new(&bytes[..]);
+            let (sparse, read) =
+                packed::read_from(&mut cursor, bytes.len() as u64, "test", &|h, s| {
+                    section_needed(h, s, region)
+                })
+                .unwrap();
+            let part = unpack_region(&sparse, region).unwrap();
+            let (x, y, w, h) = region;
+            assert_eq!(
+                (part.width(), part.height(), part.maps.k),
+                (w, h, whole.maps.k)
+            );
+            for plane in 0..3 * whole.maps.k {
+                for r in 0..h {
+                    let row = &whole.maps.data[plane * 70 * 45 + (y + r) * 70 + x..][..w];
+                    let got = &part.maps.data[plane * w * h + r * w..][..w];
+                    assert_eq!(row, got, "{layout:?} {codebook:?} {region:?} plane {plane}");
+                }
+            }
+            let all = region == (0, 0, 70, 45);
+            if codebook.is_none() && !all {
+                // One tile of fifteen, or six; the header and index (a few KiB on this
+                // small image) are read whole.
+                let bound = match region {
+                    (3, 2, 5, 4) => bytes.len() / 3,
+                    _ => bytes.len() * 3 / 4,
+                };
+                assert!(
+                    read < bound as u64,
+                    "{region:?}: {read} of {} bytes read",
+                    bytes.len()
+                );
+            } else {
+                assert_eq!(
+                    read,
+                    bytes.len() as u64,
+                    "{region:?}: every section is read"
+                );
+            }
+        }
+        let sparse = packed::from_bytes(&bytes, "test").unwrap();
+        for outside in [(60, 40, 11, 5), (0, 0, 0, 1), (usize::MAX, 0, 2, 2)] {
+            assert!(unpack_region(&sparse, outside).is_err(), "{outside:?}");
+        }
+    }
+}
