@@ -169,11 +169,14 @@ fn no_file_reader_panics_on_mutated_files() {
         &relit::compress::pack(&fitted.image, &jpeg_settings).unwrap(),
     )
     .unwrap();
+    // Whole files, and a region read tile by tile (the sections it skips unread).
     crashes.extend(fuzz(d, "maps.rlz", &rlz, |p| {
         let _ = relit::codec::read(p);
+        let _ = relit::codec::packed::read_region(p, (3, 2, 6, 5));
     }));
     crashes.extend(fuzz(d, "maps-jpeg.rlz", &rlz_jpeg, |p| {
         let _ = relit::codec::read(p);
+        let _ = relit::codec::packed::read_region(p, (3, 2, 6, 5));
     }));
     // A codebook file, read both ways: expanded into maps, and as entries and indices.
     let vq_settings = relit::compress::Settings {
