@@ -60,10 +60,13 @@
 //!   frame (12 bytes a pixel), which the bound leaves out, so u8 and f16 planes, with
 //!   few bytes read per byte written, cannot quite reach 1.0. On a software adapter
 //!   (lavapipe) GPU memory is host memory, so the rate of planes of the same type and
-//!   size applies; a discrete GPU's frames are set against its own plain read of a
-//!   buffer of the planes' size (`GpuRelighter::read_rate`, a grid-strided vec4 sum,
-//!   best of three batches of as many reads as make 16 GiB (8 to 256), once before the
-//!   storage's cases), which the frame's write (12 bytes a pixel) is again left out of.
+//!   size applies; a discrete GPU's frames are set against its own plain read of the
+//!   resident planes themselves (`GpuRelighter::resident_read_rate`, a grid-strided
+//!   vec4 sum over every slab, best of three batches each of 1, 2 and as many reads as
+//!   make 16 GiB (8 to 256) after 1 s of untimed reads, once before the storage's
+//!   cases), which the frame's write (12 bytes a pixel) is again left out of. (Without
+//!   the warm-up an H200 that had idled while the host built the maps read them at
+//!   1.7 TB/s, and at 4 TB/s when busy.)
 //! * **multiply-add peak** — `relit::engine::fma_peak` at the start and at the end of
 //!   the run (best of both): register-only FMA chains on every thread, 16-lane
 //!   (AVX-512F) where the CPU has it, which is then the machine's peak (`fma_peak_gs`);
@@ -541,7 +544,7 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
                     } else {
                         let bytes = gpu.resident_bytes();
                         let passes = ((16u64 << 30) / bytes.max(1)).clamp(8, 256) as usize;
-                        Some(gpu.read_rate(bytes, passes)?)
+                        Some(gpu.resident_read_rate(passes)?)
                     };
                     // Area and projector frames take tens of seconds each on a software
                     // adapter at this size: there they run only when asked for by name.

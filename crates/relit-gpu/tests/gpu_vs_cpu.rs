@@ -957,6 +957,19 @@ fn the_read_probe_measures_a_rate_and_refuses_nothing_to_read() {
     assert!(rate.is_finite() && rate > 1e6, "{rate} bytes/s");
     assert!(gpu.read_rate(15, 1).is_err());
     assert!(gpu.read_rate(1 << 20, 0).is_err());
+    // The engine's own planes, in several slabs.
+    let img = image(64, 48, sh(9).as_ref(), MapSpace::Linear);
+    let options = GpuOptions {
+        max_slab_bytes: Some(64 * 9 * 3 * 4 * 10),
+        ..Default::default()
+    };
+    let Some(gpu) = gpu_or_skip(&img, sh(9), options) else {
+        return;
+    };
+    assert!(gpu.slab_count() > 1);
+    let rate = gpu.resident_read_rate(3).unwrap();
+    assert!(rate.is_finite() && rate > 1e6, "{rate} bytes/s");
+    assert!(gpu.resident_read_rate(0).is_err());
 }
 
 /// One process opens many engines in turn (a viewer serving many files, these tests):
