@@ -189,14 +189,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             r.rmse_linear[0], r.rmse_linear[1], r.rmse_linear[2], r.psnr_srgb8
         );
         if let Some(shard) = output.image.meta.fit.as_ref().and_then(|f| f.shard) {
-            println!(
-                "part {} of {}: rows {}..{} of {} (join the parts with `relit merge`)",
-                shard.index,
-                shard.count,
-                shard.rows().start,
-                shard.rows().end,
-                shard.full_height
-            );
+            println!("{shard} (join the parts with `relit merge`)");
         }
     }
     Ok(())

@@ -121,14 +121,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             fit.rmse_linear[0], fit.rmse_linear[1], fit.rmse_linear[2], fit.psnr_srgb8
         );
         if let Some(shard) = fit.shard {
-            println!(
-                "  part          {} of {}: rows {}..{} of {} (join the parts with `relit merge`)",
-                shard.index,
-                shard.count,
-                shard.rows().start,
-                shard.rows().end,
-                shard.full_height
-            );
+            println!("  shard         {shard} (join the parts with `relit merge`)");
         }
     }
     if let Some(bake) = &meta.bake {

@@ -40,7 +40,7 @@ fn parts_fitted_apart_merge_into_the_single_fit() {
     }
     let info = relit_ok(d, &["info", "part1.exr"]);
     assert!(
-        info.contains("part          1 of 3: rows 5..10 of 16"),
+        info.contains("shard         part 1 of 3: rows 5..10 of 16"),
         "{info}"
     );
     // In any order.

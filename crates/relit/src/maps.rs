@@ -100,6 +100,18 @@ impl ShardInfo {
     }
 }
 
+impl std::fmt::Display for ShardInfo {
+    /// `part 1 of 3: rows 5..10 of 16`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let rows = self.rows();
+        write!(
+            f,
+            "part {} of {}: rows {}..{} of {}",
+            self.index, self.count, rows.start, rows.end, self.full_height
+        )
+    }
+}
+
 /// How a set of maps was baked from geometry (`relit bake`), kept for provenance.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct BakeInfo {
