@@ -41,14 +41,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     refuse_overwriting_inputs(&args.parts, &[Output::file(&args.output)])?;
     let start = std::time::Instant::now();
-    let names: Vec<String> = args.parts.iter().map(|p| p.display().to_string()).collect();
-    let parts = args
-        .parts
-        .iter()
-        .map(|p| codec::read(p).with_context(|| format!("reading {}", p.display())))
-        .collect::<anyhow::Result<Vec<_>>>()?;
-    let count = parts.len();
-    let image = relit::shard::merge(parts, &names)?;
+    // One part in memory at a time beside the whole image's maps.
+    let read =
+        |p: &std::path::PathBuf| codec::read(p).with_context(|| format!("reading {}", p.display()));
+    let count = args.parts.len();
+    let mut merger = relit::shard::Merger::new(
+        read(&args.parts[0])?,
+        &args.parts[0].display().to_string(),
+        count,
+    )?;
+    for path in &args.parts[1..] {
+        merger.add(read(path)?, &path.display().to_string())?;
+    }
+    let image = merger.finish()?;
     let storage = args.storage.unwrap_or_else(|| {
         if args
             .parts

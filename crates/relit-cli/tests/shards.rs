@@ -105,7 +105,10 @@ fn misused_parts_are_refused_and_nothing_is_written() {
     std::fs::write(d.join("not-a-plan.json"), "{\"format\": \"something\"}").unwrap();
     let before = snapshot(d);
     let cases: [(&[&str], &str); 7] = [
-        (&["merge", "p0.exr", "-o", "m.exr"], "part 1 of 2 missing"),
+        (
+            &["merge", "p0.exr", "-o", "m.exr"],
+            "p0.exr is part 0 of 2, but 1 part was given",
+        ),
         (
             &["merge", "p0.exr", "scene.exr", "-o", "m.exr"],
             "not a part of a sharded fit",

@@ -32,155 +32,213 @@ fn shared_fit(fit: &FitInfo) -> FitInfo {
     }
 }
 
-/// Join the parts of one sharded fit (in any order; `names` name them in messages)
-/// into the whole image.
-pub fn merge(parts: Vec<RelightableImage>, names: &[String]) -> Result<RelightableImage> {
-    let name = |i: usize| names.get(i).cloned().unwrap_or_else(|| format!("part {i}"));
-    let first = parts
-        .first()
-        .ok_or_else(|| Error::invalid("no parts to merge"))?;
-    let head = shard_of(first, &name(0))?;
-    let width = first.width();
-    let k = first.maps.k;
-    let mut slots: Vec<Option<usize>> = vec![None; head.count];
-    for (i, part) in parts.iter().enumerate() {
-        let shard = shard_of(part, &name(i))?;
+/// Joins the parts of one sharded fit as they arrive, one at a time: memory for the
+/// whole image's maps and the part at hand, not for every part at once.
+pub struct Merger {
+    /// The first part's description, metadata and name: what every other part must share.
+    head: ShardInfo,
+    meta: crate::maps::Metadata,
+    first: String,
+    maps: CoefficientMaps,
+    depth: Option<Vec<f32>>,
+    /// Which file filled each part.
+    slots: Vec<Option<String>>,
+    /// Each part's rows and fit information, for the pooled residual and time.
+    fits: Vec<(usize, FitInfo)>,
+}
+
+impl Merger {
+    /// Start from `first` (named `name` in messages), of a fit in `expected` parts: the
+    /// number of files given, which bounds what the parts' metadata may claim before
+    /// anything is allocated from it.
+    pub fn new(first: RelightableImage, name: &str, expected: usize) -> Result<Merger> {
+        let head = shard_of(&first, name)?;
+        if head.count != expected {
+            return Err(Error::invalid(format!(
+                "{name} is part {} of {}, but {expected} part{} given",
+                head.index,
+                head.count,
+                if expected == 1 { " was" } else { "s were" }
+            )));
+        }
+        check_place(&first, head, name)?;
+        // full_height is now bounded by the part's real rows: ⌈H/N⌉ rows a part.
+        let (width, k) = (first.width(), first.maps.k);
+        let mut merger = Merger {
+            head,
+            meta: first.meta.clone(),
+            first: name.to_string(),
+            maps: CoefficientMaps::zeros(width, head.full_height, k),
+            depth: first
+                .depth
+                .as_ref()
+                .map(|_| vec![0.0; width * head.full_height]),
+            slots: vec![None; head.count],
+            fits: Vec::new(),
+        };
+        merger.place(first, head, name);
+        Ok(merger)
+    }
+
+    /// Add another part (in any order).
+    pub fn add(&mut self, part: RelightableImage, name: &str) -> Result<()> {
+        let shard = shard_of(&part, name)?;
+        let head = self.head;
         if shard.count != head.count || shard.full_height != head.full_height {
             return Err(Error::invalid(format!(
-                "{} is part {} of {} of an image {} rows tall, {} part {} of {} of {} rows: \
+                "{name} is part {} of {} of an image {} rows tall, {} part {} of {} of {} rows: \
                  they are not parts of one fit",
-                name(i),
                 shard.index,
                 shard.count,
                 shard.full_height,
-                name(0),
+                self.first,
                 head.index,
                 head.count,
                 head.full_height
             )));
         }
-        let expected = ShardInfo::new(shard.index, shard.count, shard.full_height)
-            .map_err(|e| Error::invalid(format!("{}: {e}", name(i))))?;
-        if shard != expected || part.height() != shard.rows().len() {
+        check_place(&part, shard, name)?;
+        if part.width() != self.maps.width || part.maps.k != self.maps.k {
             return Err(Error::invalid(format!(
-                "{} claims rows {}..{} of part {} of {} but holds {} rows from row {}",
-                name(i),
-                expected.rows().start,
-                expected.rows().end,
-                shard.index,
-                shard.count,
-                part.height(),
-                shard.row0
-            )));
-        }
-        if part.width() != width || part.maps.k != k {
-            return Err(Error::invalid(format!(
-                "{} is {} pixels wide with {} coefficients, {} {} with {}",
-                name(i),
+                "{name} is {} pixels wide with {} coefficients, {} {} with {}",
                 part.width(),
                 part.maps.k,
-                name(0),
-                width,
-                k
+                self.first,
+                self.maps.width,
+                self.maps.k
             )));
         }
         let differs = |what: &str| {
             Error::invalid(format!(
-                "{} was fitted with another {what} than {}: parts of one fit share every \
+                "{name} was fitted with another {what} than {}: parts of one fit share every \
                  choice (re-fit the parts with the same capture and options)",
-                name(i),
-                name(0)
+                self.first
             ))
         };
-        if part.meta.basis != first.meta.basis {
+        if part.meta.basis != self.meta.basis {
             return Err(differs("basis"));
         }
-        let (ours, theirs) = (part.meta.fit.as_ref(), first.meta.fit.as_ref());
-        if ours.map(shared_fit) != theirs.map(shared_fit) {
+        if part.meta.fit.as_ref().map(shared_fit) != self.meta.fit.as_ref().map(shared_fit) {
             return Err(differs("objective, λ or image count"));
         }
         let mut meta = part.meta.clone();
-        meta.fit.clone_from(&first.meta.fit);
-        if meta != first.meta {
+        meta.fit.clone_from(&self.meta.fit);
+        if meta != self.meta {
             return Err(differs("colour space, projection or camera"));
         }
-        if part.depth.is_some() != first.depth.is_some() {
+        if part.depth.is_some() != self.depth.is_some() {
             return Err(differs("depth map (one has it, the other not)"));
         }
-        if let Some(other) = slots[shard.index].replace(i) {
+        if let Some(other) = &self.slots[shard.index] {
             return Err(Error::invalid(format!(
-                "{} and {} are both part {} of {}",
-                name(other),
-                name(i),
-                shard.index,
-                shard.count
+                "{other} and {name} are both part {} of {}",
+                shard.index, shard.count
             )));
         }
+        self.place(part, shard, name);
+        Ok(())
     }
-    let missing: Vec<String> = (0..head.count)
-        .filter(|&s| slots[s].is_none())
-        .map(|s| s.to_string())
-        .collect();
-    if !missing.is_empty() {
-        return Err(Error::invalid(format!(
-            "part{} {} of {} missing",
-            if missing.len() > 1 { "s" } else { "" },
-            missing.join(", "),
-            head.count
-        )));
-    }
-    let order: Vec<usize> = slots.into_iter().flatten().collect();
-    let height = head.full_height;
-    let mut maps = CoefficientMaps::zeros(width, height, k);
-    let plane_len = width * height;
-    for (plane, out) in maps.data.chunks_exact_mut(plane_len).enumerate() {
-        for &i in &order {
-            let part = &parts[i];
-            let rows = shard_of(part, "")?.rows();
-            let n = part.maps.pixels();
+
+    /// Copy a checked part into its rows.
+    fn place(&mut self, part: RelightableImage, shard: ShardInfo, name: &str) {
+        let rows = shard.rows();
+        let width = self.maps.width;
+        let plane_len = width * self.head.full_height;
+        let n = part.maps.pixels();
+        for (plane, out) in self.maps.data.chunks_exact_mut(plane_len).enumerate() {
             out[rows.start * width..rows.end * width]
                 .copy_from_slice(&part.maps.data[plane * n..(plane + 1) * n]);
         }
-    }
-    let depth = first.depth.as_ref().map(|_| {
-        order
-            .iter()
-            .flat_map(|&i| parts[i].depth.clone().unwrap_or_default())
-            .collect()
-    });
-    let mut meta = first.meta.clone();
-    if let Some(fit) = meta.fit.as_mut() {
-        // The residual pooled over the parts that measured one (each measures the
-        // subsample pixels in its rows), weighted by their rows; the time is the total.
-        let measured: Vec<(f64, &FitInfo)> = order
-            .iter()
-            .filter_map(|&i| parts[i].meta.fit.as_ref())
-            .filter(|f| f.psnr_srgb8 > 0.0)
-            .map(|f| (f.shard.map_or(0, |s| s.rows().len()) as f64, f))
-            .collect();
-        let rows: f64 = measured.iter().map(|(r, _)| r).sum();
-        if rows > 0.0 {
-            for c in 0..3 {
-                let mse: f64 = measured
-                    .iter()
-                    .map(|(r, f)| r * f.rmse_linear[c].powi(2))
-                    .sum();
-                fit.rmse_linear[c] = (mse / rows).sqrt();
-            }
-            let mse8: f64 = measured
-                .iter()
-                .map(|(r, f)| r * 10f64.powf(-f.psnr_srgb8 / 10.0))
-                .sum();
-            fit.psnr_srgb8 = -10.0 * (mse8 / rows).log10();
+        if let (Some(depth), Some(src)) = (self.depth.as_mut(), part.depth.as_ref()) {
+            depth[rows.start * width..rows.end * width].copy_from_slice(src);
         }
-        fit.seconds = order
-            .iter()
-            .filter_map(|&i| parts[i].meta.fit.as_ref())
-            .map(|f| f.seconds)
-            .sum();
-        fit.shard = None;
+        self.slots[shard.index] = Some(name.to_string());
+        if let Some(fit) = part.meta.fit {
+            self.fits.push((rows.len(), fit));
+        }
     }
-    Ok(RelightableImage { meta, maps, depth })
+
+    /// The whole image, once every part is in.
+    pub fn finish(self) -> Result<RelightableImage> {
+        let missing: Vec<String> = (0..self.head.count)
+            .filter(|&s| self.slots[s].is_none())
+            .map(|s| s.to_string())
+            .collect();
+        if !missing.is_empty() {
+            return Err(Error::invalid(format!(
+                "part{} {} of {} missing",
+                if missing.len() > 1 { "s" } else { "" },
+                missing.join(", "),
+                self.head.count
+            )));
+        }
+        let mut meta = self.meta;
+        if let Some(fit) = meta.fit.as_mut() {
+            // The residual pooled over the parts that measured one (each measures the
+            // subsample pixels in its rows), weighted by their rows; the time is the total.
+            let measured: Vec<&(usize, FitInfo)> = self
+                .fits
+                .iter()
+                .filter(|(_, f)| f.psnr_srgb8 > 0.0)
+                .collect();
+            let rows: f64 = measured.iter().map(|(r, _)| *r as f64).sum();
+            if rows > 0.0 {
+                for c in 0..3 {
+                    let mse: f64 = measured
+                        .iter()
+                        .map(|(r, f)| *r as f64 * f.rmse_linear[c].powi(2))
+                        .sum();
+                    fit.rmse_linear[c] = (mse / rows).sqrt();
+                }
+                let mse8: f64 = measured
+                    .iter()
+                    .map(|(r, f)| *r as f64 * 10f64.powf(-f.psnr_srgb8 / 10.0))
+                    .sum();
+                fit.psnr_srgb8 = -10.0 * (mse8 / rows).log10();
+            }
+            fit.seconds = self.fits.iter().map(|(_, f)| f.seconds).sum();
+            fit.shard = None;
+        }
+        Ok(RelightableImage {
+            meta,
+            maps: self.maps,
+            depth: self.depth,
+        })
+    }
+}
+
+/// That `part` holds the rows its shard description gives it.
+fn check_place(part: &RelightableImage, shard: ShardInfo, name: &str) -> Result<()> {
+    let expected = ShardInfo::new(shard.index, shard.count, shard.full_height)
+        .map_err(|e| Error::invalid(format!("{name}: {e}")))?;
+    if shard != expected || part.height() != shard.rows().len() {
+        return Err(Error::invalid(format!(
+            "{name} claims rows {}..{} of part {} of {} but holds {} rows from row {}",
+            expected.rows().start,
+            expected.rows().end,
+            shard.index,
+            shard.count,
+            part.height(),
+            shard.row0
+        )));
+    }
+    Ok(())
+}
+
+/// Join the parts of one sharded fit (in any order; `names` name them in messages)
+/// into the whole image.
+pub fn merge(parts: Vec<RelightableImage>, names: &[String]) -> Result<RelightableImage> {
+    let name = |i: usize| names.get(i).cloned().unwrap_or_else(|| format!("part {i}"));
+    let count = parts.len();
+    let mut parts = parts.into_iter();
+    let first = parts
+        .next()
+        .ok_or_else(|| Error::invalid("no parts to merge"))?;
+    let mut merger = Merger::new(first, &name(0), count)?;
+    for (i, part) in parts.enumerate() {
+        merger.add(part, &name(i + 1))?;
+    }
+    merger.finish()
 }
 
 #[cfg(test)]
@@ -293,7 +351,7 @@ mod tests {
         let three = parts(&capture, &options, 3);
         let message =
             |parts: Vec<RelightableImage>| merge(parts, &names(3)).unwrap_err().to_string();
-        assert!(message(three[..2].to_vec()).contains("part 2 of 3 missing"));
+        assert!(message(three[..2].to_vec()).contains("is part 0 of 3, but 2 parts were given"));
         assert!(
             message(vec![three[0].clone(), three[1].clone(), three[1].clone()])
                 .contains("both part 1")
@@ -310,7 +368,23 @@ mod tests {
         wrong[0].maps = CoefficientMaps::zeros(37, 5, 9);
         assert!(message(wrong).contains("holds 5 rows"));
         let two = parts(&capture, &options, 2);
-        assert!(message(vec![three[0].clone(), two[1].clone()]).contains("not parts of one fit"));
+        assert!(message(vec![two[0].clone(), three[1].clone()]).contains("not parts of one fit"));
+        // Claims that would allocate more than the files hold are refused first.
+        for (count, full_height) in [(1 << 40, 1 << 41), (3, 1 << 40)] {
+            let mut bomb = three.clone();
+            bomb[0].meta.fit.as_mut().unwrap().shard = Some(ShardInfo {
+                index: 0,
+                count,
+                row0: 0,
+                full_height,
+            });
+            assert!(merge(bomb, &names(3)).is_err(), "{count} {full_height}");
+        }
+        // The merger reports a part never added.
+        let mut merger = Merger::new(three[0].clone(), "part0.exr", 3).unwrap();
+        merger.add(three[2].clone(), "part2.exr").unwrap();
+        let err = merger.finish().unwrap_err().to_string();
+        assert!(err.contains("part 1 of 3 missing"), "{err}");
     }
 
     #[test]
