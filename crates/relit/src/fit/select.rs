@@ -335,16 +335,20 @@ fn fold_errors(
             |mut acc, s| {
                 let obs = &train_values[s * nt..(s + 1) * nt];
                 let (p, c) = (s / 3, s % 3);
+                // Each sample's weight, computed once for the normal matrix and the sums.
+                let weights: Vec<f64> = match objective {
+                    Objective::Linear => q_train.to_vec(),
+                    _ => obs
+                        .iter()
+                        .zip(q_train)
+                        .map(|(&v, &q)| q * perceptual_weight(v as f64))
+                        .collect(),
+                };
                 let own;
                 let factors: &[Option<Vec<f64>>] = match &shared {
                     Some(f) => f,
                     None => {
-                        let w: Vec<f64> = obs
-                            .iter()
-                            .zip(q_train)
-                            .map(|(&v, &q)| q * perceptual_weight(v as f64))
-                            .collect();
-                        let (m, total) = normal(&w);
+                        let (m, total) = normal(&weights);
                         own = VALIDATION_LADDER
                             .iter()
                             .map(|&l| factor(&m, total, l))
@@ -353,16 +357,20 @@ fn fold_errors(
                     }
                 };
                 let mut rhs0 = vec![0.0; k];
-                for (j, &v) in obs.iter().enumerate() {
-                    let w = match objective {
-                        Objective::Linear => q_train[j],
-                        _ => q_train[j] * perceptual_weight(v as f64),
-                    };
+                for (j, (&v, &w)) in obs.iter().zip(&weights).enumerate() {
                     let row = &a_train[j * k..(j + 1) * k];
                     for r in 0..k {
                         rhs0[r] += w * row[r] * v as f64;
                     }
                 }
+                // The held-out observations and how a screen shows them, the same at every λ.
+                let held_obs: Vec<(f64, f64)> = held
+                    .iter()
+                    .map(|&j| {
+                        let o = sub.values[(p * sub.n + j) * 3 + c] as f64;
+                        (o, srgb_on_screen(o))
+                    })
+                    .collect();
                 for (li, f) in factors.iter().enumerate() {
                     let Some(f) = f else {
                         acc.iter_mut().for_each(|a| a[li] = f64::INFINITY);
@@ -370,14 +378,13 @@ fn fold_errors(
                     };
                     let mut coef = rhs0.clone();
                     linalg::cholesky_solve(f, k, &mut coef);
-                    for (h, &j) in held.iter().enumerate() {
+                    for (h, &(o, o_shown)) in held_obs.iter().enumerate() {
                         let pred: f64 = a_held[h * k..(h + 1) * k]
                             .iter()
                             .zip(&coef)
                             .map(|(a, b)| a * b)
                             .sum();
-                        let o = sub.values[(p * sub.n + j) * 3 + c] as f64;
-                        let d = srgb_on_screen(pred) - srgb_on_screen(o);
+                        let d = srgb_on_screen(pred) - o_shown;
                         acc[h][li] += d * d;
                         let d = pred - o;
                         acc[h][LINEAR + li] += d * d;
