@@ -26,7 +26,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         FileForm::Ptm => "PTM 1.2 (8-bit codes)".to_string(),
         FileForm::Rti => "HSH .rti (8-bit codes)".to_string(),
         FileForm::Compressed => {
-            let header = codec::packed::read_packed(&args.file)?.header;
+            let header = codec::packed::read_header(&args.file)?;
             let functions = header.layout.channels().0;
             let counts: Vec<String> = functions
                 .iter()

@@ -173,13 +173,9 @@ fn relight_codebook(
     extra: &[Light],
     options: &RelightOptions,
 ) -> anyhow::Result<Option<()>> {
-    let mut lights = extra.to_vec();
-    match rig_file {
-        Some(RigFile::Rig(rig)) => lights.extend(rig.lights.iter().cloned()),
-        Some(RigFile::Animation(_)) => return Ok(None),
-        None => {}
-    }
-    let rig = LightRig::new(lights);
+    let Some(rig) = single_frame(rig_file, extra) else {
+        return Ok(None);
+    };
     let plain = !args.gpu && !args.compare && args.roi.is_none() && !args.memory;
     if !plain
         || rig.lights.is_empty()
@@ -207,29 +203,25 @@ fn relight_codebook(
     Ok(Some(()))
 }
 
+/// The one frame's lights (`--light` flags and a rig file's), or `None` for an animation.
+fn single_frame(rig_file: Option<&RigFile>, extra: &[Light]) -> Option<LightRig> {
+    let mut lights = extra.to_vec();
+    match rig_file {
+        Some(RigFile::Rig(rig)) => lights.extend(rig.lights.iter().cloned()),
+        Some(RigFile::Animation(_)) => return None,
+        None => {}
+    }
+    Some(LightRig::new(lights))
+}
+
 /// Whether `--roi` on this file and these lights reads only the region's tiles: a
 /// compressed file of planes, under lights that are the same at every pixel (lights
 /// with a position need the whole image's camera and depth), one frame.
 fn reads_region(args: &Args, rig_file: Option<&RigFile>, extra: &[Light]) -> anyhow::Result<bool> {
-    let mut lights = extra.to_vec();
-    match rig_file {
-        Some(RigFile::Rig(rig)) => lights.extend(rig.lights.iter().cloned()),
-        Some(RigFile::Animation(_)) => return Ok(false),
-        None => {}
-    }
-    Ok(!lights.is_empty()
-        && LookupRelighter::draws(&LightRig::new(lights))
+    Ok(single_frame(rig_file, extra)
+        .is_some_and(|rig| !rig.lights.is_empty() && LookupRelighter::draws(&rig))
         && args.file_space.is_none()
         && relit::codec::FileForm::of(&args.file)? == relit::codec::FileForm::Compressed)
-}
-
-/// The region `roi` of a compressed file, read tile by tile, with the bytes read and
-/// the file's size.
-fn read_region(path: &Path, roi: Roi) -> anyhow::Result<(RelightableImage, (u64, u64))> {
-    let (image, read, total) =
-        relit::codec::packed::read_region(path, (roi.x, roi.y, roi.width, roi.height))
-            .context("--roi")?;
-    Ok((image, (read, total)))
 }
 
 /// Write the frame and say so (`how` it was drawn, after the time).
@@ -306,8 +298,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let requested = args.roi.as_deref().map(Roi::parse).transpose()?;
     let (region, region_bytes) = match requested {
         Some(roi) if reads_region(&args, rig_file.as_ref(), &extra)? => {
-            let (image, bytes) = read_region(&args.file, roi)?;
-            (Some(image), Some(bytes))
+            let (image, read, total) = relit::codec::packed::read_region(
+                &args.file,
+                (roi.x, roi.y, roi.width, roi.height),
+            )
+            .context("--roi")?;
+            (Some(image), Some((read, total)))
         }
         _ => (None, None),
     };

@@ -91,7 +91,8 @@ impl ShardInfo {
     }
 
     fn first_row(index: usize, count: usize, height: usize) -> usize {
-        index * height / count
+        // In u128: a file may claim any height, and `index · height` must not wrap.
+        (index as u128 * height as u128 / count as u128) as usize
     }
 
     /// The rows of the whole image this part holds.

@@ -17,11 +17,10 @@ const WARM_UP_SECONDS: f64 = 1.0;
 
 impl GpuRelighter {
     /// The best rate, in bytes per second, at which this device reads a buffer of
-    /// `bytes` (capped by the largest buffer it binds) that the probe fills itself: the
-    /// best of three batches each of one, two and `passes` full reads, after one
-    /// warm-up read (`RELIT_PROBE_REPORT=1` prints every batch).
+    /// `bytes` (capped by the largest buffer it binds) that the probe fills itself, timed
+    /// as [`GpuRelighter::resident_read_rate`] times the planes.
     pub fn read_rate(&self, bytes: u64, passes: usize) -> Result<f64> {
-        let size = bytes.min(self.max_binding).min(u32::MAX as u64) / 16 * 16;
+        let size = self.bindable(bytes);
         if size == 0 || passes == 0 {
             return Err(invalid(
                 "the read probe needs at least 16 bytes and one pass",
@@ -54,25 +53,26 @@ impl GpuRelighter {
     /// The best rate, in bytes per second, at which this device reads the engine's own
     /// resident planes (every slab, as a frame reads them, but as plain vec4 loads):
     /// the bound `relit bench` sets frames against, measured on the very bytes the
-    /// frames read.
+    /// frames read: the best of three batches each of one, two and `passes` reads of
+    /// every slab, after [`WARM_UP_SECONDS`] of untimed reads (`RELIT_PROBE_REPORT=1`
+    /// prints every batch).
     pub fn resident_read_rate(&self, passes: usize) -> Result<f64> {
-        if passes == 0 {
-            return Err(invalid("the read probe needs one pass at least"));
-        }
         let buffers: Vec<(&wgpu::Buffer, u64)> = self
             .slabs
             .iter()
-            .map(|s| (&s.planes, s.planes.size() / 16 * 16))
-            .filter(|(_, size)| *size > 0)
+            .map(|s| (&s.planes, s.planes.size()))
             .collect();
-        if buffers.is_empty() {
-            return Err(invalid("no resident planes to read"));
-        }
         self.probe(&buffers, passes)
     }
 
-    /// Time plain vec4 reads of `buffers` (each bound whole up to its size): the best
-    /// of three batches each of one, two and `passes` reads of all of them.
+    /// The bytes of a buffer of `size` the probe binds: whole vec4 values, within the
+    /// adapter's binding limit.
+    fn bindable(&self, size: u64) -> u64 {
+        size.min(self.max_binding).min(u32::MAX as u64) / 16 * 16
+    }
+
+    /// Time plain vec4 reads of `buffers` (each bound from its start, [`Self::bindable`]
+    /// bytes of `size`).
     fn probe(&self, buffers: &[(&wgpu::Buffer, u64)], passes: usize) -> Result<f64> {
         let device = &self.device;
         let sink = device.create_buffer(&wgpu::BufferDescriptor {
@@ -97,7 +97,7 @@ impl GpuRelighter {
         let mut work = Vec::new();
         let mut total = 0u64;
         for &(buffer, size) in buffers {
-            let size = size.min(self.max_binding).min(u32::MAX as u64) / 16 * 16;
+            let size = self.bindable(size);
             if size == 0 {
                 continue;
             }
@@ -140,7 +140,7 @@ impl GpuRelighter {
             });
             work.push((group, groups as u32, params));
         }
-        if total == 0 {
+        if total == 0 || passes == 0 {
             return Err(invalid(
                 "the read probe needs at least 16 bytes and one pass",
             ));

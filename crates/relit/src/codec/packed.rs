@@ -55,15 +55,35 @@ pub fn is_packed(path: &Path) -> Result<bool> {
     Ok(got == 8 && head == MAGIC)
 }
 
-/// Read a compressed file into its packed form.
-pub fn read_packed(path: &Path) -> Result<Packed> {
-    let bytes = std::fs::read(path).map_err(|e| {
+/// Read the sections of a compressed file that `wanted` names (the others left empty)
+/// straight from the file, with the bytes read and the file's size.
+fn read_sections(
+    path: &Path,
+    wanted: &dyn Fn(&compress::Header, usize) -> bool,
+) -> Result<(Packed, u64, u64)> {
+    let cannot = |e: std::io::Error| {
         Error::new(
             ErrorKind::Io,
             format!("cannot read {}: {e}", path.display()),
         )
-    })?;
-    from_bytes(&bytes, &path.display().to_string())
+    };
+    let file = std::fs::File::open(path).map_err(cannot)?;
+    let len = file.metadata().map_err(cannot)?.len();
+    let name = path.display().to_string();
+    let (packed, read) =
+        compress::container::read_from(&mut std::io::BufReader::new(file), len, &name, wanted)?;
+    Ok((packed, read, len))
+}
+
+/// Read a compressed file into its packed form.
+pub fn read_packed(path: &Path) -> Result<Packed> {
+    read_sections(path, &|_, _| true).map(|(packed, _, _)| packed)
+}
+
+/// The header of a compressed file, reading no section (lengths and the header's and
+/// index's checksums are still checked).
+pub fn read_header(path: &Path) -> Result<compress::Header> {
+    read_sections(path, &|_, _| false).map(|(packed, _, _)| packed.header)
 }
 
 /// Read a compressed file as ordinary maps (in its projected basis).
@@ -79,18 +99,7 @@ pub fn read_region(
     path: &Path,
     region: (usize, usize, usize, usize),
 ) -> Result<(RelightableImage, u64, u64)> {
-    let open_error = |e: std::io::Error| {
-        Error::new(
-            ErrorKind::Io,
-            format!("cannot read {}: {e}", path.display()),
-        )
-    };
-    let mut file = std::io::BufReader::new(std::fs::File::open(path).map_err(open_error)?);
-    let len = file.get_ref().metadata().map_err(open_error)?.len();
-    let name = path.display().to_string();
-    let (packed, read) = compress::container::read_from(&mut file, len, &name, &|h, s| {
-        compress::section_needed(h, s, region)
-    })?;
+    let (packed, read, len) = read_sections(path, &|h, s| compress::section_needed(h, s, region))?;
     let image = compress::unpack_region(&packed, region)
         .map_err(|e| Error::new(e.kind(), format!("{}: {e}", path.display())))?;
     Ok((image, read, len))

@@ -736,47 +736,62 @@ pub fn unpack(packed: &Packed) -> Result<RelightableImage> {
         image.depth = depth(packed)?;
         return Ok(image);
     }
-    let (w, h) = (header.width, header.height);
-    let tiles = header.tiles().0 * header.tiles().1;
-    // Decode every tile first: memory grows with what the file really holds.
-    let decoded: Vec<Vec<u16>> = (0..header.planes.len() * tiles)
-        .into_par_iter()
-        .map(|s| {
-            let (p, t) = (s / tiles, s % tiles);
-            let q = &header.planes[p].quantizer;
-            decode_codes(packed, s, t, q.width(), q.levels)
-        })
-        .collect::<Result<_>>()?;
-    let maps = assemble(header, kp, w, h, |p, out| {
-        let coding = header.planes[p].quantizer.coding;
-        for t in 0..tiles {
-            let (x0, y0, tw, th) = header.tile_rect(t);
-            let codes = &decoded[p * tiles + t];
-            for y in 0..th {
-                let row = &mut out[(y0 + y) * w + x0..(y0 + y) * w + x0 + tw];
-                for (o, &q) in row.iter_mut().zip(&codes[y * tw..(y + 1) * tw]) {
-                    *o = coding.decode(q as f32);
-                }
-            }
-        }
-    });
     Ok(RelightableImage {
         meta: header.meta.clone(),
-        maps,
+        maps: region_maps(packed, kp, (0, 0, header.width, header.height))?,
         depth: depth(packed)?,
     })
 }
 
-/// Whether section `s` of a file holds data of the region `(x, y, w, h)`: a tile it
-/// touches, of any plane or of depth. A codebook file's sections are all needed (its
-/// index tiles decode into the whole index plane).
+/// The maps of `region` of a file of planes (no codebook) with `kp` functions: the
+/// tiles it touches, decoded (first, so that memory grows with what the file really
+/// holds) and copied into place.
+fn region_maps(
+    packed: &Packed,
+    kp: usize,
+    region: (usize, usize, usize, usize),
+) -> Result<CoefficientMaps> {
+    let header = &packed.header;
+    let (x, y, w, h) = region;
+    let tiles = header.tiles().0 * header.tiles().1;
+    let touched: Vec<usize> = (0..tiles)
+        .filter(|&t| tile_overlap(header, t, region).is_some())
+        .collect();
+    let decoded: Vec<Vec<u16>> = (0..header.planes.len() * touched.len())
+        .into_par_iter()
+        .map(|i| {
+            let (p, t) = (i / touched.len(), touched[i % touched.len()]);
+            let q = &header.planes[p].quantizer;
+            decode_codes(packed, p * tiles + t, t, q.width(), q.levels)
+        })
+        .collect::<Result<_>>()?;
+    Ok(assemble(header, kp, w, h, |p, out| {
+        let coding = header.planes[p].quantizer.coding;
+        for (i, &t) in touched.iter().enumerate() {
+            let (tx, ty, tw, _) = header.tile_rect(t);
+            let (ox, oy, ow, oh) = tile_overlap(header, t, region).expect("touched");
+            let codes = &decoded[p * touched.len() + i];
+            for r in 0..oh {
+                let src = (oy + r - ty) * tw + (ox - tx);
+                let dst = (oy + r - y) * w + (ox - x);
+                for (o, &q) in out[dst..dst + ow].iter_mut().zip(&codes[src..src + ow]) {
+                    *o = coding.decode(q as f32);
+                }
+            }
+        }
+    }))
+}
+
+/// Whether [`unpack_region`] needs section `s` of a file for the region `(x, y, w, h)`:
+/// a plane's tile that the region touches (depth is not read). A codebook file's
+/// sections are all needed (its index tiles decode into the whole index plane).
 pub fn section_needed(header: &Header, s: usize, region: (usize, usize, usize, usize)) -> bool {
     if header.codebook.is_some() {
         return true;
     }
     let (across, down) = header.tiles();
-    let tiles = (across * down).max(1);
-    tile_overlap(header, s % tiles, region).is_some()
+    let tiles = across * down;
+    s < header.planes.len() * tiles && tile_overlap(header, s % tiles, region).is_some()
 }
 
 /// The part of tile `t` inside `region`, as `(x0, y0, w, h)` in image pixels.
@@ -828,33 +843,7 @@ pub fn unpack_region(
     let maps = if header.codebook.is_some() {
         crop(indexed_checked(packed, kp)?.expand())
     } else {
-        let tiles = header.tiles().0 * header.tiles().1;
-        let touched: Vec<usize> = (0..tiles)
-            .filter(|&t| tile_overlap(header, t, region).is_some())
-            .collect();
-        let decoded: Vec<Vec<u16>> = (0..header.planes.len() * touched.len())
-            .into_par_iter()
-            .map(|i| {
-                let (p, t) = (i / touched.len(), touched[i % touched.len()]);
-                let q = &header.planes[p].quantizer;
-                decode_codes(packed, p * tiles + t, t, q.width(), q.levels)
-            })
-            .collect::<Result<_>>()?;
-        assemble(header, kp, w, h, |p, out| {
-            let coding = header.planes[p].quantizer.coding;
-            for (i, &t) in touched.iter().enumerate() {
-                let (tx, ty, tw, _) = header.tile_rect(t);
-                let (ox, oy, ow, oh) = tile_overlap(header, t, region).expect("touched");
-                let codes = &decoded[p * touched.len() + i];
-                for r in 0..oh {
-                    let src = (oy + r - ty) * tw + (ox - tx);
-                    let dst = (oy + r - y) * w + (ox - x);
-                    for (o, &q) in out[dst..dst + ow].iter_mut().zip(&codes[src..src + ow]) {
-                        *o = coding.decode(q as f32);
-                    }
-                }
-            }
-        })
+        region_maps(packed, kp, region)?
     };
     let mut meta = header.meta.clone();
     meta.camera = None;
