@@ -17,6 +17,7 @@ mod common;
 use common::snapshot;
 use relit::sphere::Vec3;
 use relit::synth::BumpyPlane;
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -735,21 +736,7 @@ fn every_bad_input_gets_one_clear_error_and_changes_nothing() {
             .output()
             .unwrap();
         let stderr = String::from_utf8_lossy(&out.stderr);
-        let mut wrong = Vec::new();
-        if out.status.code() != Some(1) {
-            wrong.push(format!("exit {:?}", out.status.code()));
-        }
-        if stderr.contains("panicked") || stderr.contains("memory allocation") {
-            wrong.push("a panic or failed allocation".to_string());
-        }
-        for needle in case.needles {
-            if !stderr.contains(needle) {
-                wrong.push(format!("no `{needle}` in the message"));
-            }
-        }
-        if snapshot(d) != before {
-            wrong.push("files changed or left behind".to_string());
-        }
+        let wrong = refusal_faults(&out, case.needles, d, &before);
         if !wrong.is_empty() {
             failures.push(format!(
                 "{}: {}\n    relit {}\n    {}",
@@ -828,23 +815,11 @@ fn a_full_disk_and_a_read_only_folder_fail_cleanly() {
                 .output()
                 .unwrap();
             let stderr = String::from_utf8_lossy(&out.stderr);
-            let mut wrong = Vec::new();
-            if out.status.code() != Some(1) {
-                wrong.push(format!("exit {:?}", out.status.code()));
-            }
-            if stderr.contains("panicked") {
-                wrong.push("a panic".to_string());
-            }
             // What could not be written: the output, or the fit's spill file, which
             // the disk refuses first.
             let spill = args[0] == "fit" && limit == "full disk";
             let named = if spill { "spill file in" } else { "OUT" };
-            if !stderr.contains(named) {
-                wrong.push(format!("no `{named}` in the message"));
-            }
-            if snapshot(d) != before {
-                wrong.push("files changed or left behind".to_string());
-            }
+            let wrong = refusal_faults(&out, &[named], d, &before);
             if !wrong.is_empty() {
                 failures.push(format!(
                     "{limit}: relit {}: {}\n    {}",
@@ -856,6 +831,33 @@ fn a_full_disk_and_a_read_only_folder_fail_cleanly() {
         }
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// What is wrong with a refusal: not exit 1, a panic or failed allocation, a needle
+/// missing from the message, files under `d` changed from `before`.
+fn refusal_faults(
+    out: &std::process::Output,
+    needles: &[&str],
+    d: &Path,
+    before: &BTreeMap<PathBuf, Vec<u8>>,
+) -> Vec<String> {
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let mut wrong = Vec::new();
+    if out.status.code() != Some(1) {
+        wrong.push(format!("exit {:?}", out.status.code()));
+    }
+    if stderr.contains("panicked") || stderr.contains("memory allocation") {
+        wrong.push("a panic or failed allocation".to_string());
+    }
+    for needle in needles {
+        if !stderr.contains(needle) {
+            wrong.push(format!("no `{needle}` in the message"));
+        }
+    }
+    if snapshot(d) != *before {
+        wrong.push("files changed or left behind".to_string());
+    }
+    wrong
 }
 
 /// Whether this process runs as root (whom file modes do not stop).

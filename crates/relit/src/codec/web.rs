@@ -2061,6 +2061,19 @@ mod tests {
     /// Deep Zoom: a 600×300 image (three levels, 3×2 full-resolution tiles with partial
     /// ones at the edges) reads back as the single-image layout does. Measured: the same
     /// PSNR (51.0 dB both: smooth maps, 8-bit codes and JPEG at quality 100).
+    /// Display-referred ptm:6 maps, as RTI tools write them.
+    fn display_ptm(maps: CoefficientMaps) -> RelightableImage {
+        RelightableImage {
+            meta: Metadata::new(
+                BasisSpec::named("ptm:6").unwrap(),
+                MapSpace::Srgb,
+                Projection::default(),
+            ),
+            maps,
+            depth: None,
+        }
+    }
+
     #[test]
     fn lrgb_writing_keeps_a_colour_times_a_luminance_exactly() {
         let (w, h) = (64, 48);
@@ -2075,15 +2088,7 @@ mod tests {
                 }
             }
         }
-        let image = RelightableImage {
-            meta: Metadata::new(
-                BasisSpec::named("ptm:6").unwrap(),
-                MapSpace::Srgb,
-                Projection::default(),
-            ),
-            maps,
-            depth: None,
-        };
+        let image = display_ptm(maps);
         let dir = tempfile::tempdir().unwrap();
         let options = WriteOptions {
             quality: 100,
@@ -2107,15 +2112,7 @@ mod tests {
                     + if p >= 15 { 0.4 } else { 0.0 };
             }
         }
-        let image = RelightableImage {
-            meta: Metadata::new(
-                BasisSpec::named("ptm:6").unwrap(),
-                MapSpace::Srgb,
-                Projection::default(),
-            ),
-            maps,
-            depth: None,
-        };
+        let image = display_ptm(maps);
         let dir = tempfile::tempdir().unwrap();
         let mut options = WriteOptions {
             quality: 100,
