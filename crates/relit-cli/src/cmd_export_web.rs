@@ -48,7 +48,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             bail!("--storage and --env are for relit's viewer: add --viewer relit");
         }
         let image = relit::codec::read(&args.file)?;
-        let summary = relit::codec::web::write(&args.dir, &image, &args.web.options())
+        let options = args.web.options();
+        if options
+            .chroma_planes
+            .is_some_and(|c| 3 * c < options.planes)
+        {
+            eprintln!(
+                "note: mycc with fewer chroma planes than plane images is relight's layout; \
+                 OpenLIME 1.2.6 reads its luma-only images as (Y, C1, C2) triples and shows \
+                 it wrong (relit and relight read it right). Plain --mycc avoids this."
+            );
+        }
+        let summary = relit::codec::web::write(&args.dir, &image, &options)
             .with_context(|| format!("writing {}", args.dir.display()))?;
         println!(
             "wrote {} (relight/OpenLIME web format: {} {}, {} planes, {} files, {:.1} MiB); open it with OpenLIME's `rti` layer, layout `{}`",

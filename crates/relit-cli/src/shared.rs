@@ -207,6 +207,28 @@ pub struct WebArgs {
     /// colour no longer varying with the light) instead of `rgb`.
     #[arg(long)]
     pub lrgb: bool,
+    /// The functions a web folder holds: `auto` writes display-referred ptm:6, hsh:9 and
+    /// sh:9 maps as those types and the rest as `bilinear`; `bilinear` and `rbf` write
+    /// principal components on relight's light grid or at blended nodes.
+    #[arg(long, value_enum, default_value_t = WebTypeArg::Auto)]
+    pub web_type: WebTypeArg,
+    /// Nodes of an `rbf` web folder, spread over the upper hemisphere.
+    #[arg(long, default_value_t = relit::codec::web::DEFAULT_RBF_NODES)]
+    pub rbf_nodes: usize,
+    /// Write a `bilinear` or `rbf` web folder in relight's `mycc` colour space (luma and
+    /// chroma, each with its own components) with this many planes per chroma channel
+    /// (default: a third of `--planes`, the layout OpenLIME 1.2.6 reads as relight means
+    /// it; fewer is relight's own, smaller layout).
+    #[arg(long, num_args = 0..=1, default_missing_value = "0")]
+    pub mycc: Option<usize>,
+}
+
+/// The functions of a web folder.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum WebTypeArg {
+    Auto,
+    Bilinear,
+    Rbf,
 }
 
 /// OpenLIME's layouts that relit writes.
@@ -230,12 +252,20 @@ impl WebArgs {
     }
 
     pub fn options(&self) -> relit::codec::web::WriteOptions {
+        use relit::codec::web::WebFunctions;
         relit::codec::web::WriteOptions {
             quality: self.quality,
             planes: self.planes,
             resolution: self.grid,
             layout: self.layout(),
             lrgb: self.lrgb,
+            functions: match self.web_type {
+                WebTypeArg::Auto => WebFunctions::Auto,
+                WebTypeArg::Bilinear => WebFunctions::Bilinear,
+                WebTypeArg::Rbf => WebFunctions::Rbf,
+            },
+            rbf_nodes: self.rbf_nodes,
+            chroma_planes: self.mycc.map(|c| if c == 0 { self.planes / 3 } else { c }),
         }
     }
 }

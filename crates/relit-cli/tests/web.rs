@@ -286,16 +286,47 @@ fn openlime_shows_what_relit_relights_for_each_type_relit_writes() {
         })
         .collect();
     let mut cases = Vec::new();
-    for (basis, space, kind, layout, lrgb) in [
-        ("ptm:6", MapSpace::Srgb, "ptm", "image", false),
-        ("hsh:9", MapSpace::Srgb, "hsh", "image", false),
-        ("sh:9", MapSpace::Srgb, "sh", "image", false),
-        ("sh:9", MapSpace::Linear, "bilinear", "image", false),
-        ("ptm:6", MapSpace::Srgb, "ptm", "image", true),
-        ("hsh:9", MapSpace::Srgb, "hsh", "image", true),
-        ("hsh:9", MapSpace::Srgb, "hsh", "deepzoom", false),
-        ("hsh:9", MapSpace::Srgb, "hsh", "tarzoom", false),
-        ("sh:9", MapSpace::Linear, "bilinear", "itarzoom", false),
+    for (basis, space, kind, colorspace, layout, extra) in [
+        ("ptm:6", MapSpace::Srgb, "ptm", "rgb", "image", &[][..]),
+        ("hsh:9", MapSpace::Srgb, "hsh", "rgb", "image", &[]),
+        ("sh:9", MapSpace::Srgb, "sh", "rgb", "image", &[]),
+        ("sh:9", MapSpace::Linear, "bilinear", "mrgb", "image", &[]),
+        (
+            "sh:9",
+            MapSpace::Linear,
+            "rbf",
+            "mrgb",
+            "image",
+            &["--web-type", "rbf"],
+        ),
+        (
+            "sh:9",
+            MapSpace::Linear,
+            "bilinear",
+            "mycc",
+            "image",
+            &["--mycc"],
+        ),
+        (
+            "hsh:9",
+            MapSpace::Srgb,
+            "rbf",
+            "mycc",
+            "image",
+            &["--web-type", "rbf", "--mycc"],
+        ),
+        ("ptm:6", MapSpace::Srgb, "ptm", "lrgb", "image", &["--lrgb"]),
+        ("hsh:9", MapSpace::Srgb, "hsh", "lrgb", "image", &["--lrgb"]),
+        ("hsh:9", MapSpace::Srgb, "hsh", "rgb", "deepzoom", &[]),
+        ("hsh:9", MapSpace::Srgb, "hsh", "rgb", "tarzoom", &[]),
+        (
+            "sh:9",
+            MapSpace::Linear,
+            "bilinear",
+            "mrgb",
+            "itarzoom",
+            &[],
+        ),
     ] {
         let size = if layout == "image" { small } else { large };
         let capture = &captures[usize::from(layout != "image")];
@@ -306,7 +337,7 @@ fn openlime_shows_what_relit_relights_for_each_type_relit_writes() {
             ..Default::default()
         };
         let fitted = relit::fit::fit(capture, &options, &relit::progress::Silent).unwrap();
-        let name = format!("{kind}-{}{layout}", if lrgb { "lrgb-" } else { "" });
+        let name = format!("{kind}-{colorspace}-{layout}");
         let exr = d.join(format!("{name}.exr"));
         relit::codec::exr::write(&exr, &fitted.image, relit::storage::Precision::F32).unwrap();
         let mut args = vec![
@@ -316,15 +347,13 @@ fn openlime_shows_what_relit_relights_for_each_type_relit_writes() {
             "--web-layout",
             layout,
         ];
-        if lrgb {
-            args.push("--lrgb");
-        }
+        args.extend(extra);
         relit(d, &args);
         let info = info_json(&d.join(&name));
-        assert_eq!(info["type"], kind);
-        if lrgb {
-            assert_eq!(info["colorspace"], "lrgb");
-        }
+        assert_eq!(
+            (info["type"].as_str(), info["colorspace"].as_str()),
+            (Some(kind), Some(colorspace))
+        );
         cases.push(Case {
             name: name.clone(),
             folder: d.join(&name),
@@ -334,9 +363,9 @@ fn openlime_shows_what_relit_relights_for_each_type_relit_writes() {
             // lrgb keeps one colour a pixel whatever the light (measured 38.1–41.3 dB).
             original: Some((
                 exr.clone(),
-                match (kind, lrgb) {
-                    (_, true) => 36.0,
-                    ("bilinear", _) => 38.0,
+                match (kind, colorspace) {
+                    (_, "lrgb") => 36.0,
+                    ("bilinear" | "rbf", _) => 38.0,
                     _ => 39.0,
                 },
             )),

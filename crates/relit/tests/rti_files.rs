@@ -370,3 +370,26 @@ fn any_basis_is_re_expressed_for_the_rti_files() {
         }
     }
 }
+
+/// An older `.hsh` file without the `#HSH1.2` comment reads as the same terms, by its
+/// contents and by its name; a `.hsh` output is written as an HSH file.
+#[test]
+fn hsh_files_without_the_comment_read_like_rti_files() {
+    let with = one_term_rti(4);
+    let without = with[b"#HSH1.2\r\n".len()..].to_vec();
+    assert!(without.starts_with(b"3\r\n"));
+    let a = rti::decode(Path::new("t.rti"), &with).unwrap();
+    let b = rti::decode(Path::new("t.hsh"), &without).unwrap();
+    assert_eq!(a.maps.data, b.maps.data);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("old.hsh");
+    std::fs::write(&path, &without).unwrap();
+    assert!(relit::codec::FileForm::of(&path).unwrap() == relit::codec::FileForm::Rti);
+    assert_eq!(relit::codec::read(&path).unwrap().maps.data, a.maps.data);
+    assert!(
+        relit::codec::FileForm::for_output(&dir.path().join("new.HSH"))
+            == relit::codec::FileForm::Rti
+    );
+    // Text that only looks like a number is not taken for one.
+    assert!(rti::decode(Path::new("t.hsh"), b"30\n1 1 3\n").is_err());
+}

@@ -41,7 +41,7 @@ pub use bilinear::{grid_basis, GridMap};
 pub use hsh::HemisphericalHarmonics;
 pub use projected::Projected;
 pub use ptm::PolynomialTextureMap;
-pub use rbf::relight_rbf;
+pub use rbf::{relight_kernels, relight_rbf};
 pub use rotation::{
     check_rotation, compose, mat3_apply, rotation_about_axis, rotation_from_yaw_pitch_roll,
     transpose, Mat3, ShRotation, MAT3_IDENTITY,

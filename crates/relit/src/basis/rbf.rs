@@ -247,8 +247,9 @@ pub struct Rbf {
     kernel: Kernel,
 }
 
-/// relight's kernel values at `dir` for every centre (see the module docs).
-fn relight_kernels(centres: &[Vec3], dir: Vec3, alpha: f64, beta: f64, out: &mut Vec<f64>) {
+/// relight's kernel values at `dir` for every centre (see the module docs): the weights
+/// OpenLIME blends an `rbf` file's nodes with.
+pub fn relight_kernels(centres: &[Vec3], dir: Vec3, alpha: f64, beta: f64, out: &mut Vec<f64>) {
     out.clear();
     out.extend(centres.iter().map(|c| (dir - *c).length()));
     let (mut num, mut den) = (0.0, 0.0);

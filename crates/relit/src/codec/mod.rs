@@ -68,7 +68,8 @@ impl FileForm {
     }
 
     /// The form an output path asks for: a folder (an existing one, or a path ending in
-    /// `/`) is the web format, `.rlz` compressed, `.ptm` and `.rti` the RTI tools' files,
+    /// `/`) is the web format, `.rlz` compressed, `.ptm` and `.rti` (or `.hsh`) the RTI
+    /// tools' files,
     /// anything else EXR.
     pub fn for_output(path: &Path) -> FileForm {
         if path.is_dir() || path.as_os_str().to_string_lossy().ends_with(['/', '\\']) {
@@ -77,7 +78,9 @@ impl FileForm {
         match path.extension().and_then(|e| e.to_str()) {
             Some(e) if e.eq_ignore_ascii_case("rlz") => FileForm::Compressed,
             Some(e) if e.eq_ignore_ascii_case("ptm") => FileForm::Ptm,
-            Some(e) if e.eq_ignore_ascii_case("rti") => FileForm::Rti,
+            Some(e) if e.eq_ignore_ascii_case("rti") || e.eq_ignore_ascii_case("hsh") => {
+                FileForm::Rti
+            }
             _ => FileForm::Exr,
         }
     }

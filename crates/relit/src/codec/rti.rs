@@ -40,9 +40,11 @@ use std::path::Path;
 /// The first bytes of an HSH `.rti` file.
 pub const MAGIC: &[u8] = b"#HSH";
 
-/// Whether `prefix` (the first bytes of a file) starts an HSH `.rti` file.
+/// Whether `prefix` (the first bytes of a file) starts an HSH `.rti` file: RTIBuilder's
+/// and relight's start with a `#HSH1.2` comment; older `.hsh` files from the same
+/// fitter may have no comment and start with the file type, `3`, on its own line.
 pub fn is_rti(prefix: &[u8]) -> bool {
-    prefix.starts_with(MAGIC)
+    prefix.starts_with(MAGIC) || prefix.starts_with(b"3\n") || prefix.starts_with(b"3\r\n")
 }
 
 /// relit's index and sign of the file's term `k` (band `l`, listed `m = l … −l`).
@@ -68,7 +70,7 @@ pub fn read(path: &Path) -> Result<RelightableImage> {
 pub fn decode(path: &Path, bytes: &[u8]) -> Result<RelightableImage> {
     if !is_rti(bytes) {
         return Err(Error::parse(format!(
-            "{}: not an HSH .rti file (it must start with `#HSH`)",
+            "{}: not an HSH .rti file (it must start with `#HSH` or the file type 3)",
             path.display()
         )));
     }
