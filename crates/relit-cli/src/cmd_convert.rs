@@ -22,7 +22,9 @@ pub struct Args {
     #[command(flatten)]
     pub compress: CompressArgs,
     /// The colour layout of a `.ptm` output: lrgb (one luminance polynomial × RGB, as
-    /// PTMfitter writes) or rgb (a polynomial per channel).
+    /// PTMfitter writes) or rgb (a polynomial per channel), raw or as HP's JPEG variants
+    /// jpeg-lrgb[:Q] and jpeg-rgb[:Q] (each plane a grayscale JPEG of quality Q, default
+    /// 90: about a fifth of the bytes).
     #[arg(long, default_value = "lrgb", value_parser = |s: &str| relit::codec::ptm::PtmFormat::parse(s).map_err(|e| e.to_string()))]
     pub ptm_format: relit::codec::ptm::PtmFormat,
     /// What an input `.ptm`/`.rti` file's values are: srgb (the formats' convention,

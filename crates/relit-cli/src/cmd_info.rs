@@ -23,7 +23,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .find(|(k, _)| k == "relit.storage")
             .map(|(_, v)| format!("OpenEXR {v}"))
             .unwrap_or_default(),
-        FileForm::Ptm => "PTM 1.2 (8-bit codes)".to_string(),
+        FileForm::Ptm => codec::ptm::describe(&args.file)?,
         FileForm::Rti => "HSH .rti (8-bit codes)".to_string(),
         FileForm::Compressed => {
             let header = codec::packed::read_header(&args.file)?;

@@ -183,7 +183,7 @@ fn shared_lp_seeds() -> Vec<Vec<u8>> {
     seeds
 }
 
-/// Small `.ptm` (LRGB and RGB) and `.rti` files written by relit, as seeds.
+/// Small `.ptm` (LRGB, RGB and JPEG LRGB) and `.rti` files written by relit, as seeds.
 fn rti_file_seeds() -> (Vec<Vec<u8>>, Vec<Vec<u8>>) {
     use relit::maps::{CoefficientMaps, MapSpace, Metadata, RelightableImage};
     let image = |basis: &str| {
@@ -203,6 +203,7 @@ fn rti_file_seeds() -> (Vec<Vec<u8>>, Vec<Vec<u8>>) {
     let ptm_seeds = [
         relit::codec::ptm::PtmFormat::Lrgb,
         relit::codec::ptm::PtmFormat::Rgb,
+        relit::codec::ptm::PtmFormat::JpegLrgb(90),
     ]
     .map(|f| relit::codec::ptm::encode(&ptm, f).unwrap())
     .to_vec();

@@ -206,6 +206,11 @@ fn no_file_reader_panics_on_mutated_files() {
             relit::codec::ptm::encode(&fitted.image, relit::codec::ptm::PtmFormat::Rgb).unwrap(),
         ),
         (
+            "maps-jpeg-lrgb.ptm",
+            relit::codec::ptm::encode(&fitted.image, relit::codec::ptm::PtmFormat::JpegLrgb(90))
+                .unwrap(),
+        ),
+        (
             "maps.rti",
             relit::codec::rti::encode(&fitted.image).unwrap(),
         ),

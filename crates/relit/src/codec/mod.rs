@@ -134,13 +134,7 @@ pub fn write_interchange(
     match form {
         FileForm::Ptm => {
             ptm::write(path, image, ptm_format)?;
-            Ok(format!(
-                "PTM 1.2, {}",
-                match ptm_format {
-                    ptm::PtmFormat::Rgb => "RGB",
-                    ptm::PtmFormat::Lrgb => "LRGB",
-                }
-            ))
+            Ok(format!("PTM 1.2, {}", ptm_format.describe()))
         }
         FileForm::Rti => {
             rti::write(path, image)?;

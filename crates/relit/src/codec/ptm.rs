@@ -1,5 +1,6 @@
 //! HP's Polynomial Texture Map files, version 1.2 (`.ptm`), formats
-//! `PTM_FORMAT_RGB` and `PTM_FORMAT_LRGB`.
+//! `PTM_FORMAT_RGB` and `PTM_FORMAT_LRGB` and their JPEG variants
+//! `PTM_FORMAT_JPEG_RGB` and `PTM_FORMAT_JPEG_LRGB`.
 //!
 //! # Layout (HP's "PTM File Format" 1.2)
 //!
@@ -42,8 +43,24 @@
 //! does. LRGB stores, per pixel, the colour of its mean response (brightest channel at
 //! 255) and the luminance polynomial that scales it.
 //!
-//! Not read: the JPEG-compressed variants (`PTM_FORMAT_JPEG_*`), `PTM_FORMAT_LUM` and
-//! the PTM 1.1 layout; they are refused with their name.
+//! # The JPEG variants
+//!
+//! After the biases the header holds, for the `n` coefficient planes (18 for RGB: red's
+//! `a0..a5`, then green's, blue's; 9 for LRGB: the luminance's `a0..a5`, then R, G, B):
+//! the JPEG quality, then `n` integers each of `transforms`, motion vectors x and y,
+//! decoding `order`, `reference planes` (−1 for none), compressed sizes and side
+//! information sizes. The data is, for each plane in turn, its grayscale JPEG stream
+//! (rows bottom-up, as the raw layout) and then its side information. Planes are
+//! completed in `order`: a plane with a reference adds that (already completed) plane's
+//! bytes minus 128, modulo 256 — inverted (`255 − byte`) where its transform's bit 0 is
+//! set — and its side information is a list of 5-byte corrections (a big-endian 32-bit
+//! pixel index, then the byte to put there). The bytes so completed are the raw layout's
+//! codes. Motion-compensated prediction (transform bit 1) is refused by name: no writer
+//! we know of uses it. Written JPEG files store every plane on its own, without
+//! prediction or corrections, at the quality asked (default 90).
+//!
+//! Not read: `PTM_FORMAT_LUM`, the JPEG-LS variants and the PTM 1.1 layout; they are
+//! refused with their name.
 
 use super::legacy::{check_payload, field, text_header, Range};
 use super::reexpress::reexpress;
@@ -60,23 +77,46 @@ pub const MAGIC: &[u8] = b"PTM_1.2";
 /// Coefficients of the biquadratic.
 const K: usize = 6;
 
-/// How the colour of a PTM is stored.
+/// How the colour of a PTM is stored, and whether its planes are JPEG streams.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PtmFormat {
     /// One polynomial per colour channel.
     Rgb,
     /// One luminance polynomial times a per-pixel RGB colour (what PTMfitter writes).
     Lrgb,
+    /// `Rgb` with each of its 18 planes a grayscale JPEG of this quality (1–100).
+    JpegRgb(u8),
+    /// `Lrgb` with each of its 9 planes a grayscale JPEG of this quality (1–100).
+    JpegLrgb(u8),
 }
 
+/// The JPEG quality of written JPEG variants unless one is named.
+pub const DEFAULT_JPEG_QUALITY: u8 = 90;
+
 impl PtmFormat {
-    /// Parse `rgb` or `lrgb`.
+    /// Parse `rgb`, `lrgb`, `jpeg-rgb[:Q]` or `jpeg-lrgb[:Q]` (`Q` the JPEG quality,
+    /// 1–100).
     pub fn parse(name: &str) -> Result<PtmFormat> {
-        match name.to_ascii_lowercase().as_str() {
-            "rgb" => Ok(PtmFormat::Rgb),
-            "lrgb" => Ok(PtmFormat::Lrgb),
-            other => Err(Error::invalid(format!(
-                "unknown PTM format `{other}`: use rgb or lrgb"
+        let lower = name.to_ascii_lowercase();
+        let (kind, quality) = match lower.split_once(':') {
+            Some((kind, q)) => match q.parse::<u8>() {
+                Ok(q @ 1..=100) => (kind, Some(q)),
+                _ => {
+                    return Err(Error::invalid(format!(
+                        "PTM JPEG quality `{q}`: use 1 to 100"
+                    )))
+                }
+            },
+            None => (lower.as_str(), None),
+        };
+        let q = quality.unwrap_or(DEFAULT_JPEG_QUALITY);
+        match (kind, quality) {
+            ("rgb", None) => Ok(PtmFormat::Rgb),
+            ("lrgb", None) => Ok(PtmFormat::Lrgb),
+            ("jpeg-rgb", _) => Ok(PtmFormat::JpegRgb(q)),
+            ("jpeg-lrgb", _) => Ok(PtmFormat::JpegLrgb(q)),
+            _ => Err(Error::invalid(format!(
+                "unknown PTM format `{name}`: use rgb, lrgb, jpeg-rgb[:Q] or jpeg-lrgb[:Q]"
             ))),
         }
     }
@@ -85,6 +125,40 @@ impl PtmFormat {
         match self {
             PtmFormat::Rgb => "PTM_FORMAT_RGB",
             PtmFormat::Lrgb => "PTM_FORMAT_LRGB",
+            PtmFormat::JpegRgb(_) => "PTM_FORMAT_JPEG_RGB",
+            PtmFormat::JpegLrgb(_) => "PTM_FORMAT_JPEG_LRGB",
+        }
+    }
+
+    /// Whether the colour is one polynomial times a per-pixel colour.
+    pub fn lrgb(self) -> bool {
+        matches!(self, PtmFormat::Lrgb | PtmFormat::JpegLrgb(_))
+    }
+
+    /// The JPEG quality of a JPEG variant.
+    pub fn jpeg_quality(self) -> Option<u8> {
+        match self {
+            PtmFormat::JpegRgb(q) | PtmFormat::JpegLrgb(q) => Some(q),
+            _ => None,
+        }
+    }
+
+    /// How `relit info` names it.
+    pub fn describe(self) -> String {
+        match self {
+            PtmFormat::Rgb => "RGB".into(),
+            PtmFormat::Lrgb => "LRGB".into(),
+            PtmFormat::JpegRgb(q) => format!("JPEG RGB (quality {q})"),
+            PtmFormat::JpegLrgb(q) => format!("JPEG LRGB (quality {q})"),
+        }
+    }
+
+    /// Bytes per pixel of the raw layout: all planes, one byte each.
+    fn planes(self) -> usize {
+        if self.lrgb() {
+            K + 3
+        } else {
+            3 * K
         }
     }
 }
@@ -104,6 +178,23 @@ pub fn read(path: &Path) -> Result<RelightableImage> {
     decode(path, &bytes)
 }
 
+/// One line about a `.ptm` file's own form, from its format line.
+pub fn describe(path: &Path) -> Result<String> {
+    use std::io::Read;
+    let mut head = [0u8; 64];
+    let read = std::fs::File::open(path)
+        .and_then(|mut f| f.read(&mut head))
+        .map_err(|e| Error::io(path, "read", e))?;
+    let text = String::from_utf8_lossy(&head[..read]);
+    let format = text.split_ascii_whitespace().nth(1).unwrap_or("?");
+    let planes = if format.contains("JPEG") {
+        "8-bit codes, a JPEG per plane"
+    } else {
+        "8-bit codes"
+    };
+    Ok(format!("PTM 1.2, {format} ({planes})"))
+}
+
 /// Decode the bytes of a `.ptm` file (`path` names it in errors).
 pub fn decode(path: &Path, bytes: &[u8]) -> Result<RelightableImage> {
     // The version and format first, so that an unsupported variant is named as such
@@ -119,9 +210,13 @@ pub fn decode(path: &Path, bytes: &[u8]) -> Result<RelightableImage> {
     let format = match words.next() {
         Some("PTM_FORMAT_RGB") => PtmFormat::Rgb,
         Some("PTM_FORMAT_LRGB") => PtmFormat::Lrgb,
+        // The quality is read with the rest of the header.
+        Some("PTM_FORMAT_JPEG_RGB") => PtmFormat::JpegRgb(0),
+        Some("PTM_FORMAT_JPEG_LRGB") => PtmFormat::JpegLrgb(0),
         Some(other) if other.starts_with("PTM_FORMAT_") => {
             return Err(Error::parse(format!(
-                "{}: {other} is not supported (relit reads PTM_FORMAT_RGB and PTM_FORMAT_LRGB)",
+                "{}: {other} is not supported (relit reads PTM_FORMAT_RGB, PTM_FORMAT_LRGB \
+                 and their JPEG variants)",
                 path.display()
             )))
         }
@@ -150,12 +245,14 @@ pub fn decode(path: &Path, bytes: &[u8]) -> Result<RelightableImage> {
         }
         bias[i] = b as f32;
     }
-    let bytes_per_pixel = match format {
-        PtmFormat::Rgb => 3 * K,
-        PtmFormat::Lrgb => K + 3,
+    let raw;
+    let data: &[u8] = if format.jpeg_quality().is_some() {
+        raw = jpeg_planes(path, bytes, format, width, height)?;
+        &raw
+    } else {
+        check_payload(path, bytes.len(), offset, width, height, format.planes())?;
+        &bytes[offset..]
     };
-    check_payload(path, bytes.len(), offset, width, height, bytes_per_pixel)?;
-    let data = &bytes[offset..];
     let n = width * height;
     let mut maps = CoefficientMaps::zeros(width, height, K);
     let decode = |block: &[u8], pixel_in_file: usize, i: usize| -> f32 {
@@ -166,23 +263,20 @@ pub fn decode(path: &Path, bytes: &[u8]) -> Result<RelightableImage> {
         let file_row = height - 1 - y;
         for x in 0..width {
             let (p, q) = (y * width + x, file_row * width + x);
-            match format {
-                PtmFormat::Rgb => {
-                    for c in 0..3 {
-                        let block = &data[c * n * K..(c + 1) * n * K];
-                        for i in 0..K {
-                            maps.data[(3 * i + c) * n + p] = decode(block, q, i) / 255.0;
-                        }
+            if !format.lrgb() {
+                for c in 0..3 {
+                    let block = &data[c * n * K..(c + 1) * n * K];
+                    for i in 0..K {
+                        maps.data[(3 * i + c) * n + p] = decode(block, q, i) / 255.0;
                     }
                 }
-                PtmFormat::Lrgb => {
-                    let block = &data[..n * K];
-                    let rgb = &data[n * K + 3 * q..n * K + 3 * q + 3];
-                    for i in 0..K {
-                        let l = decode(block, q, i);
-                        for (c, &colour) in rgb.iter().enumerate() {
-                            maps.data[(3 * i + c) * n + p] = l * colour as f32 / (255.0 * 255.0);
-                        }
+            } else {
+                let block = &data[..n * K];
+                let rgb = &data[n * K + 3 * q..n * K + 3 * q + 3];
+                for i in 0..K {
+                    let l = decode(block, q, i);
+                    for (c, &colour) in rgb.iter().enumerate() {
+                        maps.data[(3 * i + c) * n + p] = l * colour as f32 / (255.0 * 255.0);
                     }
                 }
             }
@@ -194,6 +288,176 @@ pub fn decode(path: &Path, bytes: &[u8]) -> Result<RelightableImage> {
         maps,
         depth: None,
     })
+}
+
+/// How many pixels a JPEG stream may claim per byte it holds: a baseline JPEG spends at
+/// least a few bits on every 8×8 block (about 100 pixels a byte for a constant plane),
+/// so a claim beyond this is a lie, refused before anything is allocated for it.
+const JPEG_PIXELS_PER_BYTE: usize = 1024;
+
+/// The raw layout's bytes (all planes, one byte each per pixel, rows as stored) of a
+/// JPEG variant: its streams decoded, predictions added and corrections applied (see
+/// the module docs).
+fn jpeg_planes(
+    path: &Path,
+    bytes: &[u8],
+    format: PtmFormat,
+    width: usize,
+    height: usize,
+) -> Result<Vec<u8>> {
+    let planes = format.planes();
+    let first = 4 + 2 * K;
+    let (fields, offset) = text_header(path, bytes, first + 1 + 7 * planes, false)?;
+    let bad = |what: String| Error::parse(format!("{}: {what}", path.display()));
+    let quality: i64 = field(path, "compression parameter", &fields[first])?;
+    let row = |name: &str, r: usize| -> Result<Vec<i64>> {
+        (0..planes)
+            .map(|i| {
+                field(
+                    path,
+                    &format!("{name} {i}"),
+                    &fields[first + 1 + r * planes + i],
+                )
+            })
+            .collect()
+    };
+    let transforms = row("transform", 0)?;
+    let order = row("order", 3)?;
+    let references = row("reference plane", 4)?;
+    let sizes = row("compressed size", 5)?;
+    let side = row("side information size", 6)?;
+    if width == 0 || height == 0 || width > 65535 || height > 65535 {
+        return Err(bad(format!(
+            "an image of {width}×{height} pixels (JPEG planes are 1 to 65535 a side)"
+        )));
+    }
+    let _ = quality;
+    if let Some(i) = (0..planes).find(|&i| transforms[i] & !1 != 0) {
+        return Err(bad(format!(
+            "plane {i}'s transform {} asks for motion-compensated prediction, which relit \
+             does not read",
+            transforms[i]
+        )));
+    }
+    let mut by_order = vec![usize::MAX; planes];
+    for (i, &o) in order.iter().enumerate() {
+        match usize::try_from(o) {
+            Ok(o) if o < planes && by_order[o] == usize::MAX => by_order[o] = i,
+            _ => {
+                return Err(bad(format!(
+                    "the decoding order {order:?} is not each of 0 to {} once",
+                    planes - 1
+                )))
+            }
+        }
+    }
+    for (i, &r) in references.iter().enumerate() {
+        let usable = r == -1
+            || usize::try_from(r).is_ok_and(|r| r < planes && r != i && order[r] < order[i]);
+        if !usable {
+            return Err(bad(format!(
+                "plane {i}'s reference plane {r} is not a plane completed before it"
+            )));
+        }
+    }
+    // Every stream's claimed length within the file, before any is read.
+    let mut spans = Vec::with_capacity(planes);
+    let mut at = offset;
+    let n = width * height;
+    for i in 0..planes {
+        let lengths = [sizes[i], side[i]].map(|v| usize::try_from(v).ok());
+        let (Some(jpeg), Some(info)) = (lengths[0], lengths[1]) else {
+            return Err(bad(format!(
+                "plane {i}'s sizes {} and {} must not be negative",
+                sizes[i], side[i]
+            )));
+        };
+        let end = at
+            .checked_add(jpeg)
+            .and_then(|e| e.checked_add(info))
+            .filter(|&e| e <= bytes.len())
+            .ok_or_else(|| {
+                bad(format!(
+                    "truncated: plane {i}'s {jpeg}-byte JPEG and {info} bytes of side \
+                     information run past the file's {} bytes",
+                    bytes.len()
+                ))
+            })?;
+        if n > jpeg.saturating_mul(JPEG_PIXELS_PER_BYTE) {
+            return Err(bad(format!(
+                "plane {i}'s {jpeg}-byte JPEG cannot hold {width}×{height} pixels"
+            )));
+        }
+        if info % 5 != 0 {
+            return Err(bad(format!(
+                "plane {i}'s side information is {info} bytes, not 5-byte corrections"
+            )));
+        }
+        spans.push((at, at + jpeg, end));
+        at = end;
+    }
+    let mut decoded: Vec<Vec<u8>> = Vec::with_capacity(planes);
+    for (i, &(start, mid, _)) in spans.iter().enumerate() {
+        decoded.push(
+            decode_gray_jpeg(&bytes[start..mid], width, height)
+                .map_err(|why| bad(format!("plane {i}'s JPEG stream {why}")))?,
+        );
+    }
+    for &i in &by_order {
+        if let Ok(r) = usize::try_from(references[i]) {
+            let invert = transforms[i] & 1 == 1;
+            let (plane, reference) = if r < i {
+                let (a, b) = decoded.split_at_mut(i);
+                (&mut b[0], &a[r])
+            } else {
+                let (a, b) = decoded.split_at_mut(r);
+                (&mut a[i], &b[0])
+            };
+            for (v, &p) in plane.iter_mut().zip(reference.iter()) {
+                let p = if invert { 255 - p } else { p };
+                *v = v.wrapping_add(p).wrapping_sub(128);
+            }
+        }
+        let (_, mid, end) = spans[i];
+        for fix in bytes[mid..end].chunks_exact(5) {
+            let index = u32::from_be_bytes([fix[0], fix[1], fix[2], fix[3]]) as usize;
+            if let Some(v) = decoded[i].get_mut(index) {
+                *v = fix[4];
+            }
+        }
+    }
+    // The raw layout: coefficient blocks pixel by pixel (and LRGB's colours).
+    let mut raw = vec![0u8; n * planes];
+    for (i, plane) in decoded.iter().enumerate() {
+        let (base, stride, slot) = if i < K || !format.lrgb() {
+            ((i / K) * n * K, K, i % K)
+        } else {
+            (n * K, 3, i - K)
+        };
+        for (q, &v) in plane.iter().enumerate() {
+            raw[base + q * stride + slot] = v;
+        }
+    }
+    Ok(raw)
+}
+
+/// A grayscale JPEG's `width × height` bytes, its size checked before it is decoded.
+fn decode_gray_jpeg(
+    stream: &[u8],
+    width: usize,
+    height: usize,
+) -> std::result::Result<Vec<u8>, String> {
+    use image::ImageDecoder;
+    let decoder = image::codecs::jpeg::JpegDecoder::new(std::io::Cursor::new(stream))
+        .map_err(|e| format!("is not a JPEG: {e}"))?;
+    let (w, h) = decoder.dimensions();
+    if (w as usize, h as usize) != (width, height) {
+        return Err(format!("is {w}×{h}, not the header's {width}×{height}"));
+    }
+    let img = image::DynamicImage::from_decoder(decoder)
+        .map_err(|e| format!("does not decode: {e}"))?
+        .into_luma8();
+    Ok(img.into_raw())
 }
 
 /// Write `image` as a `.ptm` file in `format`.
@@ -210,14 +474,15 @@ pub fn encode(image: &RelightableImage, format: PtmFormat) -> Result<Vec<u8>> {
     // Per pixel: the polynomials to store (one, or three) in PTM units (8-bit codes),
     // and for LRGB the colour.
     let coefficient = |p: usize, c: usize, i: usize| maps.data[(3 * i + c) * n + p] * 255.0;
-    let (polynomials, colours): (Vec<[f32; K]>, Vec<[u8; 3]>) = match format {
-        PtmFormat::Rgb => (
+    let (polynomials, colours): (Vec<[f32; K]>, Vec<[u8; 3]>) = if format.lrgb() {
+        lrgb_split(&maps, basis.as_ref())
+    } else {
+        (
             (0..3)
                 .flat_map(|c| (0..n).map(move |p| std::array::from_fn(|i| coefficient(p, c, i))))
                 .collect(),
             Vec::new(),
-        ),
-        PtmFormat::Lrgb => lrgb_split(&maps, basis.as_ref()),
+        )
     };
     let mut scale = [0.0f32; K];
     let mut bias = [0i64; K];
@@ -227,15 +492,15 @@ pub fn encode(image: &RelightableImage, format: PtmFormat) -> Result<Vec<u8>> {
         scale[i] = range.step().to_string().parse().unwrap_or(range.step());
         bias[i] = (-range.min / scale[i]).round() as i64;
     }
-    let mut out = format!(
+    let header = format!(
         "PTM_1.2\n{}\n{width}\n{height}\n{}\n{}\n",
         format.header_name(),
         scale.map(|s| s.to_string()).join(" "),
         bias.map(|b| b.to_string()).join(" ")
-    )
-    .into_bytes();
+    );
+    // The raw layout: every plane's code per pixel, rows from the bottom up.
     let blocks = polynomials.len() / n;
-    out.reserve(blocks * n * K + colours.len() * 3);
+    let mut body = Vec::with_capacity(blocks * n * K + colours.len() * 3);
     for block in 0..blocks {
         for file_row in 0..height {
             let y = height - 1 - file_row;
@@ -243,7 +508,7 @@ pub fn encode(image: &RelightableImage, format: PtmFormat) -> Result<Vec<u8>> {
                 let a = &polynomials[block * n + y * width + x];
                 for i in 0..K {
                     let code = (a[i] / scale[i] + bias[i] as f32).round();
-                    out.push(code.clamp(0.0, 255.0) as u8);
+                    body.push(code.clamp(0.0, 255.0) as u8);
                 }
             }
         }
@@ -251,8 +516,56 @@ pub fn encode(image: &RelightableImage, format: PtmFormat) -> Result<Vec<u8>> {
     for file_row in 0..colours.len() / width.max(1) {
         let y = height - 1 - file_row;
         for x in 0..width {
-            out.extend_from_slice(&colours[y * width + x]);
+            body.extend_from_slice(&colours[y * width + x]);
         }
+    }
+    let Some(quality) = format.jpeg_quality() else {
+        let mut out = header.into_bytes();
+        out.extend_from_slice(&body);
+        return Ok(out);
+    };
+    if width > 65535 || height > 65535 {
+        return Err(Error::invalid(format!(
+            "a {width}×{height} image does not fit JPEG planes (at most 65535 a side)"
+        )));
+    }
+    // Each plane its own grayscale JPEG: no prediction, no corrections.
+    let planes = format.planes();
+    let streams: Vec<Vec<u8>> = (0..planes)
+        .map(|i| {
+            let (base, stride, slot) = if i < K || !format.lrgb() {
+                ((i / K) * n * K, K, i % K)
+            } else {
+                (n * K, 3, i - K)
+            };
+            let gray: Vec<u8> = (0..n).map(|q| body[base + q * stride + slot]).collect();
+            let mut out = Vec::new();
+            let mut encoder = jpeg_encoder::Encoder::new(&mut out, quality);
+            encoder.set_optimized_huffman_tables(true);
+            encoder
+                .encode(
+                    &gray,
+                    width as u16,
+                    height as u16,
+                    jpeg_encoder::ColorType::Luma,
+                )
+                .map_err(|e| Error::new(crate::ErrorKind::Io, format!("JPEG: {e}")))?;
+            Ok(out)
+        })
+        .collect::<Result<_>>()?;
+    let line = |values: Vec<String>| values.join(" ") + "\n";
+    let mut out = header;
+    out += &format!("{quality}\n");
+    out += &line(vec!["0".into(); planes]); // transforms
+    out += &line(vec!["0".into(); planes]); // motion vectors, x
+    out += &line(vec!["0".into(); planes]); // and y
+    out += &line((0..planes).map(|i| i.to_string()).collect()); // order
+    out += &line(vec!["-1".into(); planes]); // reference planes
+    out += &line(streams.iter().map(|s| s.len().to_string()).collect());
+    out += &line(vec!["0".into(); planes]); // side information sizes
+    let mut out = out.into_bytes();
+    for stream in &streams {
+        out.extend_from_slice(stream);
     }
     Ok(out)
 }
