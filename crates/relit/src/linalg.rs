@@ -82,6 +82,12 @@ pub fn matmul_f32(m: usize, k: usize, n: usize, a: &[f32], b: &[f32], c: &mut [f
     }
 }
 
+/// `c = a · b` for row-major `a` (m×k), `b` (k×n), `c` (m×n), overwriting `c`.
+pub fn matmul(m: usize, k: usize, n: usize, a: &[f64], b: &[f64], c: &mut [f64]) {
+    assert!(a.len() >= m * k && b.len() >= k * n && c.len() >= m * n);
+    dgemm(m, k, n, (a, k, 1), (b, n, 1), c);
+}
+
 /// `c = a · bᵀ` for row-major `a` (m×k), `b` (n×k), `c` (m×n), overwriting `c`.
 pub fn matmul_bt(m: usize, k: usize, n: usize, a: &[f64], b: &[f64], c: &mut [f64]) {
     assert!(a.len() >= m * k && b.len() >= n * k && c.len() >= m * n);

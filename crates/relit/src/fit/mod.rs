@@ -1118,7 +1118,7 @@ struct Scratch {
 }
 
 /// Indices of the packed upper triangle of a k×k symmetric matrix, row by row.
-fn packed_pairs(k: usize) -> Vec<(usize, usize)> {
+pub(super) fn packed_pairs(k: usize) -> Vec<(usize, usize)> {
     (0..k).flat_map(|r| (r..k).map(move |c| (r, c))).collect()
 }
 

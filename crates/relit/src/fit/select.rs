@@ -132,6 +132,9 @@ pub fn candidates(max_coefficients: usize, lights: usize) -> Vec<BasisChoice> {
         .collect()
 }
 
+/// Series (pixel channels) whose normal matrices one matrix product builds.
+const SERIES_BLOCK: usize = 64;
+
 /// Folds for `n` lights: [`FOLDS`], fewer when there are few lights (each fold keeps
 /// four or more) and half as many for dense captures, whose folds hold plenty of lights
 /// (and each fold costs a basis and a fit).
@@ -328,69 +331,100 @@ fn fold_errors(
     });
     let series = sub.count * 3;
     let lights = held.len();
-    (0..series)
+    // The perceptual objective's normal matrices, a block of series at a time: the
+    // weights (block × N) times the table of the rows' outer products (N × packed
+    // upper triangle) in one matrix product.
+    let pairs = super::packed_pairs(k);
+    let t = pairs.len();
+    let outer: Vec<f64> = (0..nt)
+        .flat_map(|j| {
+            let row = &a_train[j * k..(j + 1) * k];
+            pairs.iter().map(move |&(r, c)| row[r] * row[c])
+        })
+        .collect();
+    (0..series.div_ceil(SERIES_BLOCK))
         .into_par_iter()
         .fold(
             || vec![[0.0f64; SLOTS]; lights],
-            |mut acc, s| {
-                let obs = &train_values[s * nt..(s + 1) * nt];
-                let (p, c) = (s / 3, s % 3);
+            |mut acc, block| {
+                let first = block * SERIES_BLOCK;
+                let len = SERIES_BLOCK.min(series - first);
                 // Each sample's weight, computed once for the normal matrix and the sums.
-                let weights: Vec<f64> = match objective {
-                    Objective::Linear => q_train.to_vec(),
-                    _ => obs
-                        .iter()
-                        .zip(q_train)
-                        .map(|(&v, &q)| q * perceptual_weight(v as f64))
-                        .collect(),
-                };
-                let own;
-                let factors: &[Option<Vec<f64>>] = match &shared {
-                    Some(f) => f,
-                    None => {
-                        let (m, total) = normal(&weights);
-                        own = VALIDATION_LADDER
-                            .iter()
-                            .map(|&l| factor(&m, total, l))
-                            .collect::<Vec<_>>();
-                        &own
-                    }
-                };
-                let mut rhs0 = vec![0.0; k];
-                for (j, (&v, &w)) in obs.iter().zip(&weights).enumerate() {
-                    let row = &a_train[j * k..(j + 1) * k];
-                    for r in 0..k {
-                        rhs0[r] += w * row[r] * v as f64;
-                    }
-                }
-                // The held-out observations and how a screen shows them, the same at every λ.
-                let held_obs: Vec<(f64, f64)> = held
-                    .iter()
-                    .map(|&j| {
-                        let o = sub.values[(p * sub.n + j) * 3 + c] as f64;
-                        (o, srgb_on_screen(o))
+                let weights: Vec<f64> = (first..first + len)
+                    .flat_map(|s| {
+                        let obs = &train_values[s * nt..(s + 1) * nt];
+                        obs.iter()
+                            .zip(q_train)
+                            .map(move |(&v, &q)| match objective {
+                                Objective::Linear => q,
+                                _ => q * perceptual_weight(v as f64),
+                            })
                     })
                     .collect();
-                for (li, f) in factors.iter().enumerate() {
-                    let Some(f) = f else {
-                        acc.iter_mut().for_each(|a| a[li] = f64::INFINITY);
-                        continue;
+                let mut packed = Vec::new();
+                if shared.is_none() {
+                    packed = vec![0.0; len * t];
+                    linalg::matmul(len, nt, t, &weights, &outer, &mut packed);
+                }
+                let mut m = vec![0.0; k * k];
+                for (b, s) in (first..first + len).enumerate() {
+                    let obs = &train_values[s * nt..(s + 1) * nt];
+                    let weights = &weights[b * nt..(b + 1) * nt];
+                    let (p, c) = (s / 3, s % 3);
+                    let own;
+                    let factors: &[Option<Vec<f64>>] = match &shared {
+                        Some(f) => f,
+                        None => {
+                            for (x, &(r, col)) in pairs.iter().enumerate() {
+                                let v = packed[b * t + x];
+                                m[r * k + col] = v;
+                                m[col * k + r] = v;
+                            }
+                            let total: f64 = weights.iter().sum();
+                            own = VALIDATION_LADDER
+                                .iter()
+                                .map(|&l| factor(&m, total, l))
+                                .collect::<Vec<_>>();
+                            &own
+                        }
                     };
-                    let mut coef = rhs0.clone();
-                    linalg::cholesky_solve(f, k, &mut coef);
-                    for (h, &(o, o_shown)) in held_obs.iter().enumerate() {
-                        let pred: f64 = a_held[h * k..(h + 1) * k]
-                            .iter()
-                            .zip(&coef)
-                            .map(|(a, b)| a * b)
-                            .sum();
-                        let d = srgb_on_screen(pred) - o_shown;
-                        acc[h][li] += d * d;
-                        let d = pred - o;
-                        acc[h][LINEAR + li] += d * d;
-                        acc[h][LADDER + li] += pred;
-                        if li == 0 {
-                            acc[h][2 * LADDER] += o;
+                    let mut rhs0 = vec![0.0; k];
+                    for (j, (&v, &w)) in obs.iter().zip(weights).enumerate() {
+                        let row = &a_train[j * k..(j + 1) * k];
+                        for r in 0..k {
+                            rhs0[r] += w * row[r] * v as f64;
+                        }
+                    }
+                    // The held-out observations and how a screen shows them, the same at
+                    // every λ.
+                    let held_obs: Vec<(f64, f64)> = held
+                        .iter()
+                        .map(|&j| {
+                            let o = sub.values[(p * sub.n + j) * 3 + c] as f64;
+                            (o, srgb_on_screen(o))
+                        })
+                        .collect();
+                    for (li, f) in factors.iter().enumerate() {
+                        let Some(f) = f else {
+                            acc.iter_mut().for_each(|a| a[li] = f64::INFINITY);
+                            continue;
+                        };
+                        let mut coef = rhs0.clone();
+                        linalg::cholesky_solve(f, k, &mut coef);
+                        for (h, &(o, o_shown)) in held_obs.iter().enumerate() {
+                            let pred: f64 = a_held[h * k..(h + 1) * k]
+                                .iter()
+                                .zip(&coef)
+                                .map(|(a, b)| a * b)
+                                .sum();
+                            let d = srgb_on_screen(pred) - o_shown;
+                            acc[h][li] += d * d;
+                            let d = pred - o;
+                            acc[h][LINEAR + li] += d * d;
+                            acc[h][LADDER + li] += pred;
+                            if li == 0 {
+                                acc[h][2 * LADDER] += o;
+                            }
                         }
                     }
                 }
