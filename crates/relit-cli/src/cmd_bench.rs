@@ -516,6 +516,7 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
                         Precision::ALL.to_vec()
                     }
                 });
+                let mut last_device_bound = None;
                 for storage in storages {
                     let options = GpuOptions {
                         precision: storage,
@@ -576,6 +577,51 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
                         report(&r, args.json);
                         rows.push(r);
                     }
+                    last_device_bound = device_bound.or(last_device_bound);
+                }
+                // Vector quantisation on the GPU: relight the codebook, gather a colour
+                // a pixel (2 bytes of index read per pixel).
+                let vq_cases: Vec<&str> = ["directional", "environment"]
+                    .into_iter()
+                    .filter(|c| wanted(c))
+                    .collect();
+                if !vq_cases.is_empty() {
+                    let indexed = synthetic_indexed(&image, args.codebook as usize);
+                    match relit_gpu::GpuLookup::new(&indexed, GpuOptions::default()) {
+                        Err(e @ (GpuError::TooLarge(_) | GpuError::Device(_))) => {
+                            eprintln!("relit bench: GPU codebook skipped: {e}");
+                        }
+                        Err(e) => return Err(e.into()),
+                        Ok(lookup) => {
+                            for case in vq_cases {
+                                let lighting = gpu_lighting(lookup.entries(), case, &env)?;
+                                let t = time_gpu_frames(
+                                    &|n| lookup.time_frames(&lighting, None, n),
+                                    seconds,
+                                )?;
+                                let mut r = row(
+                                    case,
+                                    "vq",
+                                    0,
+                                    "gpu",
+                                    format!(
+                                        "{}, look-up in a codebook of {} entries",
+                                        lookup.entries().adapter(),
+                                        args.codebook
+                                    ),
+                                    &t,
+                                );
+                                r.map_bytes = 2 * n;
+                                r.host_bound = lookup.entries().adapter().device_type == "Cpu";
+                                if let Some(rate) = last_device_bound {
+                                    r.read_bandwidth_gbs = rate / 1e9;
+                                    r.bandwidth_fraction = Some(r.fps * r.map_bytes as f64 / rate);
+                                }
+                                report(&r, args.json);
+                                rows.push(r);
+                            }
+                        }
+                    }
                 }
             }
         }
@@ -600,7 +646,7 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
             r.read_bandwidth_gbs = b / 1e9;
             r.bandwidth_fraction = Some(r.fps * r.map_bytes as f64 / b);
         }
-        if r.storage == "vq" {
+        if r.storage == "vq" && r.device == "cpu" {
             let u8_bound = bounds
                 .iter()
                 .find(|(key, _)| *key == (r.width, r.height, r.k, "u8"))
@@ -1107,19 +1153,27 @@ fn time_batches(
 }
 
 fn time_gpu(gpu: &GpuRelighter, lighting: &Lighting, seconds: f64) -> anyhow::Result<Timing> {
+    time_gpu_frames(&|n| gpu.time_frames(lighting, None, n), seconds)
+}
+
+/// [`time_gpu`] for any engine's `time_frames(n)`.
+fn time_gpu_frames(
+    time_frames: &dyn Fn(usize) -> relit_gpu::Result<std::time::Duration>,
+    seconds: f64,
+) -> anyhow::Result<Timing> {
     // Warm up for a tenth of a second, doubling the frames per submission: the first
     // frame pays for buffers made on first use, one frame alone is mostly the
     // submission's round trip on a fast GPU, and on an H200 the first case after an
     // upload ran at a third of the later ones' rate until the device had run a while.
     let (mut spent, mut n, mut each) = (0.0, 1, 0.0);
     while spent < 0.1 && n <= 4096 {
-        each = gpu.time_frames(lighting, None, n)?.as_secs_f64();
+        each = time_frames(n)?.as_secs_f64();
         spent += each * n as f64;
         n *= 2;
     }
     let frames = ((seconds / BATCHES as f64 / each.max(1e-6)) as usize).clamp(1, 100_000);
     let per_frame = (0..BATCHES)
-        .map(|_| Ok(gpu.time_frames(lighting, None, frames)?.as_secs_f64()))
+        .map(|_| Ok(time_frames(frames)?.as_secs_f64()))
         .collect::<anyhow::Result<Vec<f64>>>()?;
     Ok(Timing::of(per_frame, frames * BATCHES))
 }

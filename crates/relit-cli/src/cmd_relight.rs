@@ -164,9 +164,11 @@ fn build_engine<'a>(
     })
 }
 
-/// A codebook file under lights that are the same for every pixel, one whole frame on
-/// the CPU: relight the codebook once and look every pixel up, without expanding the
-/// maps (`relit::engine::lookup`). `None` when the file or the request is not that.
+/// A codebook file under lights that are the same for every pixel, one frame: relight
+/// the codebook once and look every pixel up, without expanding the maps, on the CPU
+/// (`relit::engine::lookup`, whole frames) or with `--gpu` on the GPU
+/// (`relit_gpu::GpuLookup`, whole frames or `--roi`; `--compare` checks it against the
+/// CPU's look-up). `None` when the file or the request is not that.
 fn relight_codebook(
     args: &Args,
     rig_file: Option<&RigFile>,
@@ -177,7 +179,8 @@ fn relight_codebook(
         return Ok(None);
     };
     let plain = !args.gpu && !args.compare && args.roi.is_none() && !args.memory;
-    if !plain
+    let on_gpu = args.gpu && !args.memory && args.file_space.is_none();
+    if !(plain || on_gpu)
         || rig.lights.is_empty()
         || !LookupRelighter::draws(&rig)
         || relit::codec::FileForm::of(&args.file)? != relit::codec::FileForm::Compressed
@@ -192,13 +195,83 @@ fn relight_codebook(
         return Ok(None);
     };
     let indexed = relit::compress::indexed(&packed)?;
-    let start = std::time::Instant::now();
-    let frame = LookupRelighter::new(&indexed)?.relight(&rig, options)?;
-    let seconds = start.elapsed().as_secs_f64();
-    let how = format!(
-        " from a codebook of {} entries",
-        indexed.entries.maps.pixels()
+    let entries = indexed.entries.maps.pixels();
+    if !on_gpu {
+        let start = std::time::Instant::now();
+        let frame = LookupRelighter::new(&indexed)?.relight(&rig, options)?;
+        let seconds = start.elapsed().as_secs_f64();
+        let how = format!(" from a codebook of {entries} entries");
+        save_frame(output, &frame, &rig, seconds, &how)?;
+        return Ok(Some(()));
+    }
+    let gpu = relit_gpu::GpuLookup::new(
+        &indexed,
+        GpuOptions {
+            precision: args.storage,
+            ..Default::default()
+        },
+    )
+    .context("--gpu")?;
+    eprintln!(
+        "relit relight: GPU {} ({}), codebook of {entries} entries, {} indices",
+        gpu.entries().adapter(),
+        args.storage.name(),
+        indexed.indices.len()
     );
+    let start = std::time::Instant::now();
+    let (env, rest): (Vec<&Light>, Vec<&Light>) = rig
+        .lights
+        .iter()
+        .partition(|l| matches!(l, Light::Environment(_)));
+    let mut lighting = gpu.lighting(
+        &LightRig::new(rest.into_iter().cloned().collect()),
+        options.exposure,
+    )?;
+    if !env.is_empty() {
+        let cpu = Relighter::new(&indexed.entries)?;
+        let scale = 2f64.powf(options.exposure);
+        for light in env {
+            let Light::Environment(e) = light else {
+                unreachable!()
+            };
+            let weights = cpu.environment_weights(e, &options.resource_dir)?;
+            lighting.add_uniform(weights, [scale; 3])?;
+        }
+    }
+    let roi = args
+        .roi
+        .as_deref()
+        .map(Roi::parse)
+        .transpose()?
+        .map(|r| relit_gpu::Roi {
+            x: r.x,
+            y: r.y,
+            width: r.width,
+            height: r.height,
+        });
+    let frame = gpu.render(&lighting, roi)?;
+    let seconds = start.elapsed().as_secs_f64();
+    if args.compare {
+        let cpu = LookupRelighter::new(&indexed)?.relight(&rig, options)?;
+        let cpu = match roi {
+            Some(r) => {
+                let mut crop = ImageRgb::new(r.width, r.height);
+                for y in 0..r.height {
+                    let from = 3 * ((r.y + y) * cpu.width + r.x);
+                    crop.data[3 * y * r.width..3 * (y + 1) * r.width]
+                        .copy_from_slice(&cpu.data[from..from + 3 * r.width]);
+                }
+                crop
+            }
+            None => cpu,
+        };
+        let (diff, peak) = max_abs_difference(&frame, &cpu);
+        println!(
+            "compare: largest |GPU − CPU| {diff:.3e} (peak {peak:.3e}, {:.2e} of it), codebook look-up",
+            diff / peak.max(f32::MIN_POSITIVE)
+        );
+    }
+    let how = format!(" on the GPU from a codebook of {entries} entries");
     save_frame(output, &frame, &rig, seconds, &how)?;
     Ok(Some(()))
 }

@@ -33,7 +33,10 @@ use std::sync::{mpsc, Arc, Mutex};
 use std::time::{Duration, Instant};
 use wgpu::util::DeviceExt;
 
+mod lookup;
 mod read_probe;
+
+pub use lookup::GpuLookup;
 
 /// Invocations per workgroup (`@workgroup_size` in relight.wgsl).
 const WORKGROUP: u64 = 256;

@@ -21,6 +21,10 @@
 //! # Ok(()) }
 //! ```
 //!
+//! [`GpuLookup`] relights a codebook file (an index a pixel into `C` entries) without
+//! expanding it: the entries through the same kernel, then one gather a pixel
+//! (`shaders/lookup.wgsl`), under directional and environment lights.
+//!
 //! The kernel is `shaders/relight.wgsl`; one `shaders/fetch_*.wgsl` per
 //! [`relit::storage::Precision`] supplies how a stored value is read. Frames of linear maps cost one pass over
 //! the planes whatever the number of uniform lights (they fold into one weight per
@@ -36,7 +40,7 @@ mod lighting;
 mod roi;
 mod storage;
 
-pub use engine::{adapters, probe, AdapterSummary, GpuOptions, GpuRelighter};
+pub use engine::{adapters, probe, AdapterSummary, GpuLookup, GpuOptions, GpuRelighter};
 pub use error::{GpuError, Result};
 pub use lighting::{Lighting, MAX_AREAS, MAX_PASSES, MAX_POSITIONAL, MAX_PROJECTORS};
 pub use roi::Roi;

@@ -985,3 +985,114 @@ fn many_engines_in_one_process_each_find_the_adapter() {
         drop(gpu);
     }
 }
+
+/// A codebook image (seed 004's vector quantisation) relit on the GPU without expanding
+/// it: for every registered family, linear and display-referred, f32/f16/u8 entries,
+/// directional and environment light, whole frame and a region, against the CPU's
+/// look-up engine over the same entries; lights with a position refused.
+#[test]
+fn codebook_frames_match_the_cpu_lookup() {
+    use relit::engine::lookup::{IndexedImage, LookupRelighter};
+    use relit_gpu::GpuLookup;
+    let dir = resource_dir("codebook");
+    let env: EnvironmentMapLight =
+        serde_json::from_str(r#"{ "map": "sky.exr", "yaw_deg": 40, "intensity": 0.7 }"#).unwrap();
+    let (w, h, entries) = (41, 29, 37);
+    for case in bases().into_iter().filter(|c| c.registered) {
+        let name = case.basis.name();
+        for space in [MapSpace::Linear, MapSpace::Srgb] {
+            let mut table = image(entries, 1, case.basis.as_ref(), space);
+            table.depth = None;
+            let indexed = IndexedImage {
+                entries: table,
+                indices: (0..w * h)
+                    .map(|p| ((p * 7 + p / w) % entries) as u16)
+                    .collect(),
+                width: w,
+                height: h,
+            };
+            for precision in [Precision::F32, Precision::F16, Precision::U8] {
+                let options = GpuOptions {
+                    precision,
+                    ..Default::default()
+                };
+                let gpu = match GpuLookup::new(&indexed, options) {
+                    Ok(g) => g,
+                    Err(GpuError::NoAdapter(why)) => {
+                        relit::skip::skipping(&format!("no GPU adapter: {why}"));
+                        return;
+                    }
+                    Err(e) => panic!("GPU look-up engine failed: {e}"),
+                };
+                // The CPU over the same stored entries: the GPU engine's own plain path
+                // over them is what each frame's colours come from.
+                let plain = GpuRelighter::with_options(&indexed.entries, options).unwrap();
+                let rigs = [
+                    LightRig::new(vec![
+                        Light::directional([-0.4, 0.7, 0.6], [1.0, 0.8, 0.6]),
+                        Light::directional([0.5, -0.2, 0.8], [0.1, 0.3, 0.9]),
+                    ]),
+                    LightRig::new(vec![Light::Environment(env.clone())]),
+                ];
+                for (r, rig) in rigs.iter().enumerate() {
+                    let label = format!("{name} {space:?} {precision:?} rig {r}");
+                    let mut lighting = gpu.entries().empty_lighting();
+                    let mut rest = Vec::new();
+                    for light in &rig.lights {
+                        if let Light::Environment(e) = light {
+                            let weights = Relighter::new(&indexed.entries)
+                                .unwrap()
+                                .environment_weights(e, &dir)
+                                .unwrap();
+                            lighting.add_uniform(weights, [1.0; 3]).unwrap();
+                        } else {
+                            rest.push(light.clone());
+                        }
+                    }
+                    if !rest.is_empty() {
+                        lighting = gpu.lighting(&LightRig::new(rest), 0.0).unwrap();
+                    }
+                    let colours = plain.render(&lighting, None).unwrap();
+                    let frame = gpu.render(&lighting, None).unwrap();
+                    // Exactly the entries' colours, each pixel its own.
+                    for (p, &i) in indexed.indices.iter().enumerate() {
+                        let i = i as usize;
+                        assert_eq!(
+                            &frame.data[3 * p..3 * p + 3],
+                            &colours.data[3 * i..3 * i + 3],
+                            "{label}: pixel {p}"
+                        );
+                    }
+                    // And the CPU's look-up engine within f32 rounding (f32 entries).
+                    if precision == Precision::F32 {
+                        let options = RelightOptions {
+                            resource_dir: dir.clone(),
+                            ..Default::default()
+                        };
+                        let cpu = LookupRelighter::new(&indexed)
+                            .unwrap()
+                            .relight(rig, &options)
+                            .unwrap();
+                        assert_close(&label, &frame, &cpu);
+                    }
+                    let roi = Roi {
+                        x: 5,
+                        y: 3,
+                        width: 17,
+                        height: 11,
+                    };
+                    let part = gpu.render(&lighting, Some(roi)).unwrap();
+                    for y in 0..roi.height {
+                        let a = &part.data[3 * y * roi.width..3 * (y + 1) * roi.width];
+                        let start = 3 * ((roi.y + y) * w + roi.x);
+                        assert_eq!(a, &frame.data[start..start + 3 * roi.width], "{label}: roi");
+                    }
+                }
+                let point = LightRig::new(vec![Light::point([0.3, 1.0, -1.0], [1.0; 3])]);
+                let refused = gpu.lighting(&point, 0.0).unwrap_err().to_string();
+                assert!(refused.contains("expanded maps"), "{refused}");
+            }
+        }
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
