@@ -28,7 +28,6 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<()> {
     args.storage
         .require(&relit_viewer::PRECISIONS, "--storage (the viewer)")?;
-    let image = relit::codec::read(&args.file)?;
     let options = BundleOptions {
         precision: args.storage,
         environments: args.envs.clone(),
@@ -38,9 +37,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default(),
     };
-    let bundle = WebBundle::build(&image, &options)?;
+    let bundle = WebBundle::read(&args.file, &options)?;
     let bytes = bundle.bytes();
-    drop(image);
     let server = serve(bundle, &args.host, args.port)?;
     let url = server.url();
     println!("{url}");

@@ -15,6 +15,9 @@ precision highp sampler2DArray;
 #define MAX_AREA_SAMPLES 64
 
 uniform highp sampler2DArray uPlanes;
+// CODEBOOK (defined by renderer.js): uPlanes holds a codebook's entries, 256 to a row,
+// and uIndices each pixel's entry.
+uniform highp usampler2D uIndices;
 // The weight table (half floats, the values table.js reads): texel (i, j) of layer l
 // holds weights 4l … 4l+3 of vertex (i, j) of the (N+1)×(N+1) octahedral grid
 // (crates/relit/src/basis/table.rs).
@@ -239,6 +242,34 @@ void main() {
   if (!inside) { outColor = vec4(uBackground, 1.0); return; }
   ivec2 t = min(ivec2(floor(pos)), ivec2(uImage) - 1);
   vec4 C[3 * N_LAYERS];
+#if CODEBOOK
+  // Each pixel's coefficients are its entry's. Smoothing blends the four nearest
+  // pixels' entries by hand (entries cannot be filtered as a texture), as the planes'
+  // bilinear filter would; a view that shrinks the image reads level 0 only.
+  if (uSmooth) {
+    vec2 q = pos - 0.5;
+    vec2 f = fract(q);
+    ivec2 i0 = ivec2(floor(q));
+    ivec2 last = ivec2(uImage) - 1;
+    for (int l = 0; l < 3 * N_LAYERS; l++) C[l] = vec4(0.0);
+    for (int c = 0; c < 4; c++) {
+      ivec2 o = ivec2(c & 1, c >> 1);
+      ivec2 p = i0 + o;
+      // Columns wrap on panoramas, clamp otherwise; rows clamp.
+      p.x = uWrapX ? (p.x + int(uImage.x)) % int(uImage.x) : clamp(p.x, 0, last.x);
+      p.y = clamp(p.y, 0, last.y);
+      float w = (o.x == 1 ? f.x : 1.0 - f.x) * (o.y == 1 ? f.y : 1.0 - f.y);
+      uint e = texelFetch(uIndices, p, 0).r;
+      ivec2 et = ivec2(int(e % 256u), int(e / 256u));
+      for (int l = 0; l < 3 * N_LAYERS; l++) C[l] += w * texelFetch(uPlanes, ivec3(et, l), 0);
+    }
+    for (int l = 0; l < 3 * N_LAYERS; l++) C[l] = uOffset[l] + uScale[l] * C[l];
+  } else {
+    uint e = texelFetch(uIndices, t, 0).r;
+    ivec2 et = ivec2(int(e % 256u), int(e / 256u));
+    for (int l = 0; l < 3 * N_LAYERS; l++) C[l] = uOffset[l] + uScale[l] * texelFetch(uPlanes, ivec3(et, l), 0);
+  }
+#else
   if (uSmooth) {
     // Filtered coefficients (relighting is linear in them, so this filters the relit
     // image): bilinear within a level, trilinear between the mip levels of the
@@ -250,6 +281,7 @@ void main() {
   } else {
     for (int l = 0; l < 3 * N_LAYERS; l++) C[l] = uOffset[l] + uScale[l] * texelFetch(uPlanes, ivec3(t, l), 0);
   }
+#endif
 
   vec3 col = vec3(0.0);
   if (uHasUniform) {

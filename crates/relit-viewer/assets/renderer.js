@@ -9,6 +9,8 @@ import { lightRgb, attenuationOf } from './lights.js';
 const MAX_LIGHTS = 8, MAX_SLIDES = 4;
 /** Texture units: planes, depth, the slides, the weight table. */
 const TABLE_UNIT = 2 + MAX_SLIDES;
+// A codebook image's indices (one 16-bit entry a pixel).
+const INDEX_UNIT = TABLE_UNIT + 1;
 /** Samples per area light the shader takes at most (relight.frag MAX_AREA_SAMPLES). */
 export const MAX_AREA_SAMPLES = 64;
 
@@ -74,7 +76,10 @@ export class Renderer {
     if (info.format !== 'relit-web') throw new Error('info.json is not a relit-web bundle');
     if (info.version !== 2) throw new Error(`info.json is version ${info.version} of the relit-web format; this viewer reads version 2`);
     this.info = info;
-    const defines = `#version 300 es\n#define N_LAYERS ${info.layers_per_channel}\n`;
+    // A codebook image: the layers hold the entries (info.codebook), each pixel an index.
+    const book = info.codebook || null;
+    this.codebook = book;
+    const defines = `#version 300 es\n#define N_LAYERS ${info.layers_per_channel}\n#define CODEBOOK ${book ? 1 : 0}\n`;
     this.program = this.compile(vs, fs.replace('#version 300 es\n', defines));
     this.uniforms = {};
     const n = gl.getProgramParameter(this.program, gl.ACTIVE_UNIFORMS);
@@ -87,6 +92,8 @@ export class Renderer {
     const maxSide = gl.getParameter(gl.MAX_TEXTURE_SIZE);
     if (W > maxSide || H > maxSide) throw new Error(`the image (${W}×${H}) exceeds this GPU's textures (${maxSide})`);
     const layers = info.layers.length;
+    // The layers' own size: the image's, or the codebook's rows of entries.
+    const LW = book ? book.width : W, LH = book ? book.height : H;
     gl.pixelStorei(gl.UNPACK_FLIP_Y_WEBGL, false);
     gl.pixelStorei(gl.UNPACK_PREMULTIPLY_ALPHA_WEBGL, false);
     gl.pixelStorei(gl.UNPACK_COLORSPACE_CONVERSION_WEBGL, gl.NONE);
@@ -97,9 +104,10 @@ export class Renderer {
     const u8 = info.storage === 'u8';
     // Mipmaps for views that shrink the image (generateMipmap needs a renderable
     // format: RGBA8 always, RGBA16F with EXT_color_buffer_float; without it, level 0).
-    const mips = u8 || !!gl.getExtension('EXT_color_buffer_float');
+    // Entries are fetched by index, never filtered as a texture: no mipmaps for them.
+    const mips = !book && (u8 || !!gl.getExtension('EXT_color_buffer_float'));
     this.mipLevels = mips ? Math.floor(Math.log2(Math.max(W, H))) + 1 : 1;
-    gl.texStorage3D(gl.TEXTURE_2D_ARRAY, this.mipLevels, u8 ? gl.RGBA8 : gl.RGBA16F, W, H, layers);
+    gl.texStorage3D(gl.TEXTURE_2D_ARRAY, this.mipLevels, u8 ? gl.RGBA8 : gl.RGBA16F, LW, LH, layers);
     // Filtering (RGBA8 and RGBA16F are filterable in WebGL2; the shader picks the level
     // and uses texelFetch instead when smoothing is off). Panorama columns wrap around.
     gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MIN_FILTER, mips ? gl.LINEAR_MIPMAP_LINEAR : gl.LINEAR);
@@ -111,18 +119,29 @@ export class Renderer {
         const blob = await fetchOk(base + layer.file, 'blob');
         const bmp = await createImageBitmap(blob, { premultiplyAlpha: 'none', colorSpaceConversion: 'none' });
         gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.planes);
-        gl.texSubImage3D(gl.TEXTURE_2D_ARRAY, 0, 0, 0, l, W, H, 1, gl.RGBA, gl.UNSIGNED_BYTE, bmp);
+        gl.texSubImage3D(gl.TEXTURE_2D_ARRAY, 0, 0, 0, l, LW, LH, 1, gl.RGBA, gl.UNSIGNED_BYTE, bmp);
         bmp.close();
       } else {
         const buf = await fetchOk(base + layer.file, 'buffer');
-        if (buf.byteLength !== W * H * 8) throw new Error(`${layer.file}: ${buf.byteLength} bytes, expected ${W * H * 8}`);
+        if (buf.byteLength !== LW * LH * 8) throw new Error(`${layer.file}: ${buf.byteLength} bytes, expected ${LW * LH * 8}`);
         gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.planes);
-        gl.texSubImage3D(gl.TEXTURE_2D_ARRAY, 0, 0, 0, l, W, H, 1, gl.RGBA, gl.HALF_FLOAT, new Uint16Array(buf));
+        gl.texSubImage3D(gl.TEXTURE_2D_ARRAY, 0, 0, 0, l, LW, LH, 1, gl.RGBA, gl.HALF_FLOAT, new Uint16Array(buf));
       }
     }));
     if (this.mipLevels > 1) {
       gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.planes);
       gl.generateMipmap(gl.TEXTURE_2D_ARRAY);
+    }
+    this.indexTex = gl.createTexture();
+    gl.activeTexture(gl.TEXTURE0 + INDEX_UNIT);
+    gl.bindTexture(gl.TEXTURE_2D, this.indexTex);
+    this.setNearest(gl.TEXTURE_2D);
+    if (book) {
+      const buf = await fetchOk(base + book.indices.file, 'buffer');
+      if (buf.byteLength !== W * H * 2) throw new Error(`${book.indices.file}: ${buf.byteLength} bytes, expected ${W * H * 2}`);
+      gl.texImage2D(gl.TEXTURE_2D, 0, gl.R16UI, W, H, 0, gl.RED_INTEGER, gl.UNSIGNED_SHORT, new Uint16Array(buf));
+    } else {
+      gl.texImage2D(gl.TEXTURE_2D, 0, gl.R16UI, 1, 1, 0, gl.RED_INTEGER, gl.UNSIGNED_SHORT, new Uint16Array([0]));
     }
     this.depthTex = gl.createTexture();
     gl.activeTexture(gl.TEXTURE1);
@@ -474,6 +493,8 @@ export class Renderer {
     }
     gl.activeTexture(gl.TEXTURE0 + TABLE_UNIT); gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.tableTex);
     set('uTable', 'uniform1i', TABLE_UNIT);
+    gl.activeTexture(gl.TEXTURE0 + INDEX_UNIT); gl.bindTexture(gl.TEXTURE_2D, this.indexTex);
+    set('uIndices', 'uniform1i', INDEX_UNIT);
     set('uTableN', 'uniform1i', this.table.n);
     // value = offset + scale · q; an 8-bit layer's sampler returns q / 255.
     const perTexel = info.storage === 'u8' ? 255 : 1;

@@ -29,6 +29,14 @@
 //! `info.json` gives the shipped table's own. Files of SH bases also carry the band
 //! windows of environment lights, per coefficient (`basis.windows`).
 //!
+//! A codebook file (vector quantisation, `relit convert --codebook C`) is shipped as it
+//! is stored: its layers hold the `C` entries instead of the pixels, [`CODEBOOK_WIDTH`]
+//! entries a row (`info.json` `codebook`: `entries`, `width`, `height`), and
+//! `data/indices.u16` holds one little-endian 16-bit entry index a pixel, row-major. The
+//! shader fetches each pixel's coefficients through its index (blending four pixels'
+//! entries by hand when smoothing) and relights them as any pixel's: every light type
+//! works, and the download is 2 bytes a pixel plus the entries.
+//!
 //! The depth map (when the file has one) is `width × height` little-endian `f32`
 //! (`data/depth.f32`), 0 where nothing was hit; with the camera in `info.json` the
 //! viewer recomputes each pixel's surface point `P = O + d·V` exactly as the CPU engine.
@@ -46,8 +54,9 @@
 use crate::{invalid, Result};
 use relit::basis::{Basis, WeightTable};
 use relit::camera::CameraSpec;
+use relit::engine::lookup::IndexedImage;
 use relit::envmap::{EnvironmentLight, Window};
-use relit::maps::RelightableImage;
+use relit::maps::{CoefficientMaps, Metadata, RelightableImage};
 use relit::storage::{PlaneCoding, Precision};
 use serde::Serialize;
 use serde_json::json;
@@ -134,6 +143,19 @@ pub struct WebBundle {
 }
 
 impl WebBundle {
+    /// Build every data file of the relightable file at `path`: a codebook `.rlz` as its
+    /// entries and indices ([`WebBundle::build_indexed`]), anything else as planes.
+    pub fn read(path: &Path, options: &BundleOptions) -> Result<WebBundle> {
+        use relit::codec::{packed, FileForm};
+        if FileForm::of(path)? == FileForm::Compressed {
+            let file = packed::read_packed(path)?;
+            if file.header.codebook.is_some() {
+                return Self::build_indexed(&relit::compress::indexed(&file)?, options);
+            }
+        }
+        Self::build(&relit::codec::read(path)?, options)
+    }
+
     /// Build every data file of `image`, in the basis its metadata names.
     pub fn build(image: &RelightableImage, options: &BundleOptions) -> Result<WebBundle> {
         Self::build_in(image, image.meta.basis.build()?, options)
@@ -146,7 +168,63 @@ impl WebBundle {
         basis: Box<dyn Basis>,
         options: &BundleOptions,
     ) -> Result<WebBundle> {
-        check_image(image, basis.as_ref())?;
+        let shape = Shape::of(image);
+        Self::assemble(&shape, &image.maps, None, basis, options)
+    }
+
+    /// Build every data file of a codebook image (module docs): the layers hold the
+    /// entries, laid out [`CODEBOOK_WIDTH`] to a row, and `data/indices.u16` one entry a
+    /// pixel; the viewer fetches each pixel's coefficients through its index.
+    pub fn build_indexed(image: &IndexedImage, options: &BundleOptions) -> Result<WebBundle> {
+        let entries = &image.entries;
+        let c = entries.maps.pixels();
+        if entries.height() != 1 || c == 0 || c > 1 << 16 {
+            return Err(invalid("a codebook is a C × 1 image of 1 to 65536 entries"));
+        }
+        let n = image.width * image.height;
+        if image.indices.len() != n || image.indices.iter().any(|&i| i as usize >= c) {
+            return Err(invalid(
+                "a codebook image needs one index a pixel, each below the entries",
+            ));
+        }
+        let depth = entries.depth.as_deref().filter(|d| d.len() == n);
+        let shape = Shape {
+            width: image.width,
+            height: image.height,
+            meta: &entries.meta,
+            depth,
+        };
+        // The entries as a CODEBOOK_WIDTH-wide texture, the last row padded with the
+        // last entry (which leaves every plane's range, and so its coding, as it is).
+        let k = entries.maps.k;
+        let (cw, ch) = (CODEBOOK_WIDTH.min(c), c.div_ceil(CODEBOOK_WIDTH));
+        let mut table = CoefficientMaps::zeros(cw, ch, k);
+        for i in 0..k {
+            for channel in 0..3 {
+                let from = entries.maps.plane(i, channel);
+                let to = table.plane_mut(i, channel);
+                to[..c].copy_from_slice(from);
+                to[c..].fill(from[c - 1]);
+            }
+        }
+        let indices: Vec<u8> = image.indices.iter().flat_map(|i| i.to_le_bytes()).collect();
+        Self::assemble(
+            &shape,
+            &table,
+            Some((c, indices)),
+            entries.meta.basis.build()?,
+            options,
+        )
+    }
+
+    fn assemble(
+        shape: &Shape,
+        planes: &CoefficientMaps,
+        codebook: Option<(usize, Vec<u8>)>,
+        basis: Box<dyn Basis>,
+        options: &BundleOptions,
+    ) -> Result<WebBundle> {
+        check_shape(shape, planes, codebook.is_some(), basis.as_ref())?;
         options.precision.require(&PRECISIONS, "the viewer")?;
         let environments = options
             .environments
@@ -158,19 +236,29 @@ impl WebBundle {
         let table = shipped_table(&table);
         let accuracy = table.accuracy(basis.as_ref());
         let mut files = BTreeMap::new();
-        let info = info_json_with(
-            image,
+        let mut info = info_json_with(
+            shape,
+            planes,
             basis.as_ref(),
             &table,
             &accuracy,
             options,
             &environments,
         )?;
+        if let Some((entries, indices)) = codebook {
+            info["codebook"] = json!({
+                "entries": entries,
+                "width": planes.width,
+                "height": planes.height,
+                "indices": { "file": INDICES_FILE, "format": "u16le" },
+            });
+            files.insert(format!("data/{INDICES_FILE}"), indices);
+        }
         let layers = info["layers"].as_array().cloned().unwrap_or_default();
-        let n = layers_per_channel(image.maps.k);
+        let n = layers_per_channel(planes.k);
         for (l, layer) in layers.iter().enumerate() {
             let file = layer["file"].as_str().expect("layer file").to_string();
-            let bytes = encode_layer(image, l / n, l % n, options.precision)?;
+            let bytes = encode_layer(planes, l / n, l % n, options.precision)?;
             files.insert(format!("data/{file}"), bytes);
         }
         files.insert(
@@ -181,7 +269,7 @@ impl WebBundle {
                 .flat_map(|&v| half::f16::from_f32(v).to_le_bytes())
                 .collect(),
         );
-        if let Some(depth) = &image.depth {
+        if let Some(depth) = shape.depth {
             let bytes: Vec<u8> = depth
                 .iter()
                 .flat_map(|&d| {
@@ -214,6 +302,42 @@ impl WebBundle {
 /// The weight table's file under `data/`.
 const WEIGHTS_FILE: &str = "weights.f16";
 
+/// A codebook image's indices under `data/`.
+const INDICES_FILE: &str = "indices.u16";
+
+/// Entries per row of a codebook's layers (65536 entries make 256 rows).
+pub const CODEBOOK_WIDTH: usize = 256;
+
+/// What a bundle describes besides the coefficients: the image's size, metadata and
+/// depth.
+struct Shape<'a> {
+    width: usize,
+    height: usize,
+    meta: &'a Metadata,
+    depth: Option<&'a [f32]>,
+}
+
+impl<'a> Shape<'a> {
+    fn of(image: &'a RelightableImage) -> Self {
+        Shape {
+            width: image.width(),
+            height: image.height(),
+            meta: &image.meta,
+            depth: image.depth.as_deref(),
+        }
+    }
+
+    fn camera(&self) -> CameraSpec {
+        self.meta.camera.clone().unwrap_or(CameraSpec {
+            projection: self.meta.projection.clone(),
+            width: self.width,
+            height: self.height,
+            pose: Default::default(),
+            orthographic_height: None,
+        })
+    }
+}
+
 /// `table` as the bundle ships it: every weight rounded to a half float (module docs).
 pub fn shipped_table(table: &WeightTable) -> WeightTable {
     WeightTable {
@@ -233,17 +357,16 @@ pub fn layers_per_channel(k: usize) -> usize {
 
 /// The camera of `image`: its stored camera, or its projection at the default pose.
 pub fn camera_spec(image: &RelightableImage) -> CameraSpec {
-    image.meta.camera.clone().unwrap_or(CameraSpec {
-        projection: image.meta.projection.clone(),
-        width: image.width(),
-        height: image.height(),
-        pose: Default::default(),
-        orthographic_height: None,
-    })
+    Shape::of(image).camera()
 }
 
-fn check_image(image: &RelightableImage, basis: &dyn Basis) -> Result<()> {
-    let (w, h, k) = (image.width(), image.height(), image.maps.k);
+fn check_shape(
+    shape: &Shape,
+    planes: &CoefficientMaps,
+    indexed: bool,
+    basis: &dyn Basis,
+) -> Result<()> {
+    let (w, h, k) = (shape.width, shape.height, planes.k);
     if w == 0 || h == 0 || w > MAX_SIDE || h > MAX_SIDE {
         return Err(invalid(format!(
             "the viewer shows images of 1 to {MAX_SIDE} pixels a side, not {w}×{h}"
@@ -262,15 +385,16 @@ fn check_image(image: &RelightableImage, basis: &dyn Basis) -> Result<()> {
             basis.name()
         )));
     }
-    if image.maps.data.len() != 3 * k * w * h {
+    let texels = if indexed { planes.pixels() } else { w * h };
+    if planes.data.len() != 3 * k * texels {
         return Err(invalid("the coefficient maps have the wrong length"));
     }
-    if let Some(d) = &image.depth {
+    if let Some(d) = shape.depth {
         if d.len() != w * h {
             return Err(invalid("the depth map has the wrong length"));
         }
     }
-    camera_spec(image).build()?;
+    shape.camera().build()?;
     Ok(())
 }
 
@@ -304,14 +428,15 @@ fn band_windows(basis: &dyn Basis) -> Result<Option<serde_json::Value>> {
 }
 
 fn info_json_with(
-    image: &RelightableImage,
+    shape: &Shape,
+    planes: &CoefficientMaps,
     basis: &dyn Basis,
     table: &WeightTable,
     accuracy: &relit::basis::TableAccuracy,
     options: &BundleOptions,
     environments: &[Environment],
 ) -> Result<serde_json::Value> {
-    let k = image.maps.k;
+    let k = planes.k;
     let n = layers_per_channel(k);
     let mut layers = Vec::new();
     for c in 0..3 {
@@ -325,7 +450,7 @@ fn info_json_with(
                     continue;
                 }
                 coefficients.push(i);
-                let coding = options.precision.coding(image.maps.plane(i, c));
+                let coding = options.precision.coding(planes.plane(i, c));
                 *s = coding.scale as f64;
                 *o = coding.offset as f64;
             }
@@ -338,7 +463,8 @@ fn info_json_with(
             }));
         }
     }
-    let camera = camera_spec(image);
+    let camera = shape.camera();
+    let meta = shape.meta;
     let mut basis_info = json!({ "name": basis.name(), "spec": basis.spec(), "k": k });
     if let Some(windows) = band_windows(basis)? {
         basis_info["windows"] = windows;
@@ -347,8 +473,8 @@ fn info_json_with(
         "format": "relit-web",
         "version": WEB_FORMAT_VERSION,
         "source": options.source_name,
-        "width": image.width(),
-        "height": image.height(),
+        "width": shape.width,
+        "height": shape.height,
         "basis": basis_info,
         "k": k,
         "weights": {
@@ -358,14 +484,14 @@ fn info_json_with(
             "relative_rms_error": accuracy.relative_rms,
             "relative_max_error": accuracy.relative_max,
         },
-        "color_space": image.meta.color_space,
-        "light_frame": image.meta.light_frame,
-        "projection": image.meta.projection,
+        "color_space": meta.color_space,
+        "light_frame": meta.light_frame,
+        "projection": meta.projection,
         "camera": camera,
         "storage": options.precision,
         "layers_per_channel": n,
         "layers": layers,
-        "depth": image.depth.as_ref().map(|_| json!({ "file": "depth.f32", "format": "f32le" })),
+        "depth": shape.depth.map(|_| json!({ "file": "depth.f32", "format": "f32le" })),
         "environments": environments.iter().map(|e| &e.info).collect::<Vec<_>>(),
     }))
 }
@@ -373,19 +499,19 @@ fn info_json_with(
 /// Layer `j` of channel `c`: planes `4j … 4j+3` (zero past `k`), each encoded by
 /// [`Precision::encode`] with its coding, interleaved per pixel.
 fn encode_layer(
-    image: &RelightableImage,
+    planes: &CoefficientMaps,
     c: usize,
     j: usize,
     precision: Precision,
 ) -> Result<Vec<u8>> {
-    let (w, h, k) = (image.width(), image.height(), image.maps.k);
+    let (w, h, k) = (planes.width, planes.height, planes.k);
     let pixels = w * h;
     let b = precision.bytes_per_value();
     let planes: Vec<Vec<u8>> = (0..4)
         .map(|q| {
             let mut bytes = Vec::with_capacity(pixels * b);
             if 4 * j + q < k {
-                let plane = image.maps.plane(4 * j + q, c);
+                let plane = planes.plane(4 * j + q, c);
                 precision.encode(plane, precision.coding(plane), &mut bytes);
             } else {
                 // A component past k: zeros, whose value is 0 in the coding `(0, 0)`.

@@ -25,7 +25,6 @@ pub fn export_web(input: &Path, dir: &Path, options: &BundleOptions) -> Result<E
         .chain(options.environments.iter().map(|p| p.as_path()))
         .collect();
     check_outputs(&inputs, &[Output::folder(dir)])?;
-    let image = relit::codec::read(input)?;
     let mut options = options.clone();
     if options.source_name.is_empty() {
         options.source_name = input
@@ -33,7 +32,7 @@ pub fn export_web(input: &Path, dir: &Path, options: &BundleOptions) -> Result<E
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
     }
-    let bundle = WebBundle::build(&image, &options)?;
+    let bundle = WebBundle::read(input, &options)?;
     write_site(&bundle, dir)
 }
 

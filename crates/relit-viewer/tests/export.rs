@@ -356,3 +356,65 @@ fn environments_ship_a_quadrature_that_keeps_their_integral() {
     let d = latlong_direction(3.5 / w as f64, 7.5 / h as f64);
     assert!((small[7 * w + 3].0 - d).length() < 1e-12);
 }
+
+/// A codebook image ships its entries (256 a row, the last row padded with the last
+/// entry) and one 16-bit index a pixel; the entries' layers decode to the entries, and a
+/// bad index is refused.
+#[test]
+fn codebook_images_ship_entries_and_indices() {
+    use relit::engine::lookup::IndexedImage;
+    let image = common::sample_image(6, 5, 3);
+    let k = image.maps.k;
+    let c = 300;
+    let mut entries = relit::maps::CoefficientMaps::zeros(c, 1, k);
+    for (i, v) in entries.data.iter_mut().enumerate() {
+        *v = ((i * 37) % 101) as f32 / 200.0 - 0.1;
+    }
+    let n = 6 * 5;
+    let indexed = IndexedImage {
+        entries: relit::maps::RelightableImage {
+            meta: image.meta.clone(),
+            maps: entries,
+            depth: None,
+        },
+        indices: (0..n).map(|p| ((p * 53) % c) as u16).collect(),
+        width: 6,
+        height: 5,
+    };
+    let options = BundleOptions {
+        precision: Precision::F16,
+        ..Default::default()
+    };
+    let bundle = WebBundle::build_indexed(&indexed, &options).unwrap();
+    let info: Value = serde_json::from_slice(bundle.info()).unwrap();
+    assert_eq!(info["width"], 6);
+    assert_eq!(info["codebook"]["entries"], c);
+    assert_eq!(
+        (
+            info["codebook"]["width"].as_u64(),
+            info["codebook"]["height"].as_u64()
+        ),
+        (Some(256), Some(2))
+    );
+    let indices = &bundle.files["data/indices.u16"];
+    let read: Vec<u16> = indices
+        .chunks_exact(2)
+        .map(|b| u16::from_le_bytes([b[0], b[1]]))
+        .collect();
+    assert_eq!(read, indexed.indices);
+    // Layer 0 of channel 0 holds coefficients 0–3 of each entry, 256 × 2 texels.
+    let layer = &bundle.files[&format!("data/{}", info["layers"][0]["file"].as_str().unwrap())];
+    let values = halves(layer);
+    assert_eq!(values.len(), 4 * 256 * 2);
+    for e in [0, 255, 256, 299, 300, 511] {
+        let want = indexed.entries.maps.plane(0, 0)[e.min(c - 1)];
+        assert!(
+            (values[4 * e] - want).abs() < 1e-3,
+            "entry {e}: {} vs {want}",
+            values[4 * e]
+        );
+    }
+    let mut bad = indexed.clone();
+    bad.indices[3] = c as u16;
+    assert!(WebBundle::build_indexed(&bad, &options).is_err());
+}

@@ -897,8 +897,26 @@ try {
       run('convert', path.join(work, 'pano.exr'), '-o', rlz, ...flags);
       await open(rlz, ENVS);
       expect(`the viewer reads the ${name} file's projected basis`, current.info.basis.name.startsWith('sh:16→'), current.info.basis.name);
+      // A codebook file arrives as its entries and one index a pixel, not expanded.
+      const book = current.info.codebook;
+      expect(`the ${name} file ${name === 'codebook' ? 'arrives as entries and indices' : 'arrives as planes'}`,
+        name === 'codebook' ? !!book && book.entries === 256 && book.width === 256 && book.height === 1 : !book, book);
       await setRig({ lights: [{ type: 'directional', direction: [-0.4, 0.6, 0.7], color: [1, 0.9, 0.8], intensity: 1.2 }] });
-      await check(`rlz ${name} directional`);
+      const cpuFrame = await check(`rlz ${name} directional`) && await cpuRender(`rlz ${name} directional`, (await rig()).lights);
+      // Magnified: the codebook's hand-made bilinear blend of four pixels' entries (and
+      // the planes' filter) against bilinear interpolation of the relit image.
+      await page.evaluate(() => window.relit.setCanvasSize(256, 128));
+      const center = [521.3, 140.7], zoom = 4;
+      for (const smooth of [false, true]) {
+        await page.evaluate((s) => window.relit.setSmooth(s), smooth);
+        await setView({ mode: 'flat', center, zoom });
+        const g = await canvas();
+        const r = compare(g.rgb, magnify(cpuFrame, center, zoom, 256, 128, smooth));
+        const label = `rlz ${name} flat ×4 ${smooth ? 'bilinear' : 'nearest'} vs CPU`;
+        results.comparisons[label] = r;
+        expect(label, smooth ? r.psnr >= 35 : r.frac_over_2 <= 0.001, r);
+      }
+      await page.evaluate(([w, h]) => { window.relit.setCanvasSize(w, h); window.relit.setView({ mode: 'flat', center: [w / 2, h / 2], zoom: 1 }); }, [W, H]);
       await setRig({ lights: [{ type: 'point', position: [0, 1, 1], intensity: 2 }] });
       await check(`rlz ${name} point`);
     }

@@ -731,10 +731,7 @@ pub fn unpack(packed: &Packed) -> Result<RelightableImage> {
     let header = &packed.header;
     let kp = checked(packed)?;
     if header.codebook.is_some() {
-        let indexed = indexed_checked(packed, kp)?;
-        let mut image = indexed.expand();
-        image.depth = depth(packed)?;
-        return Ok(image);
+        return Ok(indexed_checked(packed, kp)?.expand());
     }
     Ok(RelightableImage {
         meta: header.meta.clone(),
@@ -919,7 +916,8 @@ fn indexed_checked(packed: &Packed, kp: usize) -> Result<crate::engine::lookup::
         entries: RelightableImage {
             meta: header.meta.clone(),
             maps,
-            depth: None,
+            // The image's depth, one value a pixel (what `expand` and the viewer keep).
+            depth: depth(packed)?,
         },
         indices,
         width: w,

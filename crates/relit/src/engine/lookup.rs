@@ -20,7 +20,7 @@ use rayon::prelude::*;
 #[derive(Clone, Debug)]
 pub struct IndexedImage {
     /// The entries as a `C × 1` relightable image (its basis and colour space are the
-    /// image's).
+    /// image's; its depth, when it has one, is the whole image's, one value a pixel).
     pub entries: RelightableImage,
     /// One entry per pixel, row-major.
     pub indices: Vec<u16>,
