@@ -34,6 +34,10 @@ pub struct Args {
     /// Precision of an EXR output's maps: f16 or f32.
     #[arg(long, default_value = "f16")]
     pub storage: Precision,
+    /// Write an EXR output tiled (tiles of this side, default 256) with mip levels, so
+    /// that `relit relight --roi/--level` reads only the tiles a view needs.
+    #[arg(long, num_args = 0..=1, default_missing_value = "256")]
+    pub mip_tiles: Option<usize>,
     /// Print the summary as JSON.
     #[arg(long)]
     pub json: bool,
@@ -41,6 +45,10 @@ pub struct Args {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let form = FileForm::for_output(&args.output);
+    anyhow::ensure!(
+        args.mip_tiles.is_none() || form == FileForm::Exr,
+        "--mip-tiles is for EXR outputs"
+    );
     let output = if form == FileForm::Web {
         Output::folder(&args.output)
     } else {
@@ -73,9 +81,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         FileForm::Exr => {
             args.storage
                 .require(&[Precision::F32, Precision::F16], "--storage (OpenEXR)")?;
-            codec::exr::write(&args.output, &image, args.storage)
-                .with_context(|| format!("writing {}", args.output.display()))?;
-            format!("OpenEXR {}", args.storage)
+            match args.mip_tiles {
+                Some(tile) => {
+                    codec::exr::write_tiled(&args.output, &image, args.storage, tile)
+                        .with_context(|| format!("writing {}", args.output.display()))?;
+                    let levels = codec::exr::mip_sizes(w, h).len();
+                    format!(
+                        "OpenEXR {}, {tile}-pixel tiles, {levels} mip levels",
+                        args.storage
+                    )
+                }
+                None => {
+                    codec::exr::write(&args.output, &image, args.storage)
+                        .with_context(|| format!("writing {}", args.output.display()))?;
+                    format!("OpenEXR {}", args.storage)
+                }
+            }
         }
     };
     let seconds = start.elapsed().as_secs_f64();

@@ -51,6 +51,12 @@ pub struct Args {
     /// that region alone (`w × h`), equal to the same crop of the full frame.
     #[arg(long)]
     pub roi: Option<String>,
+    /// Relight mip level L of a tiled EXR (`relit convert --mip-tiles`): level 0 is the
+    /// image, each level half the one above (2×2 means); `--roi` is then in the level's
+    /// pixels. Only the tiles the frame needs are read (directional and environment
+    /// lights).
+    #[arg(long)]
+    pub level: Option<usize>,
     /// Relight on the GPU (wgpu compute shaders; any Vulkan/Metal/DX12 adapter,
     /// including Mesa's software lavapipe). Every light type runs in the shaders;
     /// environment weights are projected once by the CPU engine.
@@ -369,8 +375,35 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return Ok(result);
     }
     let requested = args.roi.as_deref().map(Roi::parse).transpose()?;
-    let (region, region_bytes) = match requested {
-        Some(roi) if reads_region(&args, rig_file.as_ref(), &extra)? => {
+    let tiled = match relit::codec::FileForm::of(&args.file)? {
+        relit::codec::FileForm::Exr => relit::codec::exr::tiled_levels(&args.file)?,
+        _ => None,
+    };
+    let uniform = single_frame(rig_file.as_ref(), &extra)
+        .is_some_and(|rig| !rig.lights.is_empty() && LookupRelighter::draws(&rig));
+    if args.level.is_some() {
+        anyhow::ensure!(
+            tiled.is_some(),
+            "--level needs a tiled EXR with mip levels (relit convert X -o Y.exr --mip-tiles)"
+        );
+        anyhow::ensure!(
+            uniform && args.file_space.is_none(),
+            "--level relights one frame of directional and environment lights"
+        );
+    }
+    let (region, region_bytes) = match (requested, &tiled) {
+        (roi, Some(sizes))
+            if uniform && args.file_space.is_none() && (roi.is_some() || args.level.is_some()) =>
+        {
+            let level = args.level.unwrap_or(0);
+            let &(lw, lh) = sizes.get(level).with_context(|| {
+                format!("--level: the file has levels 0 to {}", sizes.len() - 1)
+            })?;
+            let rect = roi.map_or((0, 0, lw, lh), |r| (r.x, r.y, r.width, r.height));
+            let read = relit::codec::exr::read_region(&args.file, level, rect).context("--roi")?;
+            (Some(read.image), Some((read.bytes_read, read.file_bytes)))
+        }
+        (Some(roi), _) if reads_region(&args, rig_file.as_ref(), &extra)? => {
             let (image, read, total) = relit::codec::packed::read_region(
                 &args.file,
                 (roi.x, roi.y, roi.width, roi.height),
@@ -391,7 +424,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     crate::shared::apply_file_space(&args.file, &mut image, args.file_space)?;
     let roi = match requested {
         // The region read is the whole image now.
-        Some(_) if region_bytes.is_some() => Roi::full(image.width(), image.height()),
+        _ if region_bytes.is_some() => Roi::full(image.width(), image.height()),
         Some(roi) => {
             roi.validate(image.width(), image.height())
                 .context("--roi")?;

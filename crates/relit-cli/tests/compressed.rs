@@ -229,3 +229,111 @@ fn a_codebook_file_relights_by_look_up_as_its_expanded_maps() {
     );
     assert!(!said.contains("codebook"), "{said}");
 }
+
+/// A tiled EXR with mip levels: `--roi` reads only the region's tiles and relights as
+/// the crop of the whole frame; `--level 1` is the half-size frame; refusals by name.
+#[test]
+fn a_tiled_exr_is_read_by_region_and_level() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    common::capture_and_fit(d); // 24×16
+    let said = relit(
+        d,
+        &[
+            "convert",
+            "scene.exr",
+            "-o",
+            "mip.exr",
+            "--mip-tiles",
+            "16",
+            "--storage",
+            "f32",
+        ],
+    );
+    assert!(said.contains("16-pixel tiles, 5 mip levels"), "{said}");
+    let whole = frame(d, "scene.exr", "whole");
+    assert_eq!(frame(d, "mip.exr", "whole_mip"), whole);
+    let light = ["--light", "dir:0.3,0.2,0.93"];
+    let said = relit(
+        d,
+        &[
+            &["relight", "mip.exr", "--roi", "17,3,6,9", "-o", "part.exr"][..],
+            &light,
+        ]
+        .concat(),
+    );
+    let total = std::fs::metadata(d.join("mip.exr")).unwrap().len();
+    let read: u64 = said
+        .split_whitespace()
+        .nth(1)
+        .and_then(|v| v.parse().ok())
+        .unwrap();
+    assert!(said.starts_with("read ") && read < total, "{said}");
+    let part = relit::image::load_linear(&d.join("part.exr"), None).unwrap();
+    assert_eq!((part.width, part.height), (6, 9));
+    for y in 0..9 {
+        for x in 0..6 {
+            let (a, b) = (
+                &part.data[3 * (y * 6 + x)..][..3],
+                &whole[3 * ((y + 3) * 24 + x + 17)..][..3],
+            );
+            assert_eq!(a, b, "({x},{y})");
+        }
+    }
+    relit(
+        d,
+        &[
+            &["relight", "mip.exr", "--level", "1", "-o", "half.exr"][..],
+            &light,
+        ]
+        .concat(),
+    );
+    let half = relit::image::load_linear(&d.join("half.exr"), None).unwrap();
+    assert_eq!((half.width, half.height), (12, 8));
+    let refused = |args: &[&str], needle: &str| {
+        let out = Command::new(env!("CARGO_BIN_EXE_relit"))
+            .current_dir(d)
+            .args(args)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && err.contains(needle),
+            "{args:?}: {err}"
+        );
+    };
+    refused(
+        &[
+            &["relight", "scene.exr", "--level", "1", "-o", "x.exr"][..],
+            &light,
+        ]
+        .concat(),
+        "tiled EXR",
+    );
+    refused(
+        &[
+            &["relight", "mip.exr", "--level", "9", "-o", "x.exr"][..],
+            &light,
+        ]
+        .concat(),
+        "levels 0 to 4",
+    );
+    refused(
+        &[
+            "relight",
+            "mip.exr",
+            "--level",
+            "1",
+            "--light",
+            "point:0,0,1",
+            "-o",
+            "x.exr",
+        ],
+        "directional and environment",
+    );
+    refused(
+        &["convert", "scene.exr", "-o", "x.rlz", "--mip-tiles"],
+        "EXR outputs",
+    );
+    assert!(!d.join("x.exr").exists() && !d.join("x.rlz").exists());
+}

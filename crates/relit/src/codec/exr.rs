@@ -11,6 +11,8 @@ use crate::maps::{
 };
 use crate::storage::{CompactPlanes, FiniteRange, PlaneCoding, Precision};
 use crate::{Error, ErrorKind, Result};
+use exr::math::RoundingMode;
+use exr::meta::attribute::LevelMode;
 use exr::prelude::*;
 use std::path::Path;
 
@@ -58,21 +60,32 @@ pub fn write(path: &Path, image: &RelightableImage, precision: Precision) -> Res
     for i in 0..maps.k {
         for c in 0..3 {
             let plane = maps.plane(i, c);
-            let samples = match precision {
-                Precision::F16 => {
-                    let mut bits = vec![0u16; plane.len()];
-                    crate::storage::to_f16_bits(plane, &mut bits);
-                    FlatSamples::F16(bits.into_iter().map(f16::from_bits).collect())
-                }
-                _ => FlatSamples::F32(plane.to_vec()),
-            };
-            channels.push(AnyChannel::new(channel_name(i, c).as_str(), samples));
+            channels.push(AnyChannel::new(
+                channel_name(i, c).as_str(),
+                flat_samples(precision, plane),
+            ));
         }
     }
     if let Some(depth) = &image.depth {
         channels.push(AnyChannel::new("Z", FlatSamples::F32(depth.clone())));
     }
-    let meta = &image.meta;
+    let attrs = attributes(&image.meta, precision);
+    let encoding = Encoding {
+        compression: Compression::ZIP16,
+        ..Encoding::default()
+    };
+    let layer = Layer::new((w, h), attrs, encoding, AnyChannels::sort(channels.into()));
+    let exr_image = Image::from_layer(layer);
+    write_atomically(path, |out| {
+        exr_image
+            .write()
+            .to_buffered(out)
+            .map_err(|e| exr_error(path, "write", e))
+    })
+}
+
+/// The `relit.*` attributes of a file of `meta` stored in `precision`.
+fn attributes(meta: &Metadata, precision: Precision) -> LayerAttributes {
     let mut attrs = LayerAttributes::default();
     let other = &mut attrs.other;
     other.insert(
@@ -108,17 +121,304 @@ pub fn write(path: &Path, image: &RelightableImage, precision: Precision) -> Res
             text(&ascii_json(camera)),
         );
     }
+    attrs
+}
+
+/// A plane's samples in `precision` (f16 or f32).
+fn flat_samples(precision: Precision, plane: &[f32]) -> FlatSamples {
+    match precision {
+        Precision::F16 => {
+            let mut bits = vec![0u16; plane.len()];
+            crate::storage::to_f16_bits(plane, &mut bits);
+            FlatSamples::F16(bits.into_iter().map(f16::from_bits).collect())
+        }
+        _ => FlatSamples::F32(plane.to_vec()),
+    }
+}
+
+/// Side of the tiles of a tiled file unless one is named.
+pub const DEFAULT_TILE: usize = 256;
+
+/// The tile sides a tiled file may have.
+pub const TILE_SIDES: std::ops::RangeInclusive<usize> = 16..=4096;
+
+/// The sizes of a `w × h` image's mip levels, level 0 first: OpenEXR's MIPMAP_LEVELS
+/// rounding down, each side halved until both are 1.
+pub fn mip_sizes(w: usize, h: usize) -> Vec<(usize, usize)> {
+    let count = (usize::BITS - w.max(h).max(1).leading_zeros()) as usize;
+    (0..count)
+        .map(|l| ((w >> l).max(1), (h >> l).max(1)))
+        .collect()
+}
+
+/// The means of the 2×2 blocks of a `from`-sized plane at each pixel of a `to`-sized
+/// one (rounded-down levels: an odd last row or column is left out; a side of 1 stays
+/// 1), over the values `keep` accepts (0 where it accepts none).
+fn halve(
+    plane: &[f32],
+    from: (usize, usize),
+    to: (usize, usize),
+    keep: fn(f32) -> bool,
+) -> Vec<f32> {
+    let (w, h) = from;
+    let mut out = vec![0.0; to.0 * to.1];
+    for y in 0..to.1 {
+        for x in 0..to.0 {
+            let (mut sum, mut n) = (0.0f64, 0u32);
+            for sy in (2 * y..2 * y + 2).filter(|&v| v < h) {
+                for sx in (2 * x..2 * x + 2).filter(|&v| v < w) {
+                    let v = plane[sy * w + sx];
+                    if keep(v) {
+                        sum += v as f64;
+                        n += 1;
+                    }
+                }
+            }
+            if n > 0 {
+                out[y * to.0 + x] = (sum / n as f64) as f32;
+            }
+        }
+    }
+    out
+}
+
+/// Write `image` as a tiled OpenEXR file (`tile`-pixel tiles) with mip levels
+/// (MIPMAP_LEVELS, rounding down): each level holds the 2×2 means of the level above —
+/// relighting is linear in the coefficients, so a level relights to the 2×2 means of
+/// the finer level's frame — and the depth the mean of the hit samples. A reader that
+/// knows nothing of levels ([`read`]) reads level 0 as any relit file; [`read_region`]
+/// reads the tiles of one region of one level.
+pub fn write_tiled(
+    path: &Path,
+    image: &RelightableImage,
+    precision: Precision,
+    tile: usize,
+) -> Result<()> {
+    use rayon::prelude::*;
+    let precision = precision.require(&[Precision::F32, Precision::F16], "OpenEXR")?;
+    if !TILE_SIDES.contains(&tile) {
+        return Err(Error::invalid(format!(
+            "EXR tiles are {} to {} pixels a side, not {tile}",
+            TILE_SIDES.start(),
+            TILE_SIDES.end()
+        )));
+    }
+    let maps = &image.maps;
+    let sizes = mip_sizes(maps.width, maps.height);
+    let levels = |plane: &[f32], precision: Precision, keep: fn(f32) -> bool| {
+        let mut data = vec![flat_samples(precision, plane)];
+        let mut current: Option<Vec<f32>> = None;
+        for pair in sizes.windows(2) {
+            let next = halve(current.as_deref().unwrap_or(plane), pair[0], pair[1], keep);
+            data.push(flat_samples(precision, &next));
+            current = Some(next);
+        }
+        Levels::Mip {
+            rounding_mode: RoundingMode::Down,
+            level_data: data,
+        }
+    };
+    let mut channels: Vec<AnyChannel<Levels<FlatSamples>>> = (0..3 * maps.k)
+        .into_par_iter()
+        .map(|j| {
+            let (i, c) = (j / 3, j % 3);
+            let l = levels(maps.plane(i, c), precision, f32::is_finite);
+            (channel_name(i, c), l)
+        })
+        .collect::<Vec<_>>()
+        .into_iter()
+        .map(|(name, l)| AnyChannel::new(name.as_str(), l))
+        .collect();
+    if let Some(depth) = &image.depth {
+        let hit: fn(f32) -> bool = |d| d.is_finite() && d > 0.0;
+        channels.push(AnyChannel::new("Z", levels(depth, Precision::F32, hit)));
+    }
     let encoding = Encoding {
         compression: Compression::ZIP16,
+        blocks: Blocks::Tiles(Vec2(tile, tile)),
         ..Encoding::default()
     };
-    let layer = Layer::new((w, h), attrs, encoding, AnyChannels::sort(channels.into()));
+    let layer = Layer::new(
+        (maps.width, maps.height),
+        attributes(&image.meta, precision),
+        encoding,
+        AnyChannels::sort(channels.into()),
+    );
     let exr_image = Image::from_layer(layer);
     write_atomically(path, |out| {
         exr_image
             .write()
             .to_buffered(out)
             .map_err(|e| exr_error(path, "write", e))
+    })
+}
+
+/// The level sizes of a tiled file with mip levels (level 0 first), or `None` for any
+/// other relit file (scan lines, or tiles of one level).
+pub fn tiled_levels(path: &Path) -> Result<Option<Vec<(usize, usize)>>> {
+    let meta =
+        exr::meta::MetaData::read_from_file(path, false).map_err(|e| exr_error(path, "read", e))?;
+    let header = meta
+        .headers
+        .first()
+        .ok_or_else(|| Error::parse(format!("{}: the EXR file has no layer", path.display())))?;
+    Ok(match header.blocks {
+        exr::meta::BlockDescription::Tiles(TileDescription {
+            level_mode: LevelMode::MipMap,
+            rounding_mode: RoundingMode::Down,
+            ..
+        }) => Some(mip_sizes(
+            header.layer_size.width(),
+            header.layer_size.height(),
+        )),
+        _ => None,
+    })
+}
+
+/// A region of one mip level of a tiled file ([`read_region`]) and what reading it took.
+#[derive(Debug)]
+pub struct RegionRead {
+    /// The region's maps (no depth: lights with a position need the whole image).
+    pub image: RelightableImage,
+    /// The level's size.
+    pub level_size: (usize, usize),
+    /// Bytes the read pulled from the file, and the file's size.
+    pub bytes_read: u64,
+    pub file_bytes: u64,
+}
+
+/// A reader that counts the bytes it reads.
+struct Counted<R> {
+    inner: R,
+    read: u64,
+}
+
+impl<R: std::io::Read> std::io::Read for Counted<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        self.read += n as u64;
+        Ok(n)
+    }
+}
+
+impl<R: std::io::Seek> std::io::Seek for Counted<R> {
+    fn seek(&mut self, to: std::io::SeekFrom) -> std::io::Result<u64> {
+        self.inner.seek(to)
+    }
+}
+
+/// Read `rect` (`x, y, width, height` in the level's pixels) of mip level `level` of a
+/// tiled relit file ([`write_tiled`]): only the header, the offset tables and the tiles
+/// the region touches are read and decompressed.
+pub fn read_region(
+    path: &Path,
+    level: usize,
+    rect: (usize, usize, usize, usize),
+) -> Result<RegionRead> {
+    use exr::block::reader::ChunksReader;
+    let sizes = tiled_levels(path)?.ok_or_else(|| {
+        Error::invalid(format!(
+            "{} is not a tiled file with mip levels (write one with `relit convert --mip-tiles`)",
+            path.display()
+        ))
+    })?;
+    let &(lw, lh) = sizes.get(level).ok_or_else(|| {
+        Error::invalid(format!(
+            "{} has levels 0 to {}, not {level}",
+            path.display(),
+            sizes.len() - 1
+        ))
+    })?;
+    let (rx, ry, rw, rh) = rect;
+    if rw == 0 || rh == 0 || rx + rw > lw || ry + rh > lh {
+        return Err(Error::invalid(format!(
+            "the region {rw}×{rh} at ({rx}, {ry}) is not inside level {level} ({lw}×{lh})"
+        )));
+    }
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, "read", e))?;
+    let file_bytes = file.metadata().map(|m| m.len()).unwrap_or(0);
+    let mut counted = std::io::BufReader::new(Counted {
+        inner: file,
+        read: 0,
+    });
+    let reader = exr::block::read(&mut counted, false).map_err(|e| exr_error(path, "read", e))?;
+    let header =
+        reader.headers().first().cloned().ok_or_else(|| {
+            Error::parse(format!("{}: the EXR file has no layer", path.display()))
+        })?;
+    let (meta, k) = parse_header(path, &header)?;
+    let values = rw.checked_mul(rh).and_then(|n| n.checked_mul(3 * k));
+    let mut maps = CoefficientMaps {
+        width: rw,
+        height: rh,
+        k,
+        data: try_zeroed(values, &format!("{}: the region's maps", path.display()))?,
+    };
+    let targets: Vec<Option<usize>> = header
+        .channels
+        .list
+        .iter()
+        .map(|c| parse_channel_name(&c.name.to_string()).map(|(i, c)| 3 * i + c))
+        .collect();
+    if let Some((i, c)) = (0..3 * k)
+        .map(|j| (j / 3, j % 3))
+        .find(|&(i, c)| !targets.contains(&Some(3 * i + c)))
+    {
+        return Err(Error::parse(format!(
+            "{}: not a relit file (channel {} is missing)",
+            path.display(),
+            channel_name(i, c)
+        )));
+    }
+    let n = rw * rh;
+    let mut samples: Vec<f32> = Vec::new();
+    reader
+        .filter_chunks(false, |_, _, block| {
+            let (bx, by) = (block.pixel_position.x(), block.pixel_position.y());
+            let (bw, bh) = (block.pixel_size.width(), block.pixel_size.height());
+            block.layer == 0
+                && block.level == exr::math::Vec2(level, level)
+                && bx < rx + rw
+                && rx < bx + bw
+                && by < ry + rh
+                && ry < by + bh
+        })
+        .map_err(|e| exr_error(path, "read", e))?
+        .decompress_parallel(false, |meta, block| {
+            let channels = &meta.headers[0].channels;
+            for line in block.lines(channels) {
+                let Some(j) = targets[line.location.channel].filter(|&j| j < 3 * k) else {
+                    continue;
+                };
+                let (x0, y) = (line.location.position.x(), line.location.position.y());
+                if y < ry || y >= ry + rh {
+                    continue;
+                }
+                let (from, to) = (x0.max(rx), (x0 + line.location.sample_count).min(rx + rw));
+                if from >= to {
+                    continue;
+                }
+                line_samples(
+                    &line,
+                    channels.list[line.location.channel].sample_type,
+                    &mut samples,
+                )?;
+                let at = j * n + (y - ry) * rw + (from - rx);
+                maps.data[at..at + (to - from)].copy_from_slice(&samples[from - x0..to - x0]);
+            }
+            Ok(())
+        })
+        .map_err(|e| exr_error(path, "read", e))?;
+    let bytes_read = counted.get_ref().read;
+    Ok(RegionRead {
+        image: RelightableImage {
+            meta,
+            maps,
+            depth: None,
+        },
+        level_size: (lw, lh),
+        bytes_read,
+        file_bytes,
     })
 }
 
@@ -232,58 +532,9 @@ fn read_planes(path: &Path, mut sink: Sink) -> Result<(RelightableImage, Sink)> 
         reader.headers().first().cloned().ok_or_else(|| {
             Error::parse(format!("{}: the EXR file has no layer", path.display()))
         })?;
-    let attrs = &header.own_attributes;
+    let (meta, k) = parse_header(path, &header)?;
     let bad = |what: &str| Error::parse(format!("{}: not a relit file ({what})", path.display()));
-    let version = match attrs.other.get(&Text::new_or_panic("relit.formatVersion")) {
-        Some(AttributeValue::I32(v)) => *v as u32,
-        _ => return Err(bad("no relit.formatVersion attribute")),
-    };
-    if version > FORMAT_VERSION {
-        return Err(Error::parse(format!(
-            "{}: written by a newer relit (format {version}; this build reads up to {FORMAT_VERSION})",
-            path.display()
-        )));
-    }
-    let basis: BasisSpec = parse_json(
-        path,
-        "relit.basis",
-        &text_attr(attrs, "relit.basis").ok_or_else(|| bad("no relit.basis"))?,
-    )?;
-    basis
-        .build()
-        .map_err(|e| Error::parse(format!("{}: relit.basis: {e}", path.display())))?;
-    let color_space = match text_attr(attrs, "relit.colorSpace").as_deref() {
-        Some("linear") | None => MapSpace::Linear,
-        Some("srgb") => MapSpace::Srgb,
-        Some(other) => {
-            return Err(Error::parse(format!(
-                "{}: unknown relit.colorSpace `{other}`",
-                path.display()
-            )))
-        }
-    };
-    let light_frame = match text_attr(attrs, "relit.lightFrame") {
-        Some(s) => parse_json(path, "relit.lightFrame", &s)?,
-        None => crate::maps::LIGHT_FRAME.to_string(),
-    };
-    let projection = match text_attr(attrs, "relit.projection") {
-        Some(s) => parse_json(path, "relit.projection", &s)?,
-        None => Default::default(),
-    };
-    let camera = match text_attr(attrs, "relit.camera") {
-        Some(s) => Some(parse_json(path, "relit.camera", &s)?),
-        None => None,
-    };
-    let fit: Option<FitInfo> = match text_attr(attrs, "relit.fit") {
-        Some(s) => Some(parse_json(path, "relit.fit", &s)?),
-        None => None,
-    };
-    let bake: Option<BakeInfo> = match text_attr(attrs, "relit.bake") {
-        Some(s) => Some(parse_json(path, "relit.bake", &s)?),
-        None => None,
-    };
     let (w, h) = (header.layer_size.width(), header.layer_size.height());
-    let k = basis.build()?.len();
     let values = w.checked_mul(h).and_then(|n| n.checked_mul(3 * k));
     let what = format!("{}: the {w}×{h} maps of {k} coefficients", path.display());
     let mut maps = CoefficientMaps {
@@ -349,30 +600,17 @@ fn read_planes(path: &Path, mut sink: Sink) -> Result<(RelightableImage, Sink)> 
             for line in block.lines(channels) {
                 let at = line.location.position;
                 let start = at.y() * w + at.x();
-                let count = line.location.sample_count;
                 let target = targets[line.location.channel];
                 if matches!(target, Target::Skip)
                     || (matches!(target, Target::Depth) && matches!(sink, Sink::Ranges(_)))
                 {
                     continue;
                 }
-                samples.clear();
-                match channels.list[line.location.channel].sample_type {
-                    SampleType::F16 => {
-                        for v in line.read_samples::<f16>() {
-                            samples.push(v?.to_f32());
-                        }
-                    }
-                    SampleType::F32 => {
-                        samples.resize(count, 0.0);
-                        line.read_samples_into_slice(&mut samples)?;
-                    }
-                    SampleType::U32 => {
-                        for v in line.read_samples::<u32>() {
-                            samples.push(v? as f32);
-                        }
-                    }
-                }
+                line_samples(
+                    &line,
+                    channels.list[line.location.channel].sample_type,
+                    &mut samples,
+                )?;
                 let span = start..start + samples.len();
                 let j = match target {
                     Target::Depth => {
@@ -409,17 +647,101 @@ fn read_planes(path: &Path, mut sink: Sink) -> Result<(RelightableImage, Sink)> 
             channel_name(missing / 3, missing % 3)
         )));
     }
-    let meta = Metadata {
-        format_version: version,
-        basis,
-        color_space,
-        light_frame,
-        projection,
-        camera,
-        fit,
-        bake,
-    };
     Ok((RelightableImage { meta, maps, depth }, sink))
+}
+
+/// The `relit.*` metadata of a file's header and the basis' coefficient count.
+fn parse_header(path: &Path, header: &exr::meta::header::Header) -> Result<(Metadata, usize)> {
+    let attrs = &header.own_attributes;
+    let bad = |what: &str| Error::parse(format!("{}: not a relit file ({what})", path.display()));
+    let version = match attrs.other.get(&Text::new_or_panic("relit.formatVersion")) {
+        Some(AttributeValue::I32(v)) => *v as u32,
+        _ => return Err(bad("no relit.formatVersion attribute")),
+    };
+    if version > FORMAT_VERSION {
+        return Err(Error::parse(format!(
+            "{}: written by a newer relit (format {version}; this build reads up to {FORMAT_VERSION})",
+            path.display()
+        )));
+    }
+    let basis: BasisSpec = parse_json(
+        path,
+        "relit.basis",
+        &text_attr(attrs, "relit.basis").ok_or_else(|| bad("no relit.basis"))?,
+    )?;
+    basis
+        .build()
+        .map_err(|e| Error::parse(format!("{}: relit.basis: {e}", path.display())))?;
+    let color_space = match text_attr(attrs, "relit.colorSpace").as_deref() {
+        Some("linear") | None => MapSpace::Linear,
+        Some("srgb") => MapSpace::Srgb,
+        Some(other) => {
+            return Err(Error::parse(format!(
+                "{}: unknown relit.colorSpace `{other}`",
+                path.display()
+            )))
+        }
+    };
+    let light_frame = match text_attr(attrs, "relit.lightFrame") {
+        Some(s) => parse_json(path, "relit.lightFrame", &s)?,
+        None => crate::maps::LIGHT_FRAME.to_string(),
+    };
+    let projection = match text_attr(attrs, "relit.projection") {
+        Some(s) => parse_json(path, "relit.projection", &s)?,
+        None => Default::default(),
+    };
+    let camera = match text_attr(attrs, "relit.camera") {
+        Some(s) => Some(parse_json(path, "relit.camera", &s)?),
+        None => None,
+    };
+    let fit: Option<FitInfo> = match text_attr(attrs, "relit.fit") {
+        Some(s) => Some(parse_json(path, "relit.fit", &s)?),
+        None => None,
+    };
+    let bake: Option<BakeInfo> = match text_attr(attrs, "relit.bake") {
+        Some(s) => Some(parse_json(path, "relit.bake", &s)?),
+        None => None,
+    };
+    let k = basis.build()?.len();
+    Ok((
+        Metadata {
+            format_version: version,
+            basis,
+            color_space,
+            light_frame,
+            projection,
+            camera,
+            fit,
+            bake,
+        },
+        k,
+    ))
+}
+
+/// One line's samples as `f32`, into `out`.
+fn line_samples(
+    line: &exr::block::lines::LineRef,
+    sample_type: SampleType,
+    out: &mut Vec<f32>,
+) -> exr::error::UnitResult {
+    out.clear();
+    match sample_type {
+        SampleType::F16 => {
+            for v in line.read_samples::<f16>() {
+                out.push(v?.to_f32());
+            }
+        }
+        SampleType::F32 => {
+            out.resize(line.location.sample_count, 0.0);
+            line.read_samples_into_slice(out)?;
+        }
+        SampleType::U32 => {
+            for v in line.read_samples::<u32>() {
+                out.push(v? as f32);
+            }
+        }
+    }
+    Ok(())
 }
 
 fn parse_channel_name(name: &str) -> Option<(usize, usize)> {

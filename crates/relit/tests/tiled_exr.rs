@@ -1,0 +1,137 @@
+//! Tiled OpenEXR files with mip levels: written, read whole as any relit file, and read
+//! by region and level, against the maps and an independent 2×2 mean.
+
+use relit::basis::BasisSpec;
+use relit::codec::exr;
+use relit::maps::{CoefficientMaps, MapSpace, Metadata, RelightableImage};
+use relit::storage::Precision;
+
+fn image(w: usize, h: usize) -> RelightableImage {
+    let k = 4;
+    let mut maps = CoefficientMaps::zeros(w, h, k);
+    for (i, v) in maps.data.iter_mut().enumerate() {
+        *v = ((i * 7919) % 1013) as f32 / 1013.0 - 0.3;
+    }
+    RelightableImage {
+        meta: Metadata::new(
+            BasisSpec::named("sh:4").unwrap(),
+            MapSpace::Linear,
+            Default::default(),
+        ),
+        maps,
+        depth: Some(
+            (0..w * h)
+                .map(|p| {
+                    if p % 11 == 3 {
+                        0.0
+                    } else {
+                        1.0 + (p % 17) as f32
+                    }
+                })
+                .collect(),
+        ),
+    }
+}
+
+/// 2×2 means, rounding sizes down, written here independently of the library.
+fn mean2(plane: &[f32], w: usize, h: usize) -> (Vec<f32>, usize, usize) {
+    let (w2, h2) = ((w / 2).max(1), (h / 2).max(1));
+    let mut out = vec![0.0; w2 * h2];
+    for y in 0..h2 {
+        for x in 0..w2 {
+            let mut vals = Vec::new();
+            for (sx, sy) in [
+                (2 * x, 2 * y),
+                (2 * x + 1, 2 * y),
+                (2 * x, 2 * y + 1),
+                (2 * x + 1, 2 * y + 1),
+            ] {
+                if sx < w && sy < h {
+                    vals.push(plane[sy * w + sx] as f64);
+                }
+            }
+            out[y * w2 + x] = (vals.iter().sum::<f64>() / vals.len() as f64) as f32;
+        }
+    }
+    (out, w2, h2)
+}
+
+#[test]
+fn tiled_files_read_whole_by_region_and_by_level() {
+    let (w, h) = (70, 45);
+    let original = image(w, h);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("tiled.exr");
+    exr::write_tiled(&path, &original, Precision::F32, 16).unwrap();
+    let sizes = exr::tiled_levels(&path).unwrap().unwrap();
+    assert_eq!(
+        sizes,
+        vec![(70, 45), (35, 22), (17, 11), (8, 5), (4, 2), (2, 1), (1, 1)]
+    );
+    // Whole, as any relit file: level 0 exactly.
+    let whole = relit::codec::read(&path).unwrap();
+    assert_eq!(whole.maps.data, original.maps.data);
+    assert_eq!(whole.depth, original.depth);
+    // A region of level 0: that crop, from fewer bytes than the file.
+    let (rx, ry, rw, rh) = (13, 7, 30, 20);
+    let region = exr::read_region(&path, 0, (rx, ry, rw, rh)).unwrap();
+    assert!(
+        region.bytes_read < region.file_bytes,
+        "{} of {}",
+        region.bytes_read,
+        region.file_bytes
+    );
+    for j in 0..3 * original.maps.k {
+        let (i, c) = (j / 3, j % 3);
+        let full = original.maps.plane(i, c);
+        let got = region.image.maps.plane(i, c);
+        for y in 0..rh {
+            assert_eq!(
+                &got[y * rw..(y + 1) * rw],
+                &full[(ry + y) * w + rx..(ry + y) * w + rx + rw]
+            );
+        }
+    }
+    // Level 1 whole and level 2 in part: the 2×2 means of the level above.
+    let (m1, w1, h1) = mean2(original.maps.plane(2, 1), w, h);
+    let level1 = exr::read_region(&path, 1, (0, 0, w1, h1)).unwrap();
+    assert_eq!(level1.level_size, (w1, h1));
+    for (a, b) in level1.image.maps.plane(2, 1).iter().zip(&m1) {
+        assert!((a - b).abs() < 1e-6, "{a} {b}");
+    }
+    let (m2, w2, _) = mean2(&m1, w1, h1);
+    let part = exr::read_region(&path, 2, (5, 3, 9, 6)).unwrap();
+    for y in 0..6 {
+        for x in 0..9 {
+            let (a, b) = (
+                part.image.maps.plane(2, 1)[y * 9 + x],
+                m2[(3 + y) * w2 + 5 + x],
+            );
+            assert!((a - b).abs() < 1e-6, "({x}, {y}): {a} {b}");
+        }
+    }
+    // Refusals: a level past the last, a region outside its level, a file of scan lines.
+    assert!(exr::read_region(&path, 7, (0, 0, 1, 1))
+        .unwrap_err()
+        .to_string()
+        .contains("levels 0 to 6"));
+    assert!(exr::read_region(&path, 1, (30, 0, 10, 1))
+        .unwrap_err()
+        .to_string()
+        .contains("not inside"));
+    let plain = dir.path().join("plain.exr");
+    exr::write(&plain, &original, Precision::F32).unwrap();
+    assert!(exr::tiled_levels(&plain).unwrap().is_none());
+    assert!(exr::read_region(&plain, 0, (0, 0, 1, 1))
+        .unwrap_err()
+        .to_string()
+        .contains("not a tiled file"));
+    assert!(exr::write_tiled(&plain, &original, Precision::F32, 8).is_err());
+    // Half floats: level 0 reads back as the f16 rounding of the maps.
+    let half = dir.path().join("half.exr");
+    exr::write_tiled(&half, &original, Precision::F16, 32).unwrap();
+    let back = relit::codec::read(&half).unwrap();
+    for (a, b) in back.maps.data.iter().zip(&original.maps.data) {
+        assert_eq!(*a, half::f16::from_f32(*b).to_f32());
+    }
+}
