@@ -151,6 +151,16 @@ pub struct Args {
     /// file with the statistics of a real capture, for compression and load times.
     #[arg(long, requires = "write_maps")]
     pub tile_from: Option<std::path::PathBuf>,
+    /// Write a capture of the first --size to this folder and exit: every image of
+    /// --capture-from repeated over the size, every other copy mirrored, each copy's
+    /// brightness jittered by up to ±3 % (so that no two copies are equal), as 8-bit
+    /// JPEG (quality 95) with an `.lp` of the same lights: a big capture for fit time and
+    /// memory, made in seconds.
+    #[arg(long, requires = "capture_from")]
+    pub write_capture: Option<std::path::PathBuf>,
+    /// The capture --write-capture repeats (`.lp` or manifest).
+    #[arg(long)]
+    pub capture_from: Option<std::path::PathBuf>,
     /// Time loading each file and drawing its first frame (one directional light) and
     /// exit: EXR files into u8 planes, compressed files into their planes, or into a
     /// codebook and indices (repeatable).
@@ -298,6 +308,12 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
     }
     if !args.load.is_empty() {
         load_times(&args.load, args.json)?;
+        return Ok(None);
+    }
+    if let Some(dir) = &args.write_capture {
+        let from = args.capture_from.as_ref().expect("clap requires it");
+        let (width, height) = sizes[0];
+        write_big_capture(from, dir, width, height)?;
         return Ok(None);
     }
     if let Some(path) = &args.write_maps {
@@ -733,21 +749,83 @@ fn bench_basis(name: &str) -> anyhow::Result<Box<dyn Basis>> {
     Ok(choice.build(&dirs, Some(samples))?)
 }
 
+/// The source pixel of `(x, y)` when a `sw × sh` image is repeated over a larger one,
+/// every other copy mirrored across and down (neighbouring copies meet at equal
+/// pixels), and which copy it lies in.
+fn mirrored(x: usize, y: usize, sw: usize, sh: usize) -> (usize, (usize, usize)) {
+    let (cx, cy) = (x / sw, y / sh);
+    let (mut u, mut v) = (x % sw, y % sh);
+    if cx % 2 == 1 {
+        u = sw - 1 - u;
+    }
+    if cy % 2 == 1 {
+        v = sh - 1 - v;
+    }
+    (v * sw + u, (cx, cy))
+}
+
+/// `relit bench --write-capture`: `from`'s images repeated over `width × height` (see
+/// the flag), written to `dir` with an `.lp`.
+fn write_big_capture(
+    from: &std::path::Path,
+    dir: &std::path::Path,
+    width: usize,
+    height: usize,
+) -> anyhow::Result<()> {
+    use relit::capture::Capture;
+    let capture = Capture::open(from)?;
+    crate::shared::refuse_overwriting_inputs(
+        &capture.input_files(),
+        &[relit::fsutil::Output::folder(dir)],
+    )?;
+    std::fs::create_dir_all(dir)?;
+    let (sw, sh) = (capture.width, capture.height);
+    let start = std::time::Instant::now();
+    let names: Vec<String> = (0..capture.len())
+        .into_par_iter()
+        .map(|j| -> anyhow::Result<String> {
+            let source = capture.load_raw(j)?;
+            let mut big = ImageRgb::new(width, height);
+            big.data
+                .par_chunks_mut(3 * width)
+                .enumerate()
+                .for_each(|(y, row)| {
+                    for x in 0..width {
+                        let (p, (cx, cy)) = mirrored(x, y, sw, sh);
+                        // A gain per copy and image, ±3 %, from a small integer hash.
+                        let h = (cx as u64 * 73_856_093)
+                            ^ (cy as u64 * 19_349_663)
+                            ^ (j as u64 * 83_492_791);
+                        let gain = 1.0 + 0.03 * ((h % 2001) as f32 / 1000.0 - 1.0);
+                        for c in 0..3 {
+                            row[3 * x + c] = source.data[3 * p + c] * gain;
+                        }
+                    }
+                });
+            let name = format!("image{j:04}.jpg");
+            relit::image::save(&dir.join(&name), &big, 0.0)?;
+            Ok(name)
+        })
+        .collect::<anyhow::Result<_>>()?;
+    let mut lp = format!("{}\n", names.len());
+    for (name, d) in names.iter().zip(capture.directions()) {
+        lp += &format!("{name} {} {} {}\n", d.x, d.y, d.z);
+    }
+    std::fs::write(dir.join("dirs.lp"), lp)?;
+    println!(
+        "wrote {} ({} images of {width}×{height} from {sw}×{sh}, {:.1} s)",
+        dir.join("dirs.lp").display(),
+        names.len(),
+        start.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
 /// `source`'s maps and depth repeated over `width × height`, every other copy mirrored
 /// (across and down) so that neighbouring copies meet at equal pixels.
 fn tiled_image(source: &RelightableImage, width: usize, height: usize) -> RelightableImage {
     let (sw, sh) = (source.width(), source.height());
-    let at = |x: usize, y: usize| {
-        let (cx, cy) = (x / sw, y / sh);
-        let (mut u, mut v) = (x % sw, y % sh);
-        if cx % 2 == 1 {
-            u = sw - 1 - u;
-        }
-        if cy % 2 == 1 {
-            v = sh - 1 - v;
-        }
-        v * sw + u
-    };
+    let at = |x: usize, y: usize| mirrored(x, y, sw, sh).0;
     let n = width * height;
     let k = source.maps.k;
     let mut maps = CoefficientMaps::zeros(width, height, k);

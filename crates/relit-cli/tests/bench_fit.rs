@@ -3,6 +3,9 @@
 
 use std::process::Command;
 
+#[allow(dead_code)]
+mod common;
+
 #[test]
 fn bench_fit_times_relit_and_a_peer_as_processes() {
     let dir = tempfile::tempdir().unwrap();
@@ -63,4 +66,77 @@ fn bench_fit_times_relit_and_a_peer_as_processes() {
     assert!(json["peer"]["wall_seconds"].as_f64().unwrap() > 0.0);
     assert_eq!(json["peer"]["output_bytes"], 5);
     assert!(json["wall_ratio"].as_f64().is_some() && json["memory_ratio"].as_f64().is_some());
+}
+
+/// `relit bench --write-capture`: a capture repeated (mirrored, jittered) over a larger
+/// size, with an `.lp` of the same lights, that fits; the source folder is refused as
+/// the output.
+#[test]
+fn a_big_capture_is_written_from_a_small_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    common::capture_and_fit(d); // cap/: 24×16, 12 lights
+    let bin = env!("CARGO_BIN_EXE_relit");
+    let out = std::process::Command::new(bin)
+        .current_dir(d)
+        .args([
+            "bench",
+            "--write-capture",
+            "big",
+            "--capture-from",
+            "cap/dirs.lp",
+            "--size",
+            "60x40",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let big = relit::capture::Capture::open(&d.join("big/dirs.lp")).unwrap();
+    let small = relit::capture::Capture::open(&d.join("cap/dirs.lp")).unwrap();
+    assert_eq!((big.width, big.height, big.len()), (60, 40, small.len()));
+    for (a, b) in big.directions().iter().zip(small.directions()) {
+        assert!((*a - b).length() < 1e-5);
+    }
+    // The first copy is the source image within the jitter and JPEG's error; the second
+    // copy across is its mirror image.
+    let (s, b) = (small.load(3).unwrap(), big.load(3).unwrap());
+    let px =
+        |img: &relit::image::ImageRgb, x: usize, y: usize| img.data[3 * (y * img.width + x) + 1];
+    for (x, y) in [(2, 3), (20, 10)] {
+        let want = px(&s, x, y);
+        for got in [px(&b, x, y), px(&b, 47 - x, y)] {
+            assert!(
+                (got - want).abs() <= 0.05 * want + 0.02,
+                "({x},{y}): {got} vs {want}"
+            );
+        }
+    }
+    let fit = std::process::Command::new(bin)
+        .current_dir(d)
+        .args(["fit", "big/dirs.lp", "--basis", "sh:4", "-o", "big.exr"])
+        .output()
+        .unwrap();
+    assert!(
+        fit.status.success(),
+        "{}",
+        String::from_utf8_lossy(&fit.stderr)
+    );
+    let refused = std::process::Command::new(bin)
+        .current_dir(d)
+        .args([
+            "bench",
+            "--write-capture",
+            "cap",
+            "--capture-from",
+            "cap/dirs.lp",
+            "--size",
+            "60x40",
+        ])
+        .output()
+        .unwrap();
+    assert!(!refused.status.success());
 }
