@@ -1406,6 +1406,8 @@ mod tests {
             codebook: 16,
             write_maps: None,
             tile_from: None,
+            write_capture: None,
+            capture_from: None,
             load: vec![],
             fit: None,
             peer: None,
