@@ -105,21 +105,9 @@ impl Engine<'_> {
         match self {
             Engine::Cpu(r) => Ok(r.relight_roi(rig, options, roi)?),
             Engine::Gpu { gpu, cpu } => {
-                let (env, rest): (Vec<&Light>, Vec<&Light>) = rig
-                    .lights
-                    .iter()
-                    .partition(|l| matches!(l, Light::Environment(_)));
-                let rest = LightRig::new(rest.into_iter().cloned().collect());
-                let mut lighting =
-                    gpu.lighting_in(&rest, options.exposure, &options.resource_dir)?;
-                let scale = 2f64.powf(options.exposure);
-                for light in env {
-                    let Light::Environment(e) = light else {
-                        unreachable!()
-                    };
-                    let weights = cpu.environment_weights(e, &options.resource_dir)?;
-                    lighting.add_uniform(weights, [scale; 3])?;
-                }
+                let lighting = gpu_lighting(rig, options, cpu, |rest| {
+                    gpu.lighting_in(rest, options.exposure, &options.resource_dir)
+                })?;
                 let roi = relit_gpu::Roi {
                     x: roi.x,
                     y: roi.y,
@@ -130,6 +118,30 @@ impl Engine<'_> {
             }
         }
     }
+}
+
+/// A GPU frame's lighting: `lights` builds the rig's lights other than environments,
+/// whose weights the CPU engine `cpu` computes (with the frame's exposure).
+fn gpu_lighting(
+    rig: &LightRig,
+    options: &RelightOptions,
+    cpu: &Relighter,
+    lights: impl FnOnce(&LightRig) -> relit_gpu::Result<relit_gpu::Lighting>,
+) -> anyhow::Result<relit_gpu::Lighting> {
+    let (env, rest): (Vec<&Light>, Vec<&Light>) = rig
+        .lights
+        .iter()
+        .partition(|l| matches!(l, Light::Environment(_)));
+    let mut lighting = lights(&LightRig::new(rest.into_iter().cloned().collect()))?;
+    let scale = 2f64.powf(options.exposure);
+    for light in env {
+        let Light::Environment(e) = light else {
+            unreachable!()
+        };
+        let weights = cpu.environment_weights(e, &options.resource_dir)?;
+        lighting.add_uniform(weights, [scale; 3])?;
+    }
+    Ok(lighting)
 }
 
 fn max_abs_difference(a: &ImageRgb, b: &ImageRgb) -> (f32, f32) {
@@ -225,25 +237,10 @@ fn relight_codebook(
         indexed.indices.len()
     );
     let start = std::time::Instant::now();
-    let (env, rest): (Vec<&Light>, Vec<&Light>) = rig
-        .lights
-        .iter()
-        .partition(|l| matches!(l, Light::Environment(_)));
-    let mut lighting = gpu.lighting(
-        &LightRig::new(rest.into_iter().cloned().collect()),
-        options.exposure,
-    )?;
-    if !env.is_empty() {
-        let cpu = Relighter::new(&indexed.entries)?;
-        let scale = 2f64.powf(options.exposure);
-        for light in env {
-            let Light::Environment(e) = light else {
-                unreachable!()
-            };
-            let weights = cpu.environment_weights(e, &options.resource_dir)?;
-            lighting.add_uniform(weights, [scale; 3])?;
-        }
-    }
+    let cpu = Relighter::new(&indexed.entries)?;
+    let lighting = gpu_lighting(&rig, options, &cpu, |rest| {
+        gpu.lighting(rest, options.exposure)
+    })?;
     let roi = args
         .roi
         .as_deref()

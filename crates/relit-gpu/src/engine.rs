@@ -639,7 +639,15 @@ impl GpuRelighter {
             encoder.copy_buffer_to_buffer(&part.out, 0, &target.staging, part.offset, part.bytes);
         }
         self.queue.submit([encoder.finish()]);
-        let slice = target.staging.slice(..);
+        let image = self.read_back(&target.staging, roi)?;
+        self.check_errors()?;
+        Ok(image)
+    }
+
+    /// Wait for the submitted work and copy `staging` (the region's RGB `f32`, mapped
+    /// for reading) into an image.
+    fn read_back(&self, staging: &wgpu::Buffer, roi: Roi) -> Result<ImageRgb> {
+        let slice = staging.slice(..);
         let (tx, rx) = mpsc::channel();
         slice.map_async(wgpu::MapMode::Read, move |r| {
             let _ = tx.send(r);
@@ -655,8 +663,7 @@ impl GpuRelighter {
                 .map_err(|e| GpuError::Device(format!("readback: {e}")))?;
             bytemuck::cast_slice_mut::<f32, u8>(&mut image.data).copy_from_slice(&view);
         }
-        target.staging.unmap();
-        self.check_errors()?;
+        staging.unmap();
         Ok(image)
     }
 

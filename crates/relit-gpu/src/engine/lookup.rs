@@ -16,7 +16,7 @@ use crate::GpuOptions;
 use relit::engine::lookup::IndexedImage;
 use relit::image::ImageRgb;
 use relit::light::LightRig;
-use std::sync::{mpsc, Mutex};
+use std::sync::Mutex;
 use std::time::{Duration, Instant};
 use wgpu::util::DeviceExt;
 
@@ -171,23 +171,7 @@ impl GpuLookup {
         self.encode(&mut encoder, entries_target, target);
         encoder.copy_buffer_to_buffer(&target.out, 0, &target.staging, 0, target.bytes);
         e.queue.submit([encoder.finish()]);
-        let slice = target.staging.slice(..);
-        let (tx, rx) = mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        e.wait()?;
-        rx.recv()
-            .map_err(|_| GpuError::Device("the readback was dropped".into()))?
-            .map_err(|err| GpuError::Device(format!("readback: {err}")))?;
-        let mut image = ImageRgb::new(roi.width, roi.height);
-        {
-            let view = slice
-                .get_mapped_range()
-                .map_err(|err| GpuError::Device(format!("readback: {err}")))?;
-            bytemuck::cast_slice_mut::<f32, u8>(&mut image.data).copy_from_slice(&view);
-        }
-        target.staging.unmap();
+        let image = e.read_back(&target.staging, roi)?;
         drop(guard);
         self.restore(entries_slot);
         e.check_errors()?;
