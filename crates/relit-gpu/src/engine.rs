@@ -426,16 +426,7 @@ impl GpuRelighter {
         };
         // One explicit layout (bindings of relight.wgsl and fetch_*.wgsl) for both
         // pipelines, so that one bind group serves either.
-        let entry = |binding: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
+        let entry = buffer_entry;
         let read = wgpu::BufferBindingType::Storage { read_only: true };
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("relit relight"),
@@ -899,6 +890,20 @@ fn table_groups(table: &WeightTable) -> Vec<[u32; 2]> {
         );
     }
     out
+}
+
+/// A compute shader's buffer binding `binding` of type `ty`.
+fn buffer_entry(binding: u32, ty: wgpu::BufferBindingType) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
 }
 
 /// A buffer for `bytes` of projector slides.

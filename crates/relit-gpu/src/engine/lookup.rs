@@ -8,7 +8,7 @@
 //! instead of `3·K` stored values. Lights with a position differ per pixel and are
 //! refused; their frames come from the expanded maps.
 
-use super::{GpuRelighter, Target, OUT_BYTES, WORKGROUP};
+use super::{buffer_entry, GpuRelighter, Target, OUT_BYTES, WORKGROUP};
 use crate::error::{invalid, GpuError, Result};
 use crate::lighting::Lighting;
 use crate::roi::Roi;
@@ -79,16 +79,7 @@ impl GpuLookup {
             contents: bytemuck::cast_slice(&words),
             usage: wgpu::BufferUsages::STORAGE,
         });
-        let entry = |binding: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
+        let entry = buffer_entry;
         let read = wgpu::BufferBindingType::Storage { read_only: true };
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("relit lookup"),
