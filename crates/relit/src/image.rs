@@ -93,51 +93,128 @@ fn open_reader(path: &Path) -> Result<ImageReader<std::io::BufReader<std::fs::Fi
 /// `encoding` overrides how integer samples are interpreted; by default 8/16-bit
 /// samples are sRGB and float samples linear (see the [conventions](crate)).
 pub fn load_linear(path: &Path, encoding: Option<Encoding>) -> Result<ImageRgb> {
-    let decoded = open_reader(path)?
-        .decode()
-        .map_err(|e| Error::image(path, e))?;
+    let decoded = decode(path)?;
     let (width, height) = (decoded.width() as usize, decoded.height() as usize);
+    let data = linear_samples(&decoded, path, encoding, 0..3 * width * height);
+    Ok(ImageRgb {
+        width,
+        height,
+        data,
+    })
+}
+
+/// Parts of an image in linear RGB, as [`load_linear`] would give them: the rows
+/// `rows` (`3·width` values a row) and the pixels `pixels` (3 values each), and the
+/// image's size. Only those samples are converted to `f32`: the decoded image stays in
+/// its own type (3 bytes a pixel for 8-bit files instead of 12), so a fit reading a band
+/// of a big image holds the band, not the whole image, in floats.
+pub fn load_linear_parts(
+    path: &Path,
+    encoding: Option<Encoding>,
+    rows: std::ops::Range<usize>,
+    pixels: &[usize],
+) -> Result<(usize, usize, Vec<f32>, Vec<f32>)> {
+    let decoded = decode(path)?;
+    let (width, height) = (decoded.width() as usize, decoded.height() as usize);
+    if rows.end > height || pixels.iter().any(|&p| p >= width * height) {
+        return Err(Error::new(
+            ErrorKind::InvalidInput,
+            format!(
+                "{}: {width}×{height} has no rows {rows:?} or pixels that far",
+                path.display()
+            ),
+        ));
+    }
+    let band = linear_samples(
+        &decoded,
+        path,
+        encoding,
+        3 * width * rows.start..3 * width * rows.end,
+    );
+    let picked = linear_samples(
+        &decoded,
+        path,
+        encoding,
+        pixels.iter().flat_map(|&p| 3 * p..3 * p + 3),
+    );
+    Ok((width, height, band, picked))
+}
+
+fn decode(path: &Path) -> Result<DynamicImage> {
+    open_reader(path)?
+        .decode()
+        .map_err(|e| Error::image(path, e))
+}
+
+/// The samples `indices` (`3·pixel + channel`) of a decoded image in linear RGB: 8- and
+/// 16-bit files are sRGB-encoded unless `encoding` says linear; float files are linear
+/// unless the caller insists they are sRGB.
+fn linear_samples(
+    decoded: &DynamicImage,
+    path: &Path,
+    encoding: Option<Encoding>,
+    indices: impl Iterator<Item = usize>,
+) -> Vec<f32> {
     let srgb = encoding.unwrap_or(Encoding::Srgb) == Encoding::Srgb;
-    let data: Vec<f32> = match &decoded {
+    match decoded {
         DynamicImage::ImageLuma8(_)
         | DynamicImage::ImageLumaA8(_)
         | DynamicImage::ImageRgb8(_)
         | DynamicImage::ImageRgba8(_) => {
             let table = color::srgb8_table();
-            let rgb = decoded.to_rgb8();
+            let owned;
+            let rgb = match decoded.as_rgb8() {
+                Some(rgb) => rgb,
+                None => {
+                    owned = decoded.to_rgb8();
+                    &owned
+                }
+            };
+            let raw = rgb.as_raw();
             if srgb {
-                rgb.as_raw().iter().map(|&v| table[v as usize]).collect()
+                indices.map(|i| table[raw[i] as usize]).collect()
             } else {
-                rgb.as_raw().iter().map(|&v| v as f32 / 255.0).collect()
+                indices.map(|i| raw[i] as f32 / 255.0).collect()
             }
         }
         DynamicImage::ImageLuma16(_)
         | DynamicImage::ImageLumaA16(_)
         | DynamicImage::ImageRgb16(_)
         | DynamicImage::ImageRgba16(_) => {
-            let rgb = decoded.to_rgb16();
+            let owned;
+            let rgb = match decoded.as_rgb16() {
+                Some(rgb) => rgb,
+                None => {
+                    owned = decoded.to_rgb16();
+                    &owned
+                }
+            };
+            let raw = rgb.as_raw();
             if srgb {
                 let table = color::srgb16_table();
-                rgb.as_raw().iter().map(|&v| table[v as usize]).collect()
+                indices.map(|i| table[raw[i] as usize]).collect()
             } else {
-                rgb.as_raw().iter().map(|&v| v as f32 / 65535.0).collect()
+                indices.map(|i| raw[i] as f32 / 65535.0).collect()
             }
         }
         _ => {
             // Float formats: linear unless the caller insists they are sRGB-encoded.
-            let rgb = decoded.to_rgb32f().into_raw();
+            let owned;
+            let rgb = match decoded.as_rgb32f() {
+                Some(rgb) => rgb,
+                None => {
+                    owned = decoded.to_rgb32f();
+                    &owned
+                }
+            };
+            let raw = rgb.as_raw();
             if encoding == Some(Encoding::Srgb) && !is_float_format(path) {
-                rgb.into_iter().map(color::srgb_to_linear).collect()
+                indices.map(|i| color::srgb_to_linear(raw[i])).collect()
             } else {
-                rgb
+                indices.map(|i| raw[i]).collect()
             }
         }
-    };
-    Ok(ImageRgb {
-        width,
-        height,
-        data,
-    })
+    }
 }
 
 /// Decode a single-channel image (depth, mask) as float values without any transfer

@@ -230,6 +230,57 @@ impl Capture {
         Ok(img)
     }
 
+    /// Parts of image `index` as [`Capture::load`] gives them: rows `rows` and the
+    /// pixels `pixels` (see [`image::load_linear_parts`]: a file's samples outside them
+    /// are never converted to floats).
+    pub fn load_parts(
+        &self,
+        index: usize,
+        rows: std::ops::Range<usize>,
+        pixels: &[usize],
+    ) -> Result<(Vec<f32>, Vec<f32>)> {
+        let light = &self.lights[index];
+        let (mut band, mut picked) = match &light.image {
+            ImageSource::File { path, encoding } => {
+                let (w, h, band, picked) =
+                    image::load_linear_parts(path, *encoding, rows.clone(), pixels)?;
+                if (w, h) != (self.width, self.height) {
+                    return Err(Error::new(
+                        ErrorKind::InvalidInput,
+                        format!(
+                            "{} is {w}×{h} but the capture is {}×{}",
+                            self.image_name(index),
+                            self.width,
+                            self.height
+                        ),
+                    ));
+                }
+                (band, picked)
+            }
+            ImageSource::Memory(_) | ImageSource::Generated(_) => {
+                let img = self.load_raw(index)?;
+                let w = self.width;
+                let band = img.data[3 * w * rows.start..3 * w * rows.end].to_vec();
+                let picked = pixels
+                    .iter()
+                    .flat_map(|&p| img.data[3 * p..3 * p + 3].iter().copied())
+                    .collect();
+                (band, picked)
+            }
+        };
+        if light.intensity != [1.0; 3] {
+            let inv = light.intensity.map(|v| 1.0 / v);
+            for part in [&mut band, &mut picked] {
+                for px in part.chunks_exact_mut(3) {
+                    px[0] *= inv[0];
+                    px[1] *= inv[1];
+                    px[2] *= inv[2];
+                }
+            }
+        }
+        Ok((band, picked))
+    }
+
     /// Image `index` in linear RGB as recorded (intensity not divided out).
     pub fn load_raw(&self, index: usize) -> Result<ImageRgb> {
         let img = match &self.lights[index].image {

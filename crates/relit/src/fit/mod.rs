@@ -59,7 +59,6 @@ pub use select::{candidates, CandidateScore, Criterion, VALIDATION_LADDER};
 use crate::basis::{Basis, BasisChoice, BasisSpec, Samples};
 use crate::capture::Capture;
 use crate::color;
-use crate::image::ImageRgb;
 use crate::linalg;
 use crate::maps::{CoefficientMaps, FitInfo, MapSpace, Metadata, RelightableImage, ShardInfo};
 use crate::metrics;
@@ -486,12 +485,10 @@ fn read_subsample(
     let rows: Vec<Vec<f32>> = (0..n)
         .into_par_iter()
         .map(|j| {
-            let img = to_target(capture.load(j)?, space);
+            let (_, mut picked) = capture.load_parts(j, 0..0, sub_idx)?;
+            to_target_values(&mut picked, space);
             progress.advance(1);
-            Ok(sub_idx
-                .iter()
-                .flat_map(|&p| img.data[3 * p..3 * p + 3].iter().copied())
-                .collect())
+            Ok(picked)
         })
         .collect::<Result<_>>()?;
     progress.end();
@@ -676,13 +673,12 @@ fn subsample_indices(pixels: usize, count: usize) -> Vec<usize> {
 
 /// The values the fit targets, from a linear image: unchanged for linear maps,
 /// sRGB-encoded for display-referred maps.
-fn to_target(mut img: ImageRgb, space: MapSpace) -> ImageRgb {
+fn to_target_values(values: &mut [f32], space: MapSpace) {
     if space == MapSpace::Srgb {
-        img.data
+        values
             .iter_mut()
             .for_each(|v| *v = color::linear_to_srgb(*v));
     }
-    img
 }
 
 /// Fit `capture` with `options`.
@@ -791,17 +787,10 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
         let images: Vec<(Vec<f32>, Vec<f32>)> = indices
             .par_iter()
             .map(|&j| {
-                let mut img = to_target(capture.load(j)?, options.color_space).data;
-                let samples: Vec<f32> = if have_sub {
-                    Vec::new()
-                } else {
-                    sub_idx
-                        .iter()
-                        .flat_map(|&p| img[3 * p..3 * p + 3].iter().copied())
-                        .collect()
-                };
-                img.truncate(3 * band.end);
-                img.drain(..3 * band.start);
+                let wanted: &[usize] = if have_sub { &[] } else { &sub_idx };
+                let (mut img, mut samples) = capture.load_parts(j, rows.clone(), wanted)?;
+                to_target_values(&mut img, options.color_space);
+                to_target_values(&mut samples, options.color_space);
                 if let Some(spill) = &spill {
                     spill.write_image(j, &img)?;
                 }

@@ -1,4 +1,5 @@
 use super::*;
+use crate::image::ImageRgb;
 use crate::basis::BasisSpec;
 use crate::camera::Projection;
 use crate::progress::Silent;
