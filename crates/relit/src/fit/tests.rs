@@ -1,7 +1,7 @@
 use super::*;
-use crate::image::ImageRgb;
 use crate::basis::BasisSpec;
 use crate::camera::Projection;
+use crate::image::ImageRgb;
 use crate::progress::Silent;
 use crate::sphere::{fibonacci, grid, hemisphere_fibonacci, Vec3};
 
