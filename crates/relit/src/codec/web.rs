@@ -1425,8 +1425,9 @@ fn bilinear_nodes(basis: &dyn crate::basis::Basis, r: usize) -> Result<NodeTable
 /// horizon, below a dome's lowest lights, would otherwise cost it where the lights are.
 /// Chosen on RealRTI items 1, 2 and 6 (relit's auto fits written at 48 nodes, 18 planes,
 /// read back and compared with the photos at the five peer-protocol lights; pulls 0.01
-/// to 1, weights 1, z, z², z³, z⁴): mean 37.5 dB, against 38.5 for `bilinear` 12×12 and
-/// 35.9 for values taken at the nodes (a large pull).
+/// to 1, weights 1, z, z², z³, z⁴): mean 37.5 dB, against 38.5 for `bilinear` 12×12.
+/// A pull of 100 (values all but taken at the nodes) was tried on item1 only, with
+/// mixed results across its lights; it was not measured on the three items.
 const RBF_PULL: f64 = 0.3;
 
 /// Directions the `rbf` node values are fitted over, per node.
