@@ -241,31 +241,21 @@ fn relight_codebook(
     let lighting = gpu_lighting(&rig, options, &cpu, |rest| {
         gpu.lighting(rest, options.exposure)
     })?;
-    let roi = args
-        .roi
-        .as_deref()
-        .map(Roi::parse)
-        .transpose()?
-        .map(|r| relit_gpu::Roi {
+    let roi = args.roi.as_deref().map(Roi::parse).transpose()?;
+    let frame = gpu.render(
+        &lighting,
+        roi.map(|r| relit_gpu::Roi {
             x: r.x,
             y: r.y,
             width: r.width,
             height: r.height,
-        });
-    let frame = gpu.render(&lighting, roi)?;
+        }),
+    )?;
     let seconds = start.elapsed().as_secs_f64();
     if args.compare {
         let cpu = LookupRelighter::new(&indexed)?.relight(&rig, options)?;
         let cpu = match roi {
-            Some(r) => {
-                let mut crop = ImageRgb::new(r.width, r.height);
-                for y in 0..r.height {
-                    let from = 3 * ((r.y + y) * cpu.width + r.x);
-                    crop.data[3 * y * r.width..3 * (y + 1) * r.width]
-                        .copy_from_slice(&cpu.data[from..from + 3 * r.width]);
-                }
-                crop
-            }
+            Some(r) => r.crop(&cpu),
             None => cpu,
         };
         let (diff, peak) = max_abs_difference(&frame, &cpu);
@@ -293,9 +283,8 @@ fn single_frame(rig_file: Option<&RigFile>, extra: &[Light]) -> Option<LightRig>
 /// Whether `--roi` on this file and these lights reads only the region's tiles: a
 /// compressed file of planes, under lights that are the same at every pixel (lights
 /// with a position need the whole image's camera and depth), one frame.
-fn reads_region(args: &Args, rig_file: Option<&RigFile>, extra: &[Light]) -> anyhow::Result<bool> {
-    Ok(single_frame(rig_file, extra)
-        .is_some_and(|rig| !rig.lights.is_empty() && LookupRelighter::draws(&rig))
+fn reads_region(args: &Args, uniform: bool) -> anyhow::Result<bool> {
+    Ok(uniform
         && args.file_space.is_none()
         && relit::codec::FileForm::of(&args.file)? == relit::codec::FileForm::Compressed)
 }
@@ -376,6 +365,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         relit::codec::FileForm::Exr => relit::codec::exr::tiled_levels(&args.file)?,
         _ => None,
     };
+    // One frame of lights that are the same at every pixel: what region reads serve.
     let uniform = single_frame(rig_file.as_ref(), &extra)
         .is_some_and(|rig| !rig.lights.is_empty() && LookupRelighter::draws(&rig));
     if args.level.is_some() {
@@ -400,7 +390,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let read = relit::codec::exr::read_region(&args.file, level, rect).context("--roi")?;
             (Some(read.image), Some((read.bytes_read, read.file_bytes)))
         }
-        (Some(roi), _) if reads_region(&args, rig_file.as_ref(), &extra)? => {
+        (Some(roi), _) if reads_region(&args, uniform)? => {
             let (image, read, total) = relit::codec::packed::read_region(
                 &args.file,
                 (roi.x, roi.y, roi.width, roi.height),

@@ -262,7 +262,12 @@ pub fn tiled_levels(path: &Path) -> Result<Option<Vec<(usize, usize)>>> {
         .headers
         .first()
         .ok_or_else(|| Error::parse(format!("{}: the EXR file has no layer", path.display())))?;
-    Ok(match header.blocks {
+    Ok(header_levels(header))
+}
+
+/// The level sizes of a header of tiles with mip levels rounding down, else `None`.
+fn header_levels(header: &exr::meta::header::Header) -> Option<Vec<(usize, usize)>> {
+    match header.blocks {
         exr::meta::BlockDescription::Tiles(TileDescription {
             level_mode: LevelMode::MipMap,
             rounding_mode: RoundingMode::Down,
@@ -272,7 +277,7 @@ pub fn tiled_levels(path: &Path) -> Result<Option<Vec<(usize, usize)>>> {
             header.layer_size.height(),
         )),
         _ => None,
-    })
+    }
 }
 
 /// A region of one mip level of a tiled file ([`read_region`]) and what reading it took.
@@ -308,15 +313,26 @@ impl<R: std::io::Seek> std::io::Seek for Counted<R> {
 }
 
 /// Read `rect` (`x, y, width, height` in the level's pixels) of mip level `level` of a
-/// tiled relit file ([`write_tiled`]): only the header, the offset tables and the tiles
-/// the region touches are read and decompressed.
+/// tiled relit file ([`write_tiled`]): only the header (once), the offset tables and the
+/// tiles the region touches are read and decompressed.
 pub fn read_region(
     path: &Path,
     level: usize,
     rect: (usize, usize, usize, usize),
 ) -> Result<RegionRead> {
     use exr::block::reader::ChunksReader;
-    let sizes = tiled_levels(path)?.ok_or_else(|| {
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, "read", e))?;
+    let file_bytes = file.metadata().map(|m| m.len()).unwrap_or(0);
+    let mut counted = std::io::BufReader::new(Counted {
+        inner: file,
+        read: 0,
+    });
+    let reader = exr::block::read(&mut counted, false).map_err(|e| exr_error(path, "read", e))?;
+    let header =
+        reader.headers().first().cloned().ok_or_else(|| {
+            Error::parse(format!("{}: the EXR file has no layer", path.display()))
+        })?;
+    let sizes = header_levels(&header).ok_or_else(|| {
         Error::invalid(format!(
             "{} is not a tiled file with mip levels (write one with `relit convert --mip-tiles`)",
             path.display()
@@ -335,17 +351,6 @@ pub fn read_region(
             "the region {rw}×{rh} at ({rx}, {ry}) is not inside level {level} ({lw}×{lh})"
         )));
     }
-    let file = std::fs::File::open(path).map_err(|e| Error::io(path, "read", e))?;
-    let file_bytes = file.metadata().map(|m| m.len()).unwrap_or(0);
-    let mut counted = std::io::BufReader::new(Counted {
-        inner: file,
-        read: 0,
-    });
-    let reader = exr::block::read(&mut counted, false).map_err(|e| exr_error(path, "read", e))?;
-    let header =
-        reader.headers().first().cloned().ok_or_else(|| {
-            Error::parse(format!("{}: the EXR file has no layer", path.display()))
-        })?;
     let (meta, k) = parse_header(path, &header)?;
     let values = rw.checked_mul(rh).and_then(|n| n.checked_mul(3 * k));
     let mut maps = CoefficientMaps {

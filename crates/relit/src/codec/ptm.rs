@@ -153,6 +153,16 @@ impl PtmFormat {
         }
     }
 
+    /// Where plane `i` (a JPEG variant's stream order) lies in the raw layout of `n`
+    /// pixels: its first byte, the bytes between a pixel's and the next's, and its slot.
+    fn plane_place(self, i: usize, n: usize) -> (usize, usize, usize) {
+        if i < K || !self.lrgb() {
+            ((i / K) * n * K, K, i % K)
+        } else {
+            (n * K, 3, i - K)
+        }
+    }
+
     /// Bytes per pixel of the raw layout: all planes, one byte each.
     fn planes(self) -> usize {
         if self.lrgb() {
@@ -309,7 +319,8 @@ fn jpeg_planes(
     let first = 4 + 2 * K;
     let (fields, offset) = text_header(path, bytes, first + 1 + 7 * planes, false)?;
     let bad = |what: String| Error::parse(format!("{}: {what}", path.display()));
-    let quality: i64 = field(path, "compression parameter", &fields[first])?;
+    // The JPEG quality the file was written at: checked to be a number, not needed to decode.
+    field::<i64>(path, "compression parameter", &fields[first])?;
     let row = |name: &str, r: usize| -> Result<Vec<i64>> {
         (0..planes)
             .map(|i| {
@@ -331,7 +342,6 @@ fn jpeg_planes(
             "an image of {width}×{height} pixels (JPEG planes are 1 to 65535 a side)"
         )));
     }
-    let _ = quality;
     if let Some(i) = (0..planes).find(|&i| transforms[i] & !1 != 0) {
         return Err(bad(format!(
             "plane {i}'s transform {} asks for motion-compensated prediction, which relit \
@@ -429,11 +439,7 @@ fn jpeg_planes(
     // The raw layout: coefficient blocks pixel by pixel (and LRGB's colours).
     let mut raw = vec![0u8; n * planes];
     for (i, plane) in decoded.iter().enumerate() {
-        let (base, stride, slot) = if i < K || !format.lrgb() {
-            ((i / K) * n * K, K, i % K)
-        } else {
-            (n * K, 3, i - K)
-        };
+        let (base, stride, slot) = format.plane_place(i, n);
         for (q, &v) in plane.iter().enumerate() {
             raw[base + q * stride + slot] = v;
         }
@@ -533,11 +539,7 @@ pub fn encode(image: &RelightableImage, format: PtmFormat) -> Result<Vec<u8>> {
     let planes = format.planes();
     let streams: Vec<Vec<u8>> = (0..planes)
         .map(|i| {
-            let (base, stride, slot) = if i < K || !format.lrgb() {
-                ((i / K) * n * K, K, i % K)
-            } else {
-                (n * K, 3, i - K)
-            };
+            let (base, stride, slot) = format.plane_place(i, n);
             let gray: Vec<u8> = (0..n).map(|q| body[base + q * stride + slot]).collect();
             let mut out = Vec::new();
             let mut encoder = jpeg_encoder::Encoder::new(&mut out, quality);
