@@ -93,6 +93,10 @@ pub struct CandidateScore {
     /// Mean held-out prediction over mean observation, linear radiance (1: unbiased);
     /// candidates beyond a factor `MAX_MEAN_BIAS` lose to every unbiased one.
     pub mean_bias: f64,
+    /// Pixels of the subsample the score was measured on: the finalists' full
+    /// validation, or the screening that set the other candidates aside.
+    #[serde(default)]
+    pub pixels: usize,
 }
 
 impl CandidateScore {
@@ -151,6 +155,19 @@ pub(super) struct Subsample<'a> {
     pub n: usize,
 }
 
+impl Subsample<'_> {
+    /// The values of `keep` of the pixels, evenly spread over the subsample.
+    pub fn thinned(&self, keep: usize) -> Vec<f32> {
+        let (n, count) = (self.n, self.count);
+        (0..keep.min(count))
+            .flat_map(|i| {
+                let p = i * count / keep.min(count);
+                self.values[p * n * 3..(p + 1) * n * 3].iter().copied()
+            })
+            .collect()
+    }
+}
+
 /// Validate `choice` under `objective` (linear or perceptual) on `sub`, lit from `dirs`
 /// with quadrature weights `q`; returns the best λ of [`VALIDATION_LADDER`] by
 /// `criterion` and its error.
@@ -172,12 +189,7 @@ pub(super) fn validate(
     let thinned: Vec<f32>;
     let thin;
     let sub = if keep < sub.count {
-        thinned = (0..keep)
-            .flat_map(|i| {
-                let p = i * sub.count / keep;
-                sub.values[p * n * 3..(p + 1) * n * 3].iter().copied()
-            })
-            .collect();
+        thinned = sub.thinned(keep);
         thin = Subsample {
             values: &thinned,
             count: keep,
@@ -267,6 +279,7 @@ pub(super) fn validate(
         criterion,
         psnr,
         mean_bias: bias,
+        pixels: sub.count,
     })
 }
 
