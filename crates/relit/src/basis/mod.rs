@@ -100,7 +100,7 @@ pub trait Basis: Send + Sync + std::fmt::Debug {
     /// of `Σ c_i b_i` (a constant function costs nothing). The default measures it
     /// numerically ([`roughness_penalty`]); bases with a closed form override it.
     fn penalty(&self) -> Vec<f64> {
-        roughness_penalty(self, 2048)
+        roughness_penalty(self, PENALTY_POINTS)
     }
 
     /// The number of bands `n` when the basis is exactly the functions of the sphere up
@@ -136,15 +136,23 @@ pub trait Basis: Send + Sync + std::fmt::Debug {
     fn as_any(&self) -> &dyn std::any::Any;
 }
 
+/// Points a measured roughness penalty averages over.
+pub const PENALTY_POINTS: usize = 2048;
+
+/// `points` Fibonacci points spread over `domain`: where a roughness penalty is measured.
+pub fn penalty_points(domain: Domain, points: usize) -> Vec<Vec3> {
+    match domain {
+        Domain::Sphere => crate::sphere::fibonacci(points),
+        Domain::UpperHemisphere => crate::sphere::hemisphere_fibonacci(points),
+    }
+}
+
 /// The mean over `basis`' domain of `∇b_i · ∇b_j`, by central differences along two
 /// tangent directions at `points` Fibonacci points (step 1e-4 rad: far below any
 /// basis' detail, far above rounding).
 pub fn roughness_penalty<B: Basis + ?Sized>(basis: &B, points: usize) -> Vec<f64> {
     let k = basis.len();
-    let dirs = match basis.domain() {
-        Domain::Sphere => crate::sphere::fibonacci(points),
-        Domain::UpperHemisphere => crate::sphere::hemisphere_fibonacci(points),
-    };
+    let dirs = penalty_points(basis.domain(), points);
     const H: f64 = 1e-4;
     let mut p = vec![0.0; k * k];
     let (mut plus, mut minus, mut grad) = (vec![0.0; k], vec![0.0; k], vec![0.0; k]);
