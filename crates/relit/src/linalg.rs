@@ -55,6 +55,88 @@ pub fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
     backward_solve(l, n, b);
 }
 
+/// Systems solved together by [`cholesky_lanes`] and [`cholesky_solve_lanes`].
+pub const LANES: usize = 4;
+
+/// One value per lane.
+pub type Lanes = [f64; LANES];
+
+/// [`cholesky`] of [`LANES`] matrices at once, interleaved: entry `(r, c)` of matrix `l`
+/// at `a[r·n + c][l]`. Each lane runs exactly the scalar routine's operations in the
+/// same order, so its factor is the scalar factor bit for bit; the lanes are
+/// independent chains that the processor overlaps (the scalar routine waits on each
+/// subtraction in turn). A lane whose matrix is not positive definite gets `false`
+/// and a meaningless factor; the other lanes are unaffected.
+pub fn cholesky_lanes(a: &mut [Lanes], n: usize) -> [bool; LANES] {
+    let mut ok = [true; LANES];
+    for j in 0..n {
+        let mut d = a[j * n + j];
+        for k in 0..j {
+            let x = a[j * n + k];
+            for l in 0..LANES {
+                d[l] -= x[l] * x[l];
+            }
+        }
+        let mut inv = [0.0; LANES];
+        for l in 0..LANES {
+            if d[l] <= 0.0 || !d[l].is_finite() {
+                ok[l] = false;
+                d[l] = 1.0;
+            }
+            d[l] = d[l].sqrt();
+            inv[l] = 1.0 / d[l];
+        }
+        a[j * n + j] = d;
+        for i in (j + 1)..n {
+            let mut s = a[i * n + j];
+            for k in 0..j {
+                let (x, y) = (a[i * n + k], a[j * n + k]);
+                for l in 0..LANES {
+                    s[l] -= x[l] * y[l];
+                }
+            }
+            for l in 0..LANES {
+                s[l] *= inv[l];
+            }
+            a[i * n + j] = s;
+        }
+    }
+    ok
+}
+
+/// [`cholesky_solve`] for the [`LANES`] interleaved factors of [`cholesky_lanes`] and
+/// right-hand sides `b[i][l]`, in place; bit for bit the scalar solves.
+pub fn cholesky_solve_lanes(f: &[Lanes], n: usize, b: &mut [Lanes]) {
+    for i in 0..n {
+        let mut s = b[i];
+        for k in 0..i {
+            let (x, y) = (f[i * n + k], b[k]);
+            for l in 0..LANES {
+                s[l] -= x[l] * y[l];
+            }
+        }
+        let d = f[i * n + i];
+        for l in 0..LANES {
+            s[l] /= d[l];
+        }
+        b[i] = s;
+    }
+    for i in (0..n).rev() {
+        let mut s = b[i];
+        for k in (i + 1)..n {
+            let (x, y) = (f[k * n + i], b[k]);
+            for l in 0..LANES {
+                s[l] -= x[l] * y[l];
+            }
+        }
+        let d = f[i * n + i];
+        for l in 0..LANES {
+            s[l] /= d[l];
+        }
+        b[i] = s;
+    }
+}
+
 /// `c = a · b` in single precision, for row-major `a` (m×k), `b` (k×n), `c` (m×n).
 pub fn matmul_f32(m: usize, k: usize, n: usize, a: &[f32], b: &[f32], c: &mut [f32]) {
     assert!(a.len() >= m * k && b.len() >= k * n && c.len() >= m * n);
@@ -561,6 +643,55 @@ mod tests {
             for r in 0..3 {
                 let av: f64 = (0..3).map(|c| a[r * 3 + c] * v[c]).sum();
                 assert!((av - values[i] * v[r]).abs() < 1e-10);
+            }
+        }
+    }
+
+    #[test]
+    fn lanes_factor_and_solve_as_the_scalar_routines_do() {
+        // Four different SPD systems and one that is not: each lane equals the scalar
+        // result bit for bit, and the failing lane does not disturb the others.
+        let n = 7;
+        let mut mats = Vec::new();
+        for lane in 0..LANES {
+            let m: Vec<f64> = (0..n * n)
+                .map(|i| (((i + 3 * lane) * 7 % 13) as f64 - 6.0) / (3.0 + lane as f64))
+                .collect();
+            let mut a = vec![0.0; n * n];
+            matmul_bt(n, n, n, &m, &m, &mut a);
+            (0..n).for_each(|i| a[i * n + i] += 0.1);
+            if lane == 2 {
+                a[3 * n + 3] = -1.0;
+            }
+            mats.push(a);
+        }
+        let mut packed = vec![[0.0; LANES]; n * n];
+        let mut rhs = vec![[0.0; LANES]; n];
+        for (l, a) in mats.iter().enumerate() {
+            for (x, v) in a.iter().enumerate() {
+                packed[x][l] = *v;
+            }
+            for (i, r) in rhs.iter_mut().enumerate() {
+                r[l] = i as f64 - 2.5 + l as f64;
+            }
+        }
+        let ok = cholesky_lanes(&mut packed, n);
+        cholesky_solve_lanes(&packed, n, &mut rhs);
+        for (l, a) in mats.iter().enumerate() {
+            let mut f = a.clone();
+            let scalar_ok = cholesky(&mut f, n);
+            assert_eq!(ok[l], scalar_ok, "lane {l}");
+            assert_eq!(scalar_ok, l != 2);
+            if !scalar_ok {
+                continue;
+            }
+            let mut b: Vec<f64> = (0..n).map(|i| i as f64 - 2.5 + l as f64).collect();
+            cholesky_solve(&f, n, &mut b);
+            for x in 0..n * n {
+                assert_eq!(packed[x][l].to_bits(), f[x].to_bits(), "lane {l} factor");
+            }
+            for i in 0..n {
+                assert_eq!(rhs[i][l].to_bits(), b[i].to_bits(), "lane {l} solution");
             }
         }
     }

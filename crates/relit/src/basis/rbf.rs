@@ -446,7 +446,10 @@ mod tests {
             let scale = measured.iter().map(|v| v.abs()).fold(0.0, f64::max);
             assert!(scale > 0.0);
             for (a, b) in closed.iter().zip(&measured) {
-                assert!((a - b).abs() < 1e-5 * scale, "{a} against {b} (scale {scale})");
+                assert!(
+                    (a - b).abs() < 1e-5 * scale,
+                    "{a} against {b} (scale {scale})"
+                );
             }
         }
     }

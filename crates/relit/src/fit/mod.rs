@@ -59,7 +59,7 @@ pub use select::{candidates, CandidateScore, Criterion, VALIDATION_LADDER};
 use crate::basis::{Basis, BasisChoice, BasisSpec, Samples};
 use crate::capture::Capture;
 use crate::color;
-use crate::linalg;
+use crate::linalg::{self, LANES};
 use crate::maps::{CoefficientMaps, FitInfo, MapSpace, Metadata, RelightableImage, ShardInfo};
 use crate::metrics;
 use crate::progress::Progress;
@@ -409,6 +409,11 @@ pub struct FitOutput {
     pub report: FitReport,
 }
 
+/// The multiple of the data weight added to the diagonal of every normal matrix, so
+/// that it stays definite when the data leave a coefficient undetermined: far below
+/// any λ.
+pub(super) const DEFINITENESS: f64 = 1e-10;
+
 /// The sample weights' design: basis values and quadrature weights per image.
 struct Design {
     basis: Box<dyn Basis>,
@@ -456,12 +461,21 @@ impl Design {
     /// Add `λ·W·P` (and a tiny multiple of `W·I` so that the system stays definite when
     /// the data leave a coefficient undetermined) to `m`.
     fn regularize(&self, m: &mut [f64], lambda: f64, total_weight: f64) {
-        const DEFINITENESS: f64 = 1e-10; // relative to the data weight, far below any λ
         for (v, &p) in m.iter_mut().zip(&self.penalty) {
             *v += total_weight * lambda * p;
         }
         for i in 0..self.k {
             m[i * self.k + i] += total_weight * DEFINITENESS;
+        }
+    }
+
+    /// [`Design::regularize`] for lane `lane` of interleaved matrices.
+    fn regularize_lane(&self, m: &mut [linalg::Lanes], lane: usize, lambda: f64, total: f64) {
+        for (v, &p) in m.iter_mut().zip(&self.penalty) {
+            v[lane] += total * lambda * p;
+        }
+        for i in 0..self.k {
+            m[i * self.k + i][lane] += total * DEFINITENESS;
         }
     }
 }
@@ -1140,6 +1154,8 @@ struct Scratch {
     coef: Vec<f64>,
     pred: Vec<f64>,
     m: Vec<f64>,
+    lane_m: Vec<linalg::Lanes>,
+    lane_coef: Vec<linalg::Lanes>,
 }
 
 /// Indices of the packed upper triangle of a k×k symmetric matrix, row by row.
@@ -1188,6 +1204,8 @@ fn solve_per_pixel(
                     coef: vec![0.0; CHUNK * k],
                     pred: vec![0.0; CHUNK * n],
                     m: vec![0.0; k * k],
+                    lane_m: vec![[0.0; LANES]; k * k],
+                    lane_coef: vec![[0.0; LANES]; k],
                 },
                 |scratch, chunk| {
                     let a = chunk * CHUNK;
@@ -1242,21 +1260,56 @@ fn solve_chunk(
         }
         linalg::matmul_f32(len, n, t, &s.weights, outer, &mut s.packed);
         linalg::matmul_f32(len, n, k, &s.weighted_obs, a32, &mut s.rhs);
-        for p in 0..len {
-            let total: f64 = s.weights[p * n..(p + 1) * n]
-                .iter()
-                .map(|&w| w as f64)
-                .sum();
-            for (x, &(r, c)) in pairs.iter().enumerate() {
-                let v = s.packed[p * t + x] as f64;
-                s.m[r * k + c] = v;
-                s.m[c * k + r] = v;
+        // Pixels a lane group at a time (`linalg::cholesky_lanes`: each lane is the
+        // scalar solve bit for bit); a lane whose system is singular is solved again
+        // alone, with the larger λ of `solve_regularized`.
+        for g in (0..len).step_by(LANES) {
+            let used = LANES.min(len - g);
+            let mut total = [1.0; LANES];
+            for l in 0..LANES {
+                if l >= used {
+                    s.lane_m.iter_mut().for_each(|v| v[l] = 0.0);
+                    (0..k).for_each(|i| s.lane_m[i * k + i][l] = 1.0);
+                    s.lane_coef.iter_mut().for_each(|v| v[l] = 0.0);
+                    continue;
+                }
+                let p = g + l;
+                let sum: f64 = s.weights[p * n..(p + 1) * n]
+                    .iter()
+                    .map(|&w| w as f64)
+                    .sum();
+                total[l] = sum.max(1e-30);
+                for (x, &(r, c)) in pairs.iter().enumerate() {
+                    let v = s.packed[p * t + x] as f64;
+                    s.lane_m[r * k + c][l] = v;
+                    s.lane_m[c * k + r][l] = v;
+                }
+                for (dst, &v) in s.lane_coef.iter_mut().zip(&s.rhs[p * k..(p + 1) * k]) {
+                    dst[l] = v as f64;
+                }
+                design.regularize_lane(&mut s.lane_m, l, lambda, total[l]);
             }
-            let coef = &mut s.coef[p * k..(p + 1) * k];
-            for (dst, &v) in coef.iter_mut().zip(&s.rhs[p * k..(p + 1) * k]) {
-                *dst = v as f64;
+            let ok = linalg::cholesky_lanes(&mut s.lane_m, k);
+            linalg::cholesky_solve_lanes(&s.lane_m, k, &mut s.lane_coef);
+            for l in 0..used {
+                let p = g + l;
+                let coef = &mut s.coef[p * k..(p + 1) * k];
+                if ok[l] {
+                    for (dst, v) in coef.iter_mut().zip(&s.lane_coef) {
+                        *dst = v[l];
+                    }
+                    continue;
+                }
+                for (x, &(r, c)) in pairs.iter().enumerate() {
+                    let v = s.packed[p * t + x] as f64;
+                    s.m[r * k + c] = v;
+                    s.m[c * k + r] = v;
+                }
+                for (dst, &v) in coef.iter_mut().zip(&s.rhs[p * k..(p + 1) * k]) {
+                    *dst = v as f64;
+                }
+                solve_regularized(design, &mut s.m, coef, lambda, total[l]);
             }
-            solve_regularized(design, &mut s.m, coef, lambda, total);
         }
         if pass < reweights {
             linalg::matmul_bt(len, k, n, &s.coef, &design.a, &mut s.pred);

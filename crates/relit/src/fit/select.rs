@@ -18,7 +18,7 @@ use super::{
     brightness_kept, light_relevance, perceptual_weight, srgb_on_screen, Objective, Regularizer,
 };
 use crate::basis::{Basis, BasisChoice, Samples, FAMILIES};
-use crate::linalg;
+use crate::linalg::{self, LANES};
 use crate::sphere::Vec3;
 use crate::Result;
 use rayon::prelude::*;
@@ -331,7 +331,7 @@ fn fold_errors(
         for (v, &p) in f.iter_mut().zip(&penalty) {
             *v += total * lambda * p;
         }
-        (0..k).for_each(|i| f[i * k + i] += total * 1e-10);
+        (0..k).for_each(|i| f[i * k + i] += total * super::DEFINITENESS);
         linalg::cholesky(&mut f, k).then_some(f)
     };
     // The linear objective shares one matrix (and its factors) across pixels.
@@ -379,64 +379,95 @@ fn fold_errors(
                     packed = vec![0.0; len * t];
                     linalg::matmul(len, nt, t, &weights, &outer, &mut packed);
                 }
-                let mut m = vec![0.0; k * k];
-                for (b, s) in (first..first + len).enumerate() {
-                    let obs = &train_values[s * nt..(s + 1) * nt];
-                    let weights = &weights[b * nt..(b + 1) * nt];
-                    let (p, c) = (s / 3, s % 3);
-                    let own;
-                    let factors: &[Option<Vec<f64>>] = match &shared {
-                        Some(f) => f,
-                        None => {
+                // Series a lane group at a time: each lane's systems are the scalar
+                // systems, factored and solved side by side (`linalg::cholesky_lanes`).
+                let mut m = vec![[0.0; LANES]; k * k];
+                let mut f = vec![[0.0; LANES]; k * k];
+                let mut coef = vec![[0.0; LANES]; k];
+                let mut rhs0 = vec![[0.0; LANES]; k];
+                let mut held_obs = vec![[(0.0, 0.0); LANES]; lights];
+                for g in (0..len).step_by(LANES) {
+                    let used = LANES.min(len - g);
+                    let mut total = [0.0; LANES];
+                    rhs0.iter_mut().for_each(|r| *r = [0.0; LANES]);
+                    for l in 0..used {
+                        let (b, s) = (g + l, first + g + l);
+                        let obs = &train_values[s * nt..(s + 1) * nt];
+                        let weights = &weights[b * nt..(b + 1) * nt];
+                        let (p, c) = (s / 3, s % 3);
+                        if shared.is_none() {
                             for (x, &(r, col)) in pairs.iter().enumerate() {
                                 let v = packed[b * t + x];
-                                m[r * k + col] = v;
-                                m[col * k + r] = v;
+                                m[r * k + col][l] = v;
+                                m[col * k + r][l] = v;
                             }
-                            let total: f64 = weights.iter().sum();
-                            own = VALIDATION_LADDER
-                                .iter()
-                                .map(|&l| factor(&m, total, l))
-                                .collect::<Vec<_>>();
-                            &own
+                            total[l] = weights.iter().sum();
                         }
-                    };
-                    let mut rhs0 = vec![0.0; k];
-                    for (j, (&v, &w)) in obs.iter().zip(weights).enumerate() {
-                        let row = &a_train[j * k..(j + 1) * k];
-                        for r in 0..k {
-                            rhs0[r] += w * row[r] * v as f64;
+                        for (j, (&v, &w)) in obs.iter().zip(weights).enumerate() {
+                            let row = &a_train[j * k..(j + 1) * k];
+                            for r in 0..k {
+                                rhs0[r][l] += w * row[r] * v as f64;
+                            }
+                        }
+                        // The held-out observations and how a screen shows them, the
+                        // same at every λ.
+                        for (h, &j) in held.iter().enumerate() {
+                            let o = sub.values[(p * sub.n + j) * 3 + c] as f64;
+                            held_obs[h][l] = (o, srgb_on_screen(o));
                         }
                     }
-                    // The held-out observations and how a screen shows them, the same at
-                    // every λ.
-                    let held_obs: Vec<(f64, f64)> = held
-                        .iter()
-                        .map(|&j| {
-                            let o = sub.values[(p * sub.n + j) * 3 + c] as f64;
-                            (o, srgb_on_screen(o))
-                        })
-                        .collect();
-                    for (li, f) in factors.iter().enumerate() {
-                        let Some(f) = f else {
-                            acc.iter_mut().for_each(|a| a[li] = f64::INFINITY);
-                            continue;
+                    for li in 0..LADDER {
+                        let ok = match &shared {
+                            Some(factors) => match &factors[li] {
+                                Some(shared_f) => {
+                                    for (dst, &v) in f.iter_mut().zip(shared_f) {
+                                        *dst = [v; LANES];
+                                    }
+                                    [true; LANES]
+                                }
+                                None => [false; LANES],
+                            },
+                            None => {
+                                let lambda = VALIDATION_LADDER[li];
+                                for (x, (dst, src)) in f.iter_mut().zip(&m).enumerate() {
+                                    for l in 0..LANES {
+                                        dst[l] = src[l] + total[l] * lambda * penalty[x];
+                                    }
+                                }
+                                for i in 0..k {
+                                    for l in 0..LANES {
+                                        f[i * k + i][l] += total[l] * super::DEFINITENESS;
+                                    }
+                                }
+                                // Unused lanes factor the identity.
+                                for l in used..LANES {
+                                    (0..k * k).for_each(|x| f[x][l] = 0.0);
+                                    (0..k).for_each(|i| f[i * k + i][l] = 1.0);
+                                }
+                                linalg::cholesky_lanes(&mut f, k)
+                            }
                         };
-                        let mut coef = rhs0.clone();
-                        linalg::cholesky_solve(f, k, &mut coef);
-                        for (h, &(o, o_shown)) in held_obs.iter().enumerate() {
-                            let pred: f64 = a_held[h * k..(h + 1) * k]
-                                .iter()
-                                .zip(&coef)
-                                .map(|(a, b)| a * b)
-                                .sum();
-                            let d = srgb_on_screen(pred) - o_shown;
-                            acc[h][li] += d * d;
-                            let d = pred - o;
-                            acc[h][LINEAR + li] += d * d;
-                            acc[h][LADDER + li] += pred;
-                            if li == 0 {
-                                acc[h][2 * LADDER] += o;
+                        coef.copy_from_slice(&rhs0);
+                        linalg::cholesky_solve_lanes(&f, k, &mut coef);
+                        for l in 0..used {
+                            if !ok[l] {
+                                acc.iter_mut().for_each(|a| a[li] = f64::INFINITY);
+                                continue;
+                            }
+                            for (h, obs) in held_obs.iter().enumerate() {
+                                let (o, o_shown) = obs[l];
+                                let mut pred = 0.0;
+                                for (a, c) in a_held[h * k..(h + 1) * k].iter().zip(&coef) {
+                                    pred += a * c[l];
+                                }
+                                let d = srgb_on_screen(pred) - o_shown;
+                                acc[h][li] += d * d;
+                                let d = pred - o;
+                                acc[h][LINEAR + li] += d * d;
+                                acc[h][LADDER + li] += pred;
+                                if li == 0 {
+                                    acc[h][2 * LADDER] += o;
+                                }
                             }
                         }
                     }
