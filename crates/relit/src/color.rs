@@ -53,6 +53,54 @@ pub fn srgb_slope(v: f64) -> f64 {
     }
 }
 
+/// Intervals of the table behind [`linear_to_srgb_tabulated`], over `√v ∈ [0, 1]`.
+const ENCODE_INTERVALS: usize = 4096;
+
+/// The encoding at `√v = i / ENCODE_INTERVALS`, by the power law (continued below the
+/// knee, where the table is not read).
+fn encode_table() -> &'static [f32] {
+    static TABLE: OnceLock<Vec<f32>> = OnceLock::new();
+    TABLE.get_or_init(|| {
+        (0..=ENCODE_INTERVALS)
+            .map(|i| {
+                let u = i as f64 / ENCODE_INTERVALS as f64;
+                (1.055 * (u * u).powf(1.0 / 2.4) - 0.055) as f32
+            })
+            .collect()
+    })
+}
+
+/// [`linear_to_srgb`] by linear interpolation in a table over `√v`, where the curve is
+/// gentle (`1.055·u^{5/6} − 0.055`): within 5e-8 of the exact encoding and several
+/// times faster than `powf`. The fit's inner loops (perceptual weights, display
+/// errors) call the curve for every sample and every candidate; 8-bit output keeps the
+/// exact curve.
+#[inline]
+pub fn linear_to_srgb_tabulated(v: f32) -> f32 {
+    let v = v.clamp(0.0, 1.0);
+    if !(v > 0.003_130_8) {
+        return v * 12.92; // the linear segment (and NaN, as the exact curve gives)
+    }
+    let table = encode_table();
+    let x = (v as f64).sqrt() * ENCODE_INTERVALS as f64;
+    let i = (x as usize).min(ENCODE_INTERVALS - 1);
+    let t = x - i as f64;
+    let (a, b) = (table[i] as f64, table[i + 1] as f64);
+    (a + t * (b - a)) as f32
+}
+
+/// [`srgb_slope`] from the tabulated encoding: above the knee the slope
+/// `(1.055/2.4)·v^{−7/12}` equals `(srgb(v) + 0.055) / (2.4·v)`. Relative error
+/// below 1e-6.
+#[inline]
+pub fn srgb_slope_tabulated(v: f64) -> f64 {
+    let v = v.clamp(0.0, 1.0);
+    if !(v > 0.003_130_8) {
+        return 12.92;
+    }
+    (linear_to_srgb_tabulated(v as f32) as f64 + 0.055) / (2.4 * v)
+}
+
 /// Linear values of the 256 8-bit sRGB codes.
 pub fn srgb8_table() -> &'static [f32; 256] {
     static TABLE: OnceLock<[f32; 256]> = OnceLock::new();
@@ -86,6 +134,25 @@ mod tests {
         for (code, &lin) in srgb8_table().iter().enumerate() {
             assert_eq!(linear_to_srgb8(lin) as usize, code);
         }
+    }
+
+    #[test]
+    fn tabulated_curve_and_slope_follow_the_exact_ones() {
+        let (mut worst, mut worst_slope) = (0.0f64, 0.0f64);
+        for i in 0..=200_000 {
+            let v = (i as f64 / 200_000.0).powi(3); // dense near 0, where the curve bends
+            let exact = 1.055 * v.powf(1.0 / 2.4) - 0.055;
+            let exact = if v <= 0.003_130_8 { 12.92 * v } else { exact };
+            worst = worst.max((linear_to_srgb_tabulated(v as f32) as f64 - exact).abs());
+            let slope = srgb_slope(v);
+            worst_slope = worst_slope.max((srgb_slope_tabulated(v) - slope).abs() / slope);
+        }
+        assert!(worst < 1e-7, "encoding off by {worst}");
+        assert!(worst_slope < 1e-6, "slope off by {worst_slope} (relative)");
+        assert_eq!(linear_to_srgb_tabulated(-1.0), 0.0);
+        assert_eq!(linear_to_srgb_tabulated(2.0), 1.0);
+        assert!(linear_to_srgb_tabulated(f32::NAN).is_nan());
+        assert_eq!(srgb_slope_tabulated(0.0), 12.92);
     }
 
     #[test]

@@ -55,7 +55,7 @@ pub(super) fn principal_directions(
         .iter()
         .map(|&v| match space {
             PcaSpace::Linear => v as f64,
-            PcaSpace::Srgb => crate::color::linear_to_srgb(v.max(0.0)) as f64,
+            PcaSpace::Srgb => crate::color::linear_to_srgb_tabulated(v.max(0.0)) as f64,
         })
         .collect();
     Ok(crate::linalg::principal_directions(&x, rows, n, k))

@@ -654,7 +654,7 @@ fn order(a: &CandidateScore, b: &CandidateScore) -> std::cmp::Ordering {
 /// Per-sample weight of the objective for a (linear) radiance `v`.
 #[inline]
 fn perceptual_weight(v: f64) -> f64 {
-    let s = color::srgb_slope(v);
+    let s = color::srgb_slope_tabulated(v);
     s * s
 }
 
@@ -668,7 +668,7 @@ fn srgb_extended(v: f64) -> f64 {
     } else if v > 1.0 {
         1.0 + color::srgb_slope(1.0) * (v - 1.0)
     } else {
-        color::linear_to_srgb(v as f32) as f64
+        color::linear_to_srgb_tabulated(v as f32) as f64
     }
 }
 
@@ -676,7 +676,7 @@ fn srgb_extended(v: f64) -> f64 {
 /// as in an 8-bit image (a prediction above white in a highlight shows as white).
 #[inline]
 fn srgb_on_screen(v: f64) -> f64 {
-    color::linear_to_srgb(v as f32) as f64
+    color::linear_to_srgb_tabulated(v as f32) as f64
 }
 
 /// The sRGB value a display shows for radiance `v`: negative radiance is black (the
