@@ -596,11 +596,19 @@ fn choose_basis(
         Objective::Linear => &[Objective::Linear],
     };
     // Each candidate's best score over the objectives, with the objective behind it.
-    let judge = |choice: &BasisChoice, view: &select::Subsample| {
+    let judge = |choice: &BasisChoice, view: &select::Subsample, folds: usize| {
         let mut own: Option<(Objective, CandidateScore)> = None;
         for &o in objectives {
-            let score =
-                select::validate(choice, o, options.regularizer, criterion, dirs, &q, view)?;
+            let score = select::validate(
+                choice,
+                o,
+                options.regularizer,
+                criterion,
+                dirs,
+                &q,
+                view,
+                folds,
+            )?;
             if !matches!(&own, Some((_, b)) if !score.beats(b)) {
                 own = Some((o, score));
             }
@@ -611,10 +619,12 @@ fn choose_basis(
     let mut finalists: Vec<usize> = (0..choices.len()).collect();
     let mut scores = Vec::new();
     if choices.len() > FINALISTS && screen_keep < keep {
+        let max_k = choices.iter().map(|c| c.k).max().unwrap_or(0);
+        let folds = select::screening_folds(n, max_k);
         let mut screening: Vec<(usize, CandidateScore)> = choices
             .iter()
             .enumerate()
-            .map(|(i, choice)| Ok((i, judge(choice, &screen_view)?.1)))
+            .map(|(i, choice)| Ok((i, judge(choice, &screen_view, folds)?.1)))
             .collect::<Result<_>>()?;
         screening.sort_by(|a, b| order(&a.1, &b.1));
         finalists = screening.iter().take(FINALISTS).map(|(i, _)| *i).collect();
@@ -622,7 +632,7 @@ fn choose_basis(
     }
     let mut best: Option<(usize, Objective, CandidateScore)> = None;
     for &i in &finalists {
-        let (o, score) = judge(&choices[i], &view)?;
+        let (o, score) = judge(&choices[i], &view, select::folds(n))?;
         if !matches!(&best, Some((_, _, b)) if !score.beats(b)) {
             best = Some((i, o, score.clone()));
         }
@@ -1212,9 +1222,12 @@ fn solve_per_pixel(
                     let len = CHUNK.min(count - a);
                     let mut out = vec![0f32; len * 3 * k];
                     for c in 0..3 {
-                        for p in 0..len {
-                            for j in 0..n {
-                                scratch.obs[p * n + j] = strip[(j * count + a + p) * 3 + c] as f64;
+                        // Along each image's row of the strip (contiguous), into the
+                        // chunk's small pixel-major buffer.
+                        for j in 0..n {
+                            let row = &strip[(j * count + a) * 3..(j * count + a + len) * 3];
+                            for (p, rgb) in row.chunks_exact(3).enumerate() {
+                                scratch.obs[p * n + j] = rgb[c] as f64;
                             }
                         }
                         solve_chunk(

@@ -94,7 +94,8 @@ pub struct CandidateScore {
     /// candidates beyond a factor `MAX_MEAN_BIAS` lose to every unbiased one.
     pub mean_bias: f64,
     /// Pixels of the subsample the score was measured on: the finalists' full
-    /// validation, or the screening that set the other candidates aside.
+    /// validation, or the screening (fewer pixels and folds) that set the other
+    /// candidates aside.
     #[serde(default)]
     pub pixels: usize,
 }
@@ -142,9 +143,21 @@ const SERIES_BLOCK: usize = 64;
 /// Folds for `n` lights: [`FOLDS`], fewer when there are few lights (each fold keeps
 /// four or more) and half as many for dense captures, whose folds hold plenty of lights
 /// (and each fold costs a basis and a fit).
-fn folds(n: usize) -> usize {
+pub(super) fn folds(n: usize) -> usize {
     let f = if n > 200 { FOLDS / 2 } else { FOLDS };
     f.min(n / 4).max(2)
+}
+
+/// Folds of the screening that sets most candidates aside before the full validation:
+/// half of [`folds`] (each fold costs a basis and a fit), as long as every candidate
+/// of up to `max_k` coefficients still has more training lights than coefficients.
+pub(super) fn screening_folds(n: usize, max_k: usize) -> usize {
+    let half = (folds(n) / 2).max(2);
+    if max_k < n - n.div_ceil(half) {
+        half
+    } else {
+        folds(n)
+    }
 }
 
 /// The pixel subsample the fit reads, as the validation sees it.
@@ -180,6 +193,7 @@ pub(super) fn validate(
     dirs: &[Vec3],
     q: &[f64],
     sub: &Subsample,
+    folds: usize,
 ) -> Result<CandidateScore> {
     let n = sub.n;
     let keep = match objective {
@@ -201,7 +215,6 @@ pub(super) fn validate(
     };
     let series = sub.count * 3;
     let relevance = light_relevance(sub.values, sub.count, n);
-    let folds = folds(n);
     // Squared display errors per captured light (each is held out once) and λ.
     let mut per_light = vec![[0.0f64; SLOTS]; n];
     for fold in 0..folds {
