@@ -217,38 +217,74 @@ pub(super) fn validate(
     let relevance = light_relevance(sub.values, sub.count, n);
     // Squared display errors per captured light (each is held out once) and λ.
     let mut per_light = vec![[0.0f64; SLOTS]; n];
-    for fold in 0..folds {
-        let train: Vec<usize> = (0..n).filter(|j| j % folds != fold).collect();
-        let held: Vec<usize> = (0..n).filter(|j| j % folds == fold).collect();
-        let values: Vec<f32> = (0..series)
-            .flat_map(|s| {
-                let (p, c) = (s / 3, s % 3);
-                train.iter().map(move |&j| sub.values[(p * n + j) * 3 + c])
-            })
-            .collect();
-        let train_dirs: Vec<Vec3> = train.iter().map(|&j| dirs[j]).collect();
-        let basis = choice.build(
-            &train_dirs,
-            Some(Samples {
-                values: &values,
-                n: train.len(),
-            }),
-        )?;
-        let errors = fold_errors(
-            basis.as_ref(),
-            objective,
-            regularizer,
-            &train_dirs,
-            &held.iter().map(|&j| dirs[j]).collect::<Vec<_>>(),
-            &train.iter().map(|&j| q[j]).collect::<Vec<_>>(),
-            &values,
-            &held,
-            sub,
-        );
+    // Folds in parallel too: a fold's basis is built on one thread, and two folds
+    // keep both cores of a small machine busy where one fold's blocks would not.
+    let fold_results = (0..folds)
+        .into_par_iter()
+        .map(|fold| fold_result(choice, objective, regularizer, dirs, q, sub, folds, fold))
+        .collect::<Result<Vec<_>>>()?;
+    for (held, errors) in fold_results {
         for (&j, e) in held.iter().zip(errors) {
             per_light[j] = e;
         }
     }
+    score_lights(choice, criterion, q, &relevance, &per_light, series)
+}
+
+/// One fold of [`validate`]: the held-out lights and their errors.
+#[allow(clippy::too_many_arguments)]
+fn fold_result(
+    choice: &BasisChoice,
+    objective: Objective,
+    regularizer: Regularizer,
+    dirs: &[Vec3],
+    q: &[f64],
+    sub: &Subsample,
+    folds: usize,
+    fold: usize,
+) -> Result<(Vec<usize>, Vec<[f64; SLOTS]>)> {
+    let n = sub.n;
+    let series = sub.count * 3;
+    let train: Vec<usize> = (0..n).filter(|j| j % folds != fold).collect();
+    let held: Vec<usize> = (0..n).filter(|j| j % folds == fold).collect();
+    let values: Vec<f32> = (0..series)
+        .flat_map(|s| {
+            let (p, c) = (s / 3, s % 3);
+            train.iter().map(move |&j| sub.values[(p * n + j) * 3 + c])
+        })
+        .collect();
+    let train_dirs: Vec<Vec3> = train.iter().map(|&j| dirs[j]).collect();
+    let basis = choice.build(
+        &train_dirs,
+        Some(Samples {
+            values: &values,
+            n: train.len(),
+        }),
+    )?;
+    let errors = fold_errors(
+        basis.as_ref(),
+        objective,
+        regularizer,
+        &train_dirs,
+        &held.iter().map(|&j| dirs[j]).collect::<Vec<_>>(),
+        &train.iter().map(|&j| q[j]).collect::<Vec<_>>(),
+        &values,
+        &held,
+        sub,
+    );
+    Ok((held, errors))
+}
+
+/// The score of a candidate from its errors per held-out light.
+fn score_lights(
+    choice: &BasisChoice,
+    criterion: Criterion,
+    q: &[f64],
+    relevance: &[f64],
+    per_light: &[[f64; SLOTS]],
+    series: usize,
+) -> Result<CandidateScore> {
+    let n = per_light.len();
     // The mean over lights of each light's PSNR, as the peer protocol averages its
     // hold-outs (a pooled error would let the few worst lights decide); lights that do
     // not reach the scene do not count.
@@ -292,7 +328,7 @@ pub(super) fn validate(
         criterion,
         psnr,
         mean_bias: bias,
-        pixels: sub.count,
+        pixels: series / 3,
     })
 }
 
@@ -370,131 +406,130 @@ fn fold_errors(
         .collect();
     (0..series.div_ceil(SERIES_BLOCK))
         .into_par_iter()
-        .fold(
-            || vec![[0.0f64; SLOTS]; lights],
-            |mut acc, block| {
-                let first = block * SERIES_BLOCK;
-                let len = SERIES_BLOCK.min(series - first);
-                // Each sample's weight, computed once for the normal matrix and the sums.
-                let weights: Vec<f64> = (first..first + len)
-                    .flat_map(|s| {
-                        let obs = &train_values[s * nt..(s + 1) * nt];
-                        obs.iter()
-                            .zip(q_train)
-                            .map(move |(&v, &q)| match objective {
-                                Objective::Linear => q,
-                                _ => q * perceptual_weight(v as f64),
-                            })
-                    })
-                    .collect();
-                let mut packed = Vec::new();
-                if shared.is_none() {
-                    packed = vec![0.0; len * t];
-                    linalg::matmul(len, nt, t, &weights, &outer, &mut packed);
+        .map(|block| {
+            let mut acc = vec![[0.0f64; SLOTS]; lights];
+            let first = block * SERIES_BLOCK;
+            let len = SERIES_BLOCK.min(series - first);
+            // Each sample's weight, computed once for the normal matrix and the sums.
+            let weights: Vec<f64> = (first..first + len)
+                .flat_map(|s| {
+                    let obs = &train_values[s * nt..(s + 1) * nt];
+                    obs.iter()
+                        .zip(q_train)
+                        .map(move |(&v, &q)| match objective {
+                            Objective::Linear => q,
+                            _ => q * perceptual_weight(v as f64),
+                        })
+                })
+                .collect();
+            let mut packed = Vec::new();
+            if shared.is_none() {
+                packed = vec![0.0; len * t];
+                linalg::matmul(len, nt, t, &weights, &outer, &mut packed);
+            }
+            // Series a lane group at a time: each lane's systems are the scalar
+            // systems, factored and solved side by side (`linalg::cholesky_lanes`).
+            let mut m = vec![[0.0; LANES]; k * k];
+            let mut f = vec![[0.0; LANES]; k * k];
+            let mut coef = vec![[0.0; LANES]; k];
+            let mut rhs0 = vec![[0.0; LANES]; k];
+            let mut held_obs = vec![[(0.0, 0.0); LANES]; lights];
+            for g in (0..len).step_by(LANES) {
+                let used = LANES.min(len - g);
+                let mut total = [0.0; LANES];
+                rhs0.iter_mut().for_each(|r| *r = [0.0; LANES]);
+                for l in 0..used {
+                    let (b, s) = (g + l, first + g + l);
+                    let obs = &train_values[s * nt..(s + 1) * nt];
+                    let weights = &weights[b * nt..(b + 1) * nt];
+                    let (p, c) = (s / 3, s % 3);
+                    if shared.is_none() {
+                        for (x, &(r, col)) in pairs.iter().enumerate() {
+                            let v = packed[b * t + x];
+                            m[r * k + col][l] = v;
+                            m[col * k + r][l] = v;
+                        }
+                        total[l] = weights.iter().sum();
+                    }
+                    for (j, (&v, &w)) in obs.iter().zip(weights).enumerate() {
+                        let row = &a_train[j * k..(j + 1) * k];
+                        for r in 0..k {
+                            rhs0[r][l] += w * row[r] * v as f64;
+                        }
+                    }
+                    // The held-out observations and how a screen shows them, the
+                    // same at every λ.
+                    for (h, &j) in held.iter().enumerate() {
+                        let o = sub.values[(p * sub.n + j) * 3 + c] as f64;
+                        held_obs[h][l] = (o, srgb_on_screen(o));
+                    }
                 }
-                // Series a lane group at a time: each lane's systems are the scalar
-                // systems, factored and solved side by side (`linalg::cholesky_lanes`).
-                let mut m = vec![[0.0; LANES]; k * k];
-                let mut f = vec![[0.0; LANES]; k * k];
-                let mut coef = vec![[0.0; LANES]; k];
-                let mut rhs0 = vec![[0.0; LANES]; k];
-                let mut held_obs = vec![[(0.0, 0.0); LANES]; lights];
-                for g in (0..len).step_by(LANES) {
-                    let used = LANES.min(len - g);
-                    let mut total = [0.0; LANES];
-                    rhs0.iter_mut().for_each(|r| *r = [0.0; LANES]);
+                for li in 0..LADDER {
+                    let ok = match &shared {
+                        Some(factors) => match &factors[li] {
+                            Some(shared_f) => {
+                                for (dst, &v) in f.iter_mut().zip(shared_f) {
+                                    *dst = [v; LANES];
+                                }
+                                [true; LANES]
+                            }
+                            None => [false; LANES],
+                        },
+                        None => {
+                            let lambda = VALIDATION_LADDER[li];
+                            for (x, (dst, src)) in f.iter_mut().zip(&m).enumerate() {
+                                for l in 0..LANES {
+                                    dst[l] = src[l] + total[l] * lambda * penalty[x];
+                                }
+                            }
+                            for i in 0..k {
+                                for l in 0..LANES {
+                                    f[i * k + i][l] += total[l] * super::DEFINITENESS;
+                                }
+                            }
+                            // Unused lanes factor the identity.
+                            for l in used..LANES {
+                                (0..k * k).for_each(|x| f[x][l] = 0.0);
+                                (0..k).for_each(|i| f[i * k + i][l] = 1.0);
+                            }
+                            linalg::cholesky_lanes(&mut f, k)
+                        }
+                    };
+                    coef.copy_from_slice(&rhs0);
+                    linalg::cholesky_solve_lanes(&f, k, &mut coef);
                     for l in 0..used {
-                        let (b, s) = (g + l, first + g + l);
-                        let obs = &train_values[s * nt..(s + 1) * nt];
-                        let weights = &weights[b * nt..(b + 1) * nt];
-                        let (p, c) = (s / 3, s % 3);
-                        if shared.is_none() {
-                            for (x, &(r, col)) in pairs.iter().enumerate() {
-                                let v = packed[b * t + x];
-                                m[r * k + col][l] = v;
-                                m[col * k + r][l] = v;
-                            }
-                            total[l] = weights.iter().sum();
+                        if !ok[l] {
+                            acc.iter_mut().for_each(|a| a[li] = f64::INFINITY);
+                            continue;
                         }
-                        for (j, (&v, &w)) in obs.iter().zip(weights).enumerate() {
-                            let row = &a_train[j * k..(j + 1) * k];
-                            for r in 0..k {
-                                rhs0[r][l] += w * row[r] * v as f64;
+                        for (h, obs) in held_obs.iter().enumerate() {
+                            let (o, o_shown) = obs[l];
+                            let mut pred = 0.0;
+                            for (a, c) in a_held[h * k..(h + 1) * k].iter().zip(&coef) {
+                                pred += a * c[l];
                             }
-                        }
-                        // The held-out observations and how a screen shows them, the
-                        // same at every λ.
-                        for (h, &j) in held.iter().enumerate() {
-                            let o = sub.values[(p * sub.n + j) * 3 + c] as f64;
-                            held_obs[h][l] = (o, srgb_on_screen(o));
-                        }
-                    }
-                    for li in 0..LADDER {
-                        let ok = match &shared {
-                            Some(factors) => match &factors[li] {
-                                Some(shared_f) => {
-                                    for (dst, &v) in f.iter_mut().zip(shared_f) {
-                                        *dst = [v; LANES];
-                                    }
-                                    [true; LANES]
-                                }
-                                None => [false; LANES],
-                            },
-                            None => {
-                                let lambda = VALIDATION_LADDER[li];
-                                for (x, (dst, src)) in f.iter_mut().zip(&m).enumerate() {
-                                    for l in 0..LANES {
-                                        dst[l] = src[l] + total[l] * lambda * penalty[x];
-                                    }
-                                }
-                                for i in 0..k {
-                                    for l in 0..LANES {
-                                        f[i * k + i][l] += total[l] * super::DEFINITENESS;
-                                    }
-                                }
-                                // Unused lanes factor the identity.
-                                for l in used..LANES {
-                                    (0..k * k).for_each(|x| f[x][l] = 0.0);
-                                    (0..k).for_each(|i| f[i * k + i][l] = 1.0);
-                                }
-                                linalg::cholesky_lanes(&mut f, k)
-                            }
-                        };
-                        coef.copy_from_slice(&rhs0);
-                        linalg::cholesky_solve_lanes(&f, k, &mut coef);
-                        for l in 0..used {
-                            if !ok[l] {
-                                acc.iter_mut().for_each(|a| a[li] = f64::INFINITY);
-                                continue;
-                            }
-                            for (h, obs) in held_obs.iter().enumerate() {
-                                let (o, o_shown) = obs[l];
-                                let mut pred = 0.0;
-                                for (a, c) in a_held[h * k..(h + 1) * k].iter().zip(&coef) {
-                                    pred += a * c[l];
-                                }
-                                let d = srgb_on_screen(pred) - o_shown;
-                                acc[h][li] += d * d;
-                                let d = pred - o;
-                                acc[h][LINEAR + li] += d * d;
-                                acc[h][LADDER + li] += pred;
-                                if li == 0 {
-                                    acc[h][2 * LADDER] += o;
-                                }
+                            let d = srgb_on_screen(pred) - o_shown;
+                            acc[h][li] += d * d;
+                            let d = pred - o;
+                            acc[h][LINEAR + li] += d * d;
+                            acc[h][LADDER + li] += pred;
+                            if li == 0 {
+                                acc[h][2 * LADDER] += o;
                             }
                         }
                     }
                 }
-                acc
-            },
-        )
-        .reduce(
-            || vec![[0.0; SLOTS]; lights],
-            |mut a, b| {
-                for (x, y) in a.iter_mut().zip(b) {
-                    x.iter_mut().zip(y).for_each(|(x, y)| *x += y);
-                }
-                a
-            },
-        )
+            }
+            acc
+        })
+        .collect::<Vec<_>>()
+        .into_iter()
+        // Summed in block order: the same scores on every run and every shard (a
+        // parallel reduction's order follows the work stealing).
+        .fold(vec![[0.0; SLOTS]; lights], |mut a, b| {
+            for (x, y) in a.iter_mut().zip(b) {
+                x.iter_mut().zip(y).for_each(|(x, y)| *x += y);
+            }
+            a
+        })
 }
