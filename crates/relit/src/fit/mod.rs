@@ -200,7 +200,10 @@ pub struct FitOptions {
     pub lambda: Lambda,
     /// Reweighting passes of the perceptual objective after the first solve.
     pub reweights: usize,
-    /// Bytes of one strip of all images held in memory by the perceptual fit.
+    /// Bytes of one strip of all images held in memory by the perceptual fit. The
+    /// default, 8 MiB, holds thousands of pixels (enough parallel work) and keeps the
+    /// strip and its results small beside the maps: RealRTI item1's fit peaked at
+    /// 174 MiB with 64 MiB strips, 82 MiB with 8 MiB ones, in the same time.
     pub strip_bytes: usize,
     /// Pixels in the subsample used to choose λ and estimate the training residual.
     pub subsample: usize,
@@ -317,7 +320,7 @@ impl Default for FitOptions {
             regularizer: Regularizer::default(),
             lambda: Lambda::Auto,
             reweights: 1,
-            strip_bytes: 64 << 20,
+            strip_bytes: 8 << 20,
             subsample: 1024,
             criterion: None,
             shard: None,
@@ -835,12 +838,12 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
         )?);
     }
     if objective != Objective::Perceptual {
-        accum = Some(vec![0f32; band.len() * design.k * 3]);
+        accum = Some(CoefficientMaps::zeros(w, rows.len(), design.k));
     }
 
     // Pass 1: stream the images, a batch of decoders' worth at a time.
     progress.begin("reading images", design.n as u64);
-    let batch = image_batch(options.strip_bytes / 2, pixels * 3 * 4);
+    let batch = image_batch(DECODE_BATCH_BYTES, pixels * 3 * 4);
     for first in (0..design.n).step_by(batch) {
         let indices: Vec<usize> = (first..(first + batch).min(design.n)).collect();
         // Each image's band of rows, and its subsample pixels where still unread.
@@ -964,19 +967,23 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
     }
 
     stages.end("objective and λ");
-    let mut maps = CoefficientMaps::zeros(w, rows.len(), design.k);
-    if let Some(acc) = accum.take() {
-        solve_shared(acc, &design, lambda, &mut maps)?;
-    } else if let Some(spill) = spill.as_ref() {
-        solve_per_pixel(
-            spill,
-            &design,
-            lambda,
-            options.reweights,
-            &mut maps,
-            progress,
-        )?;
-    }
+    let maps = if let Some(mut sums) = accum.take() {
+        solve_shared(&mut sums, &design, lambda)?;
+        sums
+    } else {
+        let mut maps = CoefficientMaps::zeros(w, rows.len(), design.k);
+        if let Some(spill) = spill.as_ref() {
+            solve_per_pixel(
+                spill,
+                &design,
+                lambda,
+                options.reweights,
+                &mut maps,
+                progress,
+            )?;
+        }
+        maps
+    };
 
     stages.end("solve");
     let (rmse_linear, psnr_srgb8) = training_residual(
@@ -1047,11 +1054,29 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
 /// Pixels per parallel task.
 const CHUNK: usize = 128;
 
-/// Add `q_j B(L_j) I_j` of a batch of images into the pixel-major sums `acc`
-/// (pixel, channel, i). Each pixel's sums stay in cache over the whole batch and the
-/// inner loop runs along the contiguous coefficients, which the compiler vectorises.
-fn accumulate(acc: &mut [f32], design: &Design, indices: &[usize], images: &[&[f32]]) {
-    let k = design.k;
+/// Pixels per block of the planar sums: a block's run of every plane and its pixels of
+/// a batch of images stay in cache together while the batch is added.
+const SUM_BLOCK: usize = 512;
+
+/// Each block of `SUM_BLOCK` pixels' run of every plane of `data` (planes of `npix`
+/// values): disjoint, so that blocks are worked on in parallel.
+fn plane_blocks(data: &mut [f32], npix: usize) -> Vec<Vec<&mut [f32]>> {
+    let mut blocks: Vec<Vec<&mut [f32]>> =
+        (0..npix.div_ceil(SUM_BLOCK)).map(|_| Vec::new()).collect();
+    for plane in data.chunks_mut(npix) {
+        for (b, run) in plane.chunks_mut(SUM_BLOCK).enumerate() {
+            blocks[b].push(run);
+        }
+    }
+    blocks
+}
+
+/// Add `q_j B(L_j) I_j` of a batch of images into the sums `acc`, kept in the maps'
+/// planar layout (plane `3i + c`) so that the solve turns them into the maps in place:
+/// the linear fit holds one image-sized set of planes, not sums and maps. Each sum
+/// adds the images in batch order, as a pixel-major loop would.
+fn accumulate(acc: &mut CoefficientMaps, design: &Design, indices: &[usize], images: &[&[f32]]) {
+    let npix = acc.pixels();
     let rows: Vec<Vec<f32>> = indices
         .iter()
         .map(|&j| {
@@ -1062,39 +1087,26 @@ fn accumulate(acc: &mut [f32], design: &Design, indices: &[usize], images: &[&[f
                 .collect()
         })
         .collect();
-    acc.par_chunks_mut(3 * k * CHUNK)
+    plane_blocks(&mut acc.data, npix)
+        .into_par_iter()
         .enumerate()
-        .for_each(|(chunk, out)| {
-            let p0 = chunk * CHUNK;
-            for (pl, sums) in out.chunks_exact_mut(3 * k).enumerate() {
-                let p = p0 + pl;
-                for (img, row) in images.iter().zip(&rows) {
-                    for (c, channel) in sums.chunks_exact_mut(k).enumerate() {
-                        let v = img[3 * p + c];
-                        for (s, &a) in channel.iter_mut().zip(row) {
-                            *s += a * v;
-                        }
+        .for_each(|(block, mut planes)| {
+            let p0 = block * SUM_BLOCK;
+            for (img, row) in images.iter().zip(&rows) {
+                let pixels = &img[3 * p0..3 * (p0 + planes[0].len())];
+                for (x, run) in planes.iter_mut().enumerate() {
+                    let (a, c) = (row[x / 3], x % 3);
+                    for (s, rgb) in run.iter_mut().zip(pixels.chunks_exact(3)) {
+                        *s += a * rgb[c];
                     }
                 }
             }
         });
 }
 
-/// Images decoded and accumulated together: enough to keep each pixel's sums in cache
-/// over many images, within `budget` bytes of decoded images, and at least one per thread.
-fn image_batch(budget: usize, image_bytes: usize) -> usize {
-    let threads = rayon::current_num_threads().max(1);
-    (budget / image_bytes.max(1)).clamp(threads, 32.max(threads))
-}
-
-/// Solve the shared normal equations for every pixel (sums (pixel, channel, i) in,
-/// coefficients (pixel, i, c) out) and store planar maps.
-fn solve_shared(
-    mut acc: Vec<f32>,
-    design: &Design,
-    lambda: f64,
-    maps: &mut CoefficientMaps,
-) -> Result<()> {
+/// Solve the shared normal equations for every pixel, turning the planar sums of
+/// [`accumulate`] into the coefficient maps in place.
+fn solve_shared(sums: &mut CoefficientMaps, design: &Design, lambda: f64) -> Result<()> {
     let k = design.k;
     let mut m = vec![0.0; k * k];
     let total: f64 = design.q.iter().sum();
@@ -1123,33 +1135,59 @@ fn solve_shared(
             inv[r * k + col] = e[r] as f32;
         }
     }
-    acc.par_chunks_mut(3 * k).for_each(|sums| {
-        let b = sums.to_vec();
-        for r in 0..k {
-            let mut s = [0f32; 3];
-            for (i, &v) in inv[r * k..(r + 1) * k].iter().enumerate() {
-                s[0] += v * b[i];
-                s[1] += v * b[k + i];
-                s[2] += v * b[2 * k + i];
+    let npix = sums.pixels();
+    plane_blocks(&mut sums.data, npix)
+        .into_par_iter()
+        .for_each(|mut planes| {
+            let mut b = vec![0f32; 3 * k];
+            for p in 0..planes[0].len() {
+                for (x, run) in planes.iter().enumerate() {
+                    b[x] = run[p];
+                }
+                for r in 0..k {
+                    let mut s = [0f32; 3];
+                    for (i, &v) in inv[r * k..(r + 1) * k].iter().enumerate() {
+                        s[0] += v * b[3 * i];
+                        s[1] += v * b[3 * i + 1];
+                        s[2] += v * b[3 * i + 2];
+                    }
+                    for (c, &v) in s.iter().enumerate() {
+                        planes[3 * r + c][p] = v;
+                    }
+                }
             }
-            sums[3 * r..3 * r + 3].copy_from_slice(&s);
-        }
-    });
-    scatter_planar(&acc, 0, maps);
+        });
     Ok(())
 }
 
-/// Copy pixel-major coefficients (pixel, i, c) for pixels `p0..` into the planar maps.
-fn scatter_planar(pixel_major: &[f32], p0: usize, maps: &mut CoefficientMaps) {
+/// Decoded images pass 1 holds at once (at most; at least one per thread).
+const DECODE_BATCH_BYTES: usize = 32 << 20;
+
+/// Images decoded and accumulated together: enough to keep each pixel's sums in cache
+/// over many images, within `budget` bytes of decoded images, and at least one per thread.
+fn image_batch(budget: usize, image_bytes: usize) -> usize {
+    let threads = rayon::current_num_threads().max(1);
+    (budget / image_bytes.max(1)).clamp(threads, 32.max(threads))
+}
+
+/// Copy runs of pixel-major coefficients (pixel, i, c), one run after another from
+/// pixel `p0`, into the planar maps (the runs are the parallel tasks' results, copied
+/// without first joining them).
+fn scatter_planar<R: AsRef<[f32]> + Sync>(runs: &[R], p0: usize, maps: &mut CoefficientMaps) {
     let k = maps.k;
     let npix = maps.pixels();
-    let count = pixel_major.len() / (3 * k);
     maps.data
         .par_chunks_mut(npix)
         .enumerate()
         .for_each(|(plane, values)| {
-            for (p, dst) in values[p0..p0 + count].iter_mut().enumerate() {
-                *dst = pixel_major[p * 3 * k + plane];
+            let mut start = p0;
+            for run in runs {
+                let run = run.as_ref();
+                let count = run.len() / (3 * k);
+                for (p, dst) in values[start..start + count].iter_mut().enumerate() {
+                    *dst = run[p * 3 * k + plane];
+                }
+                start += count;
             }
         });
 }
@@ -1243,8 +1281,7 @@ fn solve_per_pixel(
                 },
             )
             .collect();
-        let flat: Vec<f32> = results.concat();
-        scatter_planar(&flat, p0, maps);
+        scatter_planar(&results, p0, maps);
         progress.advance(1);
     }
     progress.end();
