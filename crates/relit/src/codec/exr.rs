@@ -53,34 +53,85 @@ fn text(s: &str) -> AttributeValue {
 /// Write a relightable image. Maps are stored in `precision` (f32 or f16); depth
 /// always as 32-bit float.
 pub fn write(path: &Path, image: &RelightableImage, precision: Precision) -> Result<()> {
+    use exr::block::writer::ChunksWriter;
     let precision = precision.require(&[Precision::F32, Precision::F16], "OpenEXR")?;
     let maps = &image.maps;
     let (w, h) = (maps.width, maps.height);
-    let mut channels: Vec<AnyChannel<FlatSamples>> = Vec::with_capacity(3 * maps.k + 1);
-    for i in 0..maps.k {
-        for c in 0..3 {
-            let plane = maps.plane(i, c);
-            channels.push(AnyChannel::new(
-                channel_name(i, c).as_str(),
-                flat_samples(precision, plane),
-            ));
-        }
-    }
+    // The header is inferred from channels without samples; each block's bytes are made
+    // from the maps as it goes to the compressor, so the writer never holds a second copy
+    // of the maps (item1's fit peaked 20 MiB lower, item11's 45).
+    let mut sources: Vec<(String, &[f32], bool)> = (0..maps.k)
+        .flat_map(|i| (0..3).map(move |c| (i, c)))
+        .map(|(i, c)| {
+            (
+                channel_name(i, c),
+                maps.plane(i, c),
+                precision == Precision::F16,
+            )
+        })
+        .collect();
     if let Some(depth) = &image.depth {
-        channels.push(AnyChannel::new("Z", FlatSamples::F32(depth.clone())));
+        sources.push(("Z".to_string(), depth.as_slice(), false));
     }
-    let attrs = attributes(&image.meta, precision);
+    let channels: Vec<AnyChannel<FlatSamples>> = sources
+        .iter()
+        .map(|(name, _, half)| {
+            let none = if *half {
+                FlatSamples::F16(Vec::new())
+            } else {
+                FlatSamples::F32(Vec::new())
+            };
+            AnyChannel::new(name.as_str(), none)
+        })
+        .collect();
     let encoding = Encoding {
         compression: Compression::ZIP16,
         ..Encoding::default()
     };
+    let attrs = attributes(&image.meta, precision);
     let layer = Layer::new((w, h), attrs, encoding, AnyChannels::sort(channels.into()));
-    let exr_image = Image::from_layer(layer);
+    let headers = Image::from_layer(layer).write().infer_meta_data();
+    // The sources in the header's channel order (sorted by name).
+    let order: Vec<(&[f32], bool)> = headers[0]
+        .channels
+        .list
+        .iter()
+        .map(|ch| {
+            let name = ch.name.to_string();
+            let (_, samples, half) = sources
+                .iter()
+                .find(|(n, _, _)| *n == name)
+                .expect("a channel the header was made from");
+            (*samples, *half)
+        })
+        .collect();
     write_atomically(path, |out| {
-        exr_image
-            .write()
-            .to_buffered(out)
-            .map_err(|e| exr_error(path, "write", e))
+        exr::block::write(out, headers, true, |meta, chunk_writer| {
+            let blocks = meta.collect_ordered_block_data(|index| {
+                let (x0, y0) = (index.pixel_position.0, index.pixel_position.1);
+                let (bw, bh) = (index.pixel_size.0, index.pixel_size.1);
+                let mut data = Vec::with_capacity(bw * bh * 4 * order.len());
+                let mut bits = vec![0u16; bw];
+                for y in y0..y0 + bh {
+                    for &(samples, half) in &order {
+                        let row = &samples[y * w + x0..y * w + x0 + bw];
+                        if half {
+                            crate::storage::to_f16_bits(row, &mut bits);
+                            bits.iter()
+                                .for_each(|b| data.extend_from_slice(&b.to_ne_bytes()));
+                        } else {
+                            row.iter()
+                                .for_each(|v| data.extend_from_slice(&v.to_ne_bytes()));
+                        }
+                    }
+                }
+                data
+            });
+            chunk_writer
+                .on_progress(|_| {})
+                .compress_all_blocks_parallel(&meta, blocks)
+        })
+        .map_err(|e| exr_error(path, "write", e))
     })
 }
 
