@@ -78,15 +78,16 @@ fn encode_table() -> &'static [f32] {
 #[inline]
 pub fn linear_to_srgb_tabulated(v: f32) -> f32 {
     let v = v.clamp(0.0, 1.0);
-    if !(v > 0.003_130_8) {
-        return v * 12.92; // the linear segment (and NaN, as the exact curve gives)
+    if v > 0.003_130_8 {
+        let table = encode_table();
+        let x = (v as f64).sqrt() * ENCODE_INTERVALS as f64;
+        let i = (x as usize).min(ENCODE_INTERVALS - 1);
+        let t = x - i as f64;
+        let (a, b) = (table[i] as f64, table[i + 1] as f64);
+        (a + t * (b - a)) as f32
+    } else {
+        v * 12.92 // the linear segment (and NaN, as the exact curve gives)
     }
-    let table = encode_table();
-    let x = (v as f64).sqrt() * ENCODE_INTERVALS as f64;
-    let i = (x as usize).min(ENCODE_INTERVALS - 1);
-    let t = x - i as f64;
-    let (a, b) = (table[i] as f64, table[i + 1] as f64);
-    (a + t * (b - a)) as f32
 }
 
 /// [`srgb_slope`] from the tabulated encoding: above the knee the slope
@@ -95,10 +96,11 @@ pub fn linear_to_srgb_tabulated(v: f32) -> f32 {
 #[inline]
 pub fn srgb_slope_tabulated(v: f64) -> f64 {
     let v = v.clamp(0.0, 1.0);
-    if !(v > 0.003_130_8) {
-        return 12.92;
+    if v > 0.003_130_8 {
+        (linear_to_srgb_tabulated(v as f32) as f64 + 0.055) / (2.4 * v)
+    } else {
+        12.92
     }
-    (linear_to_srgb_tabulated(v as f32) as f64 + 0.055) / (2.4 * v)
 }
 
 /// Linear values of the 256 8-bit sRGB codes.

@@ -488,9 +488,8 @@ fn fold_errors(
                                 }
                             }
                             // Unused lanes factor the identity.
-                            for l in used..LANES {
-                                (0..k * k).for_each(|x| f[x][l] = 0.0);
-                                (0..k).for_each(|i| f[i * k + i][l] = 1.0);
+                            for (x, v) in f.iter_mut().enumerate() {
+                                v[used..].fill(if x % (k + 1) == 0 { 1.0 } else { 0.0 });
                             }
                             linalg::cholesky_lanes(&mut f, k)
                         }
