@@ -108,33 +108,26 @@ pub fn cholesky_lanes(a: &mut [Lanes], n: usize) -> [bool; LANES] {
 /// right-hand sides `b[i][l]`, in place; bit for bit the scalar solves.
 pub fn cholesky_solve_lanes(f: &[Lanes], n: usize, b: &mut [Lanes]) {
     for i in 0..n {
-        let mut s = b[i];
-        for k in 0..i {
-            let (x, y) = (f[i * n + k], b[k]);
-            for l in 0..LANES {
-                s[l] -= x[l] * y[l];
-            }
-        }
-        let d = f[i * n + i];
-        for l in 0..LANES {
-            s[l] /= d[l];
-        }
-        b[i] = s;
+        b[i] = substitute(b[i], (0..i).map(|k| (f[i * n + k], b[k])), f[i * n + i]);
     }
     for i in (0..n).rev() {
-        let mut s = b[i];
-        for k in (i + 1)..n {
-            let (x, y) = (f[k * n + i], b[k]);
-            for l in 0..LANES {
-                s[l] -= x[l] * y[l];
-            }
-        }
-        let d = f[i * n + i];
-        for l in 0..LANES {
-            s[l] /= d[l];
-        }
-        b[i] = s;
+        b[i] = substitute(b[i], (i + 1..n).map(|k| (f[k * n + i], b[k])), f[i * n + i]);
     }
+}
+
+/// `(s − Σ x·y) / d` lane by lane, subtracting the terms in order: one step of forward
+/// or back substitution.
+#[inline]
+fn substitute(mut s: Lanes, terms: impl Iterator<Item = (Lanes, Lanes)>, d: Lanes) -> Lanes {
+    for (x, y) in terms {
+        for l in 0..LANES {
+            s[l] -= x[l] * y[l];
+        }
+    }
+    for l in 0..LANES {
+        s[l] /= d[l];
+    }
+    s
 }
 
 /// `c = a · b` in single precision, for row-major `a` (m×k), `b` (k×n), `c` (m×n).
