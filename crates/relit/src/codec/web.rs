@@ -1160,7 +1160,7 @@ pub struct WriteSummary {
 }
 
 /// The most nodes per side [`write`] uses: its principal components are found in
-/// `3·resolution²` dimensions by Jacobi rotations.
+/// `3·resolution²` dimensions by a dense eigen-decomposition ([`crate::linalg::symmetric_eigen`]).
 pub const MAX_WRITE_RESOLUTION: usize = 12;
 
 /// Write `image` as a web folder at `folder` (created, or its files replaced one by one
