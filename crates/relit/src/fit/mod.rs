@@ -14,9 +14,9 @@
 //! * [`Objective::Linear`]: `w_j = q_j`, the quadrature weight of the direction (1,
 //!   or the solid angle of its cell when the directions form a full spherical grid).
 //!   Every pixel shares one normal matrix, so the images stream through once, one batch
-//!   at a time, accumulating `Σ_j q_j B(L_j) I_j` per pixel (memory: the maps), and one
-//!   k×k solve turns the sums into coefficients — the precomputed solver `(BᵀQB+λP)⁻¹BᵀQ`
-//!   applied in two factors.
+//!   at a time, accumulating `Σ_j q_j B(L_j) I_j` per pixel in the maps' planar layout
+//!   (memory: the maps), and one k×k solve turns the sums into coefficients in place —
+//!   the precomputed solver `(BᵀQB+λP)⁻¹BᵀQ` applied in two factors.
 //! * [`Objective::Perceptual`]: `w_j = q_j · s(v)²` where `s` is the slope
 //!   of the sRGB curve at the sample's radiance `v`, so a linear-space residual counts
 //!   as much as the display-space error it causes. `v` is the observation first, then
@@ -39,8 +39,10 @@
 //!   `12.92² ≈ 167`, a lit one (0.3) about 0.8, so a band-limited function that cannot
 //!   follow the shadow's edge is pulled toward black on the lit side too (the attic at
 //!   1000 lights relit about five times too dark, 5–9 dB below the linear fit against
-//!   ray-traced truth), and the linear objective wins. Both pass-1 states (the spill
-//!   file and the shared sums) are kept until the choice.
+//!   ray-traced truth), and the linear objective wins. The subsample is read before
+//!   the images' pass and the choice made on it first, so the pass keeps only the
+//!   chosen objective's state (the spill file or the shared sums, each about the size
+//!   of the maps).
 //!
 //! Maps stored display-referred ([`MapSpace::Srgb`]) fit sRGB-encoded values with
 //! plain (quadrature-weighted) least squares.
@@ -778,11 +780,14 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
     if let Some(plan) = &options.plan {
         plan.check(capture, options)?;
     }
+    // The automatic objective is chosen on the subsample too, before the images are
+    // read, so that the first pass keeps only the chosen objective's state.
     let early = options.plan.is_none()
-        && match &options.basis {
-            BasisRequest::Auto => true,
-            BasisRequest::Fixed(choice) => choice.needs_samples(),
-        };
+        && (objective == Objective::Auto
+            || match &options.basis {
+                BasisRequest::Auto => true,
+                BasisRequest::Fixed(choice) => choice.needs_samples(),
+            });
     let early_sub = if early {
         Some(read_subsample(
             capture,
@@ -828,6 +833,21 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
     let have_sub = early_sub.is_some();
     let mut sub = early_sub.unwrap_or_else(|| vec![0f32; sub_idx.len() * design.n * 3]);
 
+    let decided = if have_sub {
+        let d = choose_objective(
+            &design,
+            &sub,
+            sub_idx.len(),
+            objective,
+            lambda_option,
+            options.reweights,
+        )?;
+        objective = d.0.objective;
+        stages.end("objective and λ");
+        Some(d)
+    } else {
+        None
+    };
     // The automatic objective keeps both kinds of pass-1 state until it has chosen.
     let mut accum = None;
     let mut spill = None;
@@ -877,98 +897,34 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
     progress.end();
 
     stages.end("images");
-    // λ (and the automatic objective): leave-one-out on the subsample.
-    let candidates: &[Objective] = match objective {
-        Objective::Auto => &[Objective::Perceptual, Objective::Linear],
-        Objective::Perceptual => &[Objective::Perceptual],
-        Objective::Linear => &[Objective::Linear],
+    // λ (and the automatic objective): leave-one-out on the subsample, before the
+    // images are read where the subsample already is (then the first pass keeps only
+    // the chosen objective's state), after them otherwise.
+    let (choice, objective_scores) = match decided {
+        Some(d) => d,
+        None => choose_objective(
+            &design,
+            &sub,
+            sub_idx.len(),
+            objective,
+            lambda_option,
+            options.reweights,
+        )?,
     };
-    let relevance = light_relevance(&sub, sub_idx.len(), design.n);
-    // The perceptual leave-one-out solves every pixel's own system (O(n·k²) per pixel
-    // and λ): a dense capture judges it on fewer pixels of the subsample.
-    let per_pixel =
-        3.0 * design.n as f64 * (design.k * design.k) as f64 * LAMBDA_LADDER.len() as f64;
-    let loo_count = ((PERCEPTUAL_LOO_BUDGET / per_pixel) as usize)
-        .max(64)
-        .min(sub_idx.len());
-    let loo_sub: Vec<f32> = (0..loo_count)
-        .flat_map(|i| {
-            let s = i * sub_idx.len() / loo_count;
-            sub[s * design.n * 3..(s + 1) * design.n * 3]
-                .iter()
-                .copied()
-        })
-        .collect();
-    // Objectives compared with each other are judged on the same pixels; the linear one
-    // alone takes the whole subsample (its leave-one-out is cheap).
-    let compared = candidates.len() > 1;
-    let loo = |objective: LooObjective, ladder: &[f64]| match objective {
-        LooObjective::Linear if !compared => {
-            loo_scores(&design, &sub, sub_idx.len(), objective, ladder, &relevance)
-        }
-        _ => loo_scores(&design, &loo_sub, loo_count, objective, ladder, &relevance),
-    };
-    let mut choice: Option<Choice> = None;
-    let mut objective_scores = Vec::new();
-    for &candidate in candidates {
-        // λ by the leave-one-out of the observation-weighted solve (both objectives).
-        let plain = match candidate {
-            Objective::Perceptual => LooObjective::Perceptual { reweights: 0 },
-            _ => LooObjective::Linear,
-        };
-        let mut scored = match lambda_option {
-            Lambda::Fixed(l) if l >= 0.0 && l.is_finite() => {
-                if candidates.len() == 1 {
-                    Choice::fixed(candidate, l)
-                } else {
-                    Choice::score(candidate, &loo(plain, &[l]))
-                }
-            }
-            Lambda::Fixed(l) => {
-                return Err(Error::invalid(format!(
-                    "λ must be a non-negative number, got {l}"
-                )))
-            }
-            Lambda::Auto => Choice::score(candidate, &loo(plain, &LAMBDA_LADDER)),
-        };
-        // Choosing between objectives, judge the perceptual one as it is fitted: with
-        // its reweighting pass(es), at the chosen λ.
-        if candidates.len() > 1 && candidate == Objective::Perceptual && options.reweights > 0 {
-            let reweighted = LooObjective::Perceptual {
-                reweights: options.reweights,
-            };
-            if let Some(s) = loo(reweighted, &[scored.lambda]).first() {
-                scored.display = s.display;
-                scored.bias = s.bias;
-                scored.linear_bias = s.linear_bias;
-            }
-        }
-        if candidates.len() > 1 {
-            objective_scores.push(ObjectiveScore {
-                objective: candidate,
-                lambda: scored.lambda,
-                display_mse: scored.display,
-                mean_bias: scored.bias,
-                linear_bias: scored.linear_bias,
-            });
-        }
-        if !matches!(&choice, Some(c) if !scored.beats(c)) {
-            choice = Some(scored);
-        }
-    }
     let Choice {
         objective,
         lambda,
         scores: lambda_scores,
         ..
-    } = choice.expect("at least one candidate objective");
+    } = choice;
     if objective == Objective::Perceptual {
         accum = None;
     } else {
         spill = None;
     }
-
-    stages.end("objective and λ");
+    if !have_sub {
+        stages.end("objective and λ");
+    }
     let maps = if let Some(mut sums) = accum.take() {
         solve_shared(&mut sums, &design, lambda)?;
         sums
@@ -1051,6 +1007,98 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
         image: RelightableImage { meta, maps, depth },
         report,
     })
+}
+
+/// The objective and λ of a fit (leave-one-out on the subsample `sub`, `count` pixels of
+/// `design.n` lights each), with the objectives' scores when there were two to compare.
+fn choose_objective(
+    design: &Design,
+    sub: &[f32],
+    count: usize,
+    objective: Objective,
+    lambda_option: Lambda,
+    reweights: usize,
+) -> Result<(Choice, Vec<ObjectiveScore>)> {
+    let candidates: &[Objective] = match objective {
+        Objective::Auto => &[Objective::Perceptual, Objective::Linear],
+        Objective::Perceptual => &[Objective::Perceptual],
+        Objective::Linear => &[Objective::Linear],
+    };
+    let relevance = light_relevance(sub, count, design.n);
+    // The perceptual leave-one-out solves every pixel's own system (O(n·k²) per pixel
+    // and λ): a dense capture judges it on fewer pixels of the subsample.
+    let per_pixel =
+        3.0 * design.n as f64 * (design.k * design.k) as f64 * LAMBDA_LADDER.len() as f64;
+    let loo_count = ((PERCEPTUAL_LOO_BUDGET / per_pixel) as usize)
+        .max(64)
+        .min(count);
+    let loo_sub: Vec<f32> = (0..loo_count)
+        .flat_map(|i| {
+            let s = i * count / loo_count;
+            sub[s * design.n * 3..(s + 1) * design.n * 3]
+                .iter()
+                .copied()
+        })
+        .collect();
+    // Objectives compared with each other are judged on the same pixels; the linear one
+    // alone takes the whole subsample (its leave-one-out is cheap).
+    let compared = candidates.len() > 1;
+    let loo = |objective: LooObjective, ladder: &[f64]| match objective {
+        LooObjective::Linear if !compared => {
+            loo_scores(design, sub, count, objective, ladder, &relevance)
+        }
+        _ => loo_scores(design, &loo_sub, loo_count, objective, ladder, &relevance),
+    };
+    let mut choice: Option<Choice> = None;
+    let mut objective_scores = Vec::new();
+    for &candidate in candidates {
+        // λ by the leave-one-out of the observation-weighted solve (both objectives).
+        let plain = match candidate {
+            Objective::Perceptual => LooObjective::Perceptual { reweights: 0 },
+            _ => LooObjective::Linear,
+        };
+        let mut scored = match lambda_option {
+            Lambda::Fixed(l) if l >= 0.0 && l.is_finite() => {
+                if candidates.len() == 1 {
+                    Choice::fixed(candidate, l)
+                } else {
+                    Choice::score(candidate, &loo(plain, &[l]))
+                }
+            }
+            Lambda::Fixed(l) => {
+                return Err(Error::invalid(format!(
+                    "λ must be a non-negative number, got {l}"
+                )))
+            }
+            Lambda::Auto => Choice::score(candidate, &loo(plain, &LAMBDA_LADDER)),
+        };
+        // Choosing between objectives, judge the perceptual one as it is fitted: with
+        // its reweighting pass(es), at the chosen λ.
+        if candidates.len() > 1 && candidate == Objective::Perceptual && reweights > 0 {
+            let reweighted = LooObjective::Perceptual { reweights };
+            if let Some(s) = loo(reweighted, &[scored.lambda]).first() {
+                scored.display = s.display;
+                scored.bias = s.bias;
+                scored.linear_bias = s.linear_bias;
+            }
+        }
+        if candidates.len() > 1 {
+            objective_scores.push(ObjectiveScore {
+                objective: candidate,
+                lambda: scored.lambda,
+                display_mse: scored.display,
+                mean_bias: scored.bias,
+                linear_bias: scored.linear_bias,
+            });
+        }
+        if !matches!(&choice, Some(c) if !scored.beats(c)) {
+            choice = Some(scored);
+        }
+    }
+    Ok((
+        choice.expect("at least one candidate objective"),
+        objective_scores,
+    ))
 }
 
 /// Pixels per parallel task.
