@@ -41,8 +41,8 @@
 //!   1000 lights relit about five times too dark, 5–9 dB below the linear fit against
 //!   ray-traced truth), and the linear objective wins. The subsample is read before
 //!   the images' pass and the choice made on it first, so the pass keeps only the
-//!   chosen objective's state (the spill file or the shared sums, each about the size
-//!   of the maps).
+//!   chosen objective's state (the spill file on disk, or the shared sums in memory,
+//!   the size of the maps).
 //!
 //! Maps stored display-referred ([`MapSpace::Srgb`]) fit sRGB-encoded values with
 //! plain (quadrature-weighted) least squares.
