@@ -88,17 +88,36 @@ CONF
 
 status=1
 cleanup() {
-    # Stop the daemons (their pid files are in $work), then remove $work unless kept.
+    # Stop the daemons (their pid files are in $work), wait until they are gone, then
+    # remove $work unless kept. slurmctld saves its state while it shuts down: removing
+    # the folder under it once failed ("Directory not empty") after a passing test, so
+    # the wait follows the daemons' own pids and the removal is retried; a folder that
+    # still cannot be removed is reported, and does not turn a pass into a failure.
     scontrol shutdown >/dev/null 2>&1 || true
-    for pid in "$work/slurmctld.pid" "$work/slurmd.pid" "$work/munge/munged.pid"; do
-        [[ -f $pid ]] && kill "$(cat "$pid")" 2>/dev/null || true
+    local pids=()
+    for file in "$work/slurmctld.pid" "$work/slurmd.pid" "$work/munge/munged.pid"; do
+        [[ -f $file ]] && pids+=("$(cat "$file" 2>/dev/null)")
     done
-    for _ in $(seq 20); do
-        pgrep -f "$work" >/dev/null 2>&1 || break
-        sleep 0.5
+    for pid in "${pids[@]}"; do kill "$pid" 2>/dev/null || true; done
+    for _ in $(seq 40); do
+        local alive=0
+        for pid in "${pids[@]}"; do kill -0 "$pid" 2>/dev/null && alive=1; done
+        pgrep -f "$work" >/dev/null 2>&1 && alive=1
+        [[ $alive == 0 ]] && break
+        sleep 0.25
     done
+    for pid in "${pids[@]}"; do kill -KILL "$pid" 2>/dev/null || true; done
     pkill -KILL -f "$work" 2>/dev/null || true
-    if [[ $status == 0 ]]; then rm -rf "$work"; else echo "slurm_test: files and logs kept in $work" >&2; fi
+    if [[ $status == 0 ]]; then
+        for _ in $(seq 5); do
+            rm -rf "$work" 2>/dev/null && break
+            sleep 1
+        done
+        [[ ! -e $work ]] || echo "slurm_test: could not remove $work" >&2
+    else
+        echo "slurm_test: files and logs kept in $work" >&2
+    fi
+    return 0
 }
 trap cleanup EXIT
 
