@@ -833,15 +833,22 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
     let have_sub = early_sub.is_some();
     let mut sub = early_sub.unwrap_or_else(|| vec![0f32; sub_idx.len() * design.n * 3]);
 
-    let decided = if have_sub {
-        let d = choose_objective(
+    // λ (and the automatic objective): leave-one-out on the subsample, before the
+    // images are read where the subsample already is (then the first pass keeps only
+    // the chosen objective's state), after them otherwise.
+    let requested = objective;
+    let choose = |sub: &[f32]| {
+        choose_objective(
             &design,
-            &sub,
+            sub,
             sub_idx.len(),
-            objective,
+            requested,
             lambda_option,
             options.reweights,
-        )?;
+        )
+    };
+    let decided = if have_sub {
+        let d = choose(&sub)?;
         objective = d.0.objective;
         stages.end("objective and λ");
         Some(d)
@@ -897,19 +904,9 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
     progress.end();
 
     stages.end("images");
-    // λ (and the automatic objective): leave-one-out on the subsample, before the
-    // images are read where the subsample already is (then the first pass keeps only
-    // the chosen objective's state), after them otherwise.
     let (choice, objective_scores) = match decided {
         Some(d) => d,
-        None => choose_objective(
-            &design,
-            &sub,
-            sub_idx.len(),
-            objective,
-            lambda_option,
-            options.reweights,
-        )?,
+        None => choose(&sub)?,
     };
     let Choice {
         objective,

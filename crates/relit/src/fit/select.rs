@@ -18,7 +18,7 @@ use super::{
     brightness_kept, light_relevance, perceptual_weight, srgb_on_screen, Objective, Regularizer,
 };
 use crate::basis::{Basis, BasisChoice, Samples, FAMILIES};
-use crate::linalg::{self, LANES};
+use crate::linalg::{self, Lanes, LANES};
 use crate::sphere::Vec3;
 use crate::Result;
 use rayon::prelude::*;
@@ -332,6 +332,32 @@ fn score_lights(
     })
 }
 
+/// Factor `m + λ·total·P` (plus the definiteness term), `k×k`, of each of the first
+/// `used` lanes into `f`; unused lanes factor the identity. Which lanes' matrices were
+/// positive definite.
+fn factor_lanes(
+    f: &mut [Lanes],
+    m: &[Lanes],
+    penalty: &[f64],
+    total: Lanes,
+    lambda: f64,
+    k: usize,
+    used: usize,
+) -> [bool; LANES] {
+    for (x, (dst, src)) in f.iter_mut().zip(m).enumerate() {
+        for l in 0..LANES {
+            dst[l] = src[l] + total[l] * lambda * penalty[x];
+        }
+        if x % (k + 1) == 0 {
+            for l in 0..LANES {
+                dst[l] += total[l] * super::DEFINITENESS;
+            }
+        }
+        dst[used..].fill(if x % (k + 1) == 0 { 1.0 } else { 0.0 });
+    }
+    linalg::cholesky_lanes(f, k)
+}
+
 /// Summed squared display errors over the subsample at each held-out light, per λ.
 #[allow(clippy::too_many_arguments)]
 fn fold_errors(
@@ -475,24 +501,15 @@ fn fold_errors(
                             }
                             None => [false; LANES],
                         },
-                        None => {
-                            let lambda = VALIDATION_LADDER[li];
-                            for (x, (dst, src)) in f.iter_mut().zip(&m).enumerate() {
-                                for l in 0..LANES {
-                                    dst[l] = src[l] + total[l] * lambda * penalty[x];
-                                }
-                            }
-                            for i in 0..k {
-                                for l in 0..LANES {
-                                    f[i * k + i][l] += total[l] * super::DEFINITENESS;
-                                }
-                            }
-                            // Unused lanes factor the identity.
-                            for (x, v) in f.iter_mut().enumerate() {
-                                v[used..].fill(if x % (k + 1) == 0 { 1.0 } else { 0.0 });
-                            }
-                            linalg::cholesky_lanes(&mut f, k)
-                        }
+                        None => factor_lanes(
+                            &mut f,
+                            &m,
+                            &penalty,
+                            total,
+                            VALIDATION_LADDER[li],
+                            k,
+                            used,
+                        ),
                     };
                     coef.copy_from_slice(&rhs0);
                     linalg::cholesky_solve_lanes(&f, k, &mut coef);
