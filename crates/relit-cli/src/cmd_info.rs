@@ -59,8 +59,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     header.tile
                 ),
             };
+            let gain = if header.gain {
+                ", divided by a perceptual gain"
+            } else {
+                ""
+            };
             format!(
-                "compressed: {} layout, {} components, {pixels}",
+                "compressed: {} layout, {} components{gain}, {pixels}",
                 header.layout.name(),
                 counts.join("/"),
             )

@@ -163,6 +163,11 @@ pub struct CompressArgs {
     /// minor components) or `plane` (each over its own range: finer, many more bits).
     #[arg(long, default_value = "shared", value_parser = |s: &str| relit::compress::JpegRange::parse(s).map_err(|e| e.to_string()))]
     pub jpeg_range: relit::compress::JpegRange,
+    /// Divide the function planes by a stored per-pixel perceptual gain, so that one
+    /// quantiser step shows as the same error on screen in dark and bright pixels (not
+    /// with --codebook).
+    #[arg(long)]
+    pub gain: bool,
 }
 
 impl CompressArgs {
@@ -177,6 +182,7 @@ impl CompressArgs {
             codebook: self.codebook.map(|c| c as usize),
             jpeg_range: self.jpeg_range,
             directions: None,
+            gain: self.gain,
         }
     }
 }

@@ -14,6 +14,9 @@
 //!    together become an index into a codebook of `C` vectors found by k-means. A
 //!    frame under uniform lights then relights the codebook and looks every pixel up
 //!    ([`crate::engine::lookup`]).
+//! 4. **Perceptual gain** ([`gain`], optional): every function plane divided per
+//!    pixel by a stored gain, so that one quantiser step is the same error on screen
+//!    in dark and bright pixels.
 //! 5. **Entropy coding** per tile ([`TileCodec`]): zstd of prediction residuals
 //!    (lossless for the codes) or JPEG (lossy, what a browser decodes).
 //!
@@ -22,6 +25,7 @@
 
 pub mod budget;
 pub mod container;
+pub mod gain;
 pub mod layout;
 pub mod planes;
 pub mod projection;
@@ -65,6 +69,8 @@ pub struct Settings {
     /// The capture's light directions, to weigh the components by the lights the maps
     /// will be seen under; `None` uses the basis' domain.
     pub directions: Option<Vec<Vec3>>,
+    /// Divide the function planes by a stored per-pixel perceptual gain ([`gain`]).
+    pub gain: bool,
 }
 
 impl Default for Settings {
@@ -80,6 +86,7 @@ impl Default for Settings {
             codebook: None,
             jpeg_range: JpegRange::Shared,
             directions: None,
+            gain: false,
         }
     }
 }
@@ -98,8 +105,9 @@ impl Settings {
             _ => format!(" b{}", self.bits),
         };
         let vq = self.codebook.map_or(String::new(), |c| format!(" vq{c}"));
+        let gain = if self.gain { " gain" } else { "" };
         format!(
-            "{} k{k}{chroma}{bits}{vq} {}",
+            "{} k{k}{chroma}{bits}{vq}{gain} {}",
             self.layout.name(),
             self.codec.name()
         )
@@ -157,6 +165,10 @@ pub struct Header {
     /// replaces the planes' tiles.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub codebook: Option<usize>,
+    /// Whether the function planes are divided by the per-pixel plane `gain`
+    /// ([`gain`]), the last of the planes.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub gain: bool,
     /// Whether depth follows the planes (f32, lossless).
     pub depth: bool,
 }
@@ -172,14 +184,16 @@ impl Header {
 
     /// The pixel rectangle `(x0, y0, w, h)` of tile `t` (raster order).
     pub fn tile_rect(&self, t: usize) -> (usize, usize, usize, usize) {
-        let (across, _) = self.tiles();
-        let (x0, y0) = ((t % across) * self.tile, (t / across) * self.tile);
-        (
-            x0,
-            y0,
-            self.tile.min(self.width - x0),
-            self.tile.min(self.height - y0),
-        )
+        tile_rect(self.width, self.height, self.tile, t)
+    }
+
+    /// The names of the per-pixel planes: the layout's (albedo), then the gain.
+    pub fn per_pixel_channels(&self) -> Vec<&'static str> {
+        let mut names = self.layout.channels().1.to_vec();
+        if self.gain {
+            names.push(gain::CHANNEL);
+        }
+        names
     }
 
     /// The sections the tiles take: every plane's tiles (or the codebook and the index
@@ -220,8 +234,12 @@ impl Header {
             if !self.codec.lossless() {
                 return Err(bad("codebook indices need a lossless codec".into()));
             }
+            if self.gain {
+                return Err(bad("a codebook file has no gain plane".into()));
+            }
         }
-        let (functions, per_pixel) = self.layout.channels();
+        let functions = self.layout.channels().0;
+        let per_pixel = self.per_pixel_channels();
         let mut counts = vec![0usize; functions.len()];
         let mut expected: Vec<(String, usize)> = Vec::new();
         for p in &self.planes {
@@ -262,6 +280,14 @@ impl Header {
     }
 }
 
+/// The pixel rectangle `(x0, y0, w, h)` of tile `t` (raster order) of a `width ×
+/// height` image in tiles of side `tile`.
+fn tile_rect(width: usize, height: usize, tile: usize, t: usize) -> (usize, usize, usize, usize) {
+    let across = width.div_ceil(tile);
+    let (x0, y0) = ((t % across) * tile, (t / across) * tile);
+    (x0, y0, tile.min(width - x0), tile.min(height - y0))
+}
+
 /// A compressed image in memory: the header and its sections (tiles of each plane in
 /// raster order, plane after plane, then depth's tiles).
 #[derive(Clone, Debug, PartialEq)]
@@ -293,6 +319,17 @@ fn inner_and_map(spec: &BasisSpec) -> Result<(Box<dyn Basis>, Vec<f64>)> {
 
 /// Compress `image` with `settings`.
 pub fn pack(image: &RelightableImage, settings: &Settings) -> Result<Packed> {
+    pack_with_gain(image, settings, None)
+}
+
+/// [`pack`], with the perceptual gain ([`gain::perceptual`] of the image at the
+/// settings' directions) when the caller has it already (`--budget` packs one image
+/// many ways); `None` computes it when the settings ask for it.
+pub fn pack_with_gain(
+    image: &RelightableImage,
+    settings: &Settings,
+    perceptual_gain: Option<&[f32]>,
+) -> Result<Packed> {
     if !(2..=16).contains(&settings.bits) {
         return Err(Error::invalid(format!(
             "bits must be 2–16, not {}",
@@ -324,8 +361,43 @@ pub fn pack(image: &RelightableImage, settings: &Settings) -> Result<Packed> {
         .chroma
         .unwrap_or(components.div_ceil(3))
         .clamp(1, components);
+    if settings.gain && settings.codebook.is_some() {
+        return Err(Error::invalid(
+            "a codebook and the perceptual gain do not combine: choose one",
+        ));
+    }
     let layout = settings.layout;
     let (functions, per_pixel) = layout.channels();
+    let max_levels = settings.codec.max_levels();
+
+    // The gain as a reader will decode it (the function planes carry its error).
+    let gain_plane: Option<(Vec<f32>, Quantizer)> = if settings.gain {
+        let computed;
+        let values = match perceptual_gain {
+            Some(g) if g.len() == n => g,
+            Some(_) => return Err(Error::invalid("the gain has the wrong number of pixels")),
+            None => {
+                computed = gain::perceptual(maps, basis.as_ref(), settings.directions.as_deref());
+                &computed
+            }
+        };
+        let quantizer = match settings.codec {
+            TileCodec::Zstd { .. } => {
+                let r = crate::storage::FiniteRange::of(values.iter().copied());
+                Quantizer::spanning(r.lo, r.hi, (r.hi - r.lo) / 255.0, max_levels)
+            }
+            TileCodec::Jpeg { .. } | TileCodec::Webp { .. } => {
+                plane_quantizer(values, settings.codec, 0.0, max_levels)
+            }
+        };
+        Some((values.to_vec(), quantizer))
+    } else {
+        None
+    };
+    let divisor: Option<Vec<f32>> = match &gain_plane {
+        Some((values, q)) => Some(coded_plane(values, q, maps.width, maps.height, settings)?),
+        None => None,
+    };
 
     // Layout: the function channels' coefficient planes (plane i·F + f), per-pixel
     // planes (albedo) apart.
@@ -338,11 +410,17 @@ pub fn pack(image: &RelightableImage, settings: &Settings) -> Result<Packed> {
     };
     let gram = projection::gram(basis.as_ref(), settings.directions.as_deref());
     let fcount = functions.len();
-    let function_value = |i: usize, f: usize, p: usize| -> f32 {
+    let undivided_value = |i: usize, f: usize, p: usize| -> f32 {
         match layout {
             Layout::Rgb => maps.plane(i, f)[p],
             Layout::Ycc => layout::ycc(rgb_at(i, p))[f],
             Layout::Lrgb => layout::luma(rgb_at(i, p)),
+        }
+    };
+    let function_value = |i: usize, f: usize, p: usize| -> f32 {
+        match &divisor {
+            Some(d) => undivided_value(i, f, p) / d[p],
+            None => undivided_value(i, f, p),
         }
     };
     // Principal components of the first function channel (R, G and B alike for rgb).
@@ -414,6 +492,8 @@ pub fn pack(image: &RelightableImage, settings: &Settings) -> Result<Packed> {
     // Per-pixel albedo of lrgb: the least-squares scale of each channel's function onto
     // the luminance function, in the relit image's metric: (cᵀ G l) / (lᵀ G l), with
     // G l formed once a pixel for the three channels (this is most of an lrgb pack).
+    // The luminance function is the undivided one: a reader multiplies by the gain and
+    // by the albedo.
     let mut albedo: Vec<Vec<f32>> = Vec::new();
     if layout == Layout::Lrgb {
         let per_pixel: Vec<[f32; 3]> = (0..n)
@@ -422,7 +502,7 @@ pub fn pack(image: &RelightableImage, settings: &Settings) -> Result<Packed> {
                 || (vec![0.0f64; k], vec![0.0f64; k]),
                 |(l, gl), p| {
                     for (i, li) in l.iter_mut().enumerate() {
-                        *li = function_value(i, 0, p) as f64;
+                        *li = undivided_value(i, 0, p) as f64;
                     }
                     for (i, gli) in gl.iter_mut().enumerate() {
                         *gli = gram[i * k..(i + 1) * k]
@@ -450,7 +530,6 @@ pub fn pack(image: &RelightableImage, settings: &Settings) -> Result<Packed> {
 
     // Quantisers.
     let range = |v: &[f32]| crate::storage::FiniteRange::of(v.iter().copied());
-    let max_levels = settings.codec.max_levels();
     let steps = ((1u64 << settings.bits) - 1) as f32;
     let mut entries: Vec<(PlaneEntry, &[f32])> = Vec::new();
     let function_step = match settings.codec {
@@ -498,6 +577,16 @@ pub fn pack(image: &RelightableImage, settings: &Settings) -> Result<Packed> {
             a,
         ));
     }
+    if let Some((values, quantizer)) = &gain_plane {
+        entries.push((
+            PlaneEntry {
+                channel: gain::CHANNEL.to_string(),
+                index: 0,
+                quantizer: quantizer.clone(),
+            },
+            values,
+        ));
+    }
 
     // Vector quantisation of every pixel's stored values together.
     let quantized = match settings.codebook {
@@ -539,6 +628,7 @@ pub fn pack(image: &RelightableImage, settings: &Settings) -> Result<Packed> {
         codec: settings.codec,
         planes: entries.iter().map(|(e, _)| e.clone()).collect(),
         codebook: quantized.as_ref().map(|(book, _)| book.entries()),
+        gain: settings.gain,
         depth: image.depth.is_some(),
     };
     let (across, down) = header.tiles();
@@ -562,7 +652,12 @@ pub fn pack(image: &RelightableImage, settings: &Settings) -> Result<Packed> {
                     let q = &entry.quantizer;
                     let codes = tile_codes(t, &|i| q.code(plane[i]));
                     let (_, _, w, h) = header.tile_rect(t);
-                    planes::encode_tile(&codes, w, h, q.width(), settings.codec)
+                    let codec = if entry.channel == gain::CHANNEL {
+                        gain::codec(settings.codec)
+                    } else {
+                        settings.codec
+                    };
+                    planes::encode_tile(&codes, w, h, q.width(), codec)
                 })
                 .collect::<Result<_>>()?
         }
@@ -608,6 +703,64 @@ pub fn pack(image: &RelightableImage, settings: &Settings) -> Result<Packed> {
         sections.extend(more);
     }
     Ok(Packed { header, sections })
+}
+
+/// The values of `plane` as a reader decodes them from its tiles, coded by `quantizer`
+/// with the settings' codec.
+fn coded_plane(
+    plane: &[f32],
+    quantizer: &Quantizer,
+    width: usize,
+    height: usize,
+    settings: &Settings,
+) -> Result<Vec<f32>> {
+    let tiles = width.div_ceil(settings.tile) * height.div_ceil(settings.tile);
+    let decoded: Vec<(usize, Vec<u16>)> = (0..tiles)
+        .into_par_iter()
+        .map(|t| {
+            let (x0, y0, w, h) = tile_rect(width, height, settings.tile, t);
+            let mut codes = Vec::with_capacity(w * h);
+            for y in y0..y0 + h {
+                codes.extend(
+                    plane[y * width + x0..y * width + x0 + w]
+                        .iter()
+                        .map(|&v| quantizer.code(v)),
+                );
+            }
+            if !settings.codec.lossless() {
+                let bytes = planes::encode_tile(
+                    &codes,
+                    w,
+                    h,
+                    quantizer.width(),
+                    gain::codec(settings.codec),
+                )?;
+                planes::decode_tile(
+                    &bytes,
+                    w,
+                    h,
+                    quantizer.width(),
+                    quantizer.levels,
+                    settings.codec,
+                    &mut codes,
+                )?;
+            }
+            Ok((t, codes))
+        })
+        .collect::<Result<_>>()?;
+    let mut out = vec![0.0f32; width * height];
+    for (t, codes) in decoded {
+        let (x0, y0, w, h) = tile_rect(width, height, settings.tile, t);
+        for y in 0..h {
+            for (o, &q) in out[(y0 + y) * width + x0..(y0 + y) * width + x0 + w]
+                .iter_mut()
+                .zip(&codes[y * w..(y + 1) * w])
+            {
+                *o = gain::applied(quantizer.coding.decode(q as f32));
+            }
+        }
+    }
+    Ok(out)
 }
 
 /// Vector-quantise the per-pixel values of `entries`: the codebook (in the planes'
@@ -1049,6 +1202,15 @@ fn assemble(
                 }
             }
         }
+    }
+    if header.gain {
+        let p = index_of(gain::CHANNEL, 0).expect("checked");
+        let mut g = vec![0.0f32; n];
+        plane_values(p, &mut g);
+        g.iter_mut().for_each(|v| *v = gain::applied(*v));
+        maps.data.par_chunks_mut(n).for_each(|plane| {
+            plane.iter_mut().zip(&g).for_each(|(o, &g)| *o *= g);
+        });
     }
     maps
 }

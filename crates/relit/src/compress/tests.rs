@@ -379,7 +379,7 @@ fn codebook_files_refuse_jpeg_and_version_1() {
         .unwrap_err()
         .to_string();
     assert!(err.contains("codebook"), "{err}");
-    bytes[8..12].copy_from_slice(&3u32.to_le_bytes());
+    bytes[8..12].copy_from_slice(&4u32.to_le_bytes());
     assert!(packed::from_bytes(&bytes, "new.rlz").is_err());
 }
 
@@ -444,16 +444,19 @@ fn a_region_reads_only_its_tiles_and_equals_that_crop_of_the_whole_file() {
     let img = image("sh:9", 70, 45);
     let jpeg = TileCodec::parse("jpeg:90").unwrap();
     let layouts = [
-        (Layout::Rgb, TileCodec::Zstd { level: 12 }, None),
-        (Layout::Ycc, jpeg, None),
-        (Layout::Lrgb, TileCodec::Zstd { level: 12 }, None),
-        (Layout::Rgb, TileCodec::Zstd { level: 12 }, Some(32)),
+        (Layout::Rgb, TileCodec::Zstd { level: 12 }, None, false),
+        (Layout::Ycc, jpeg, None, false),
+        (Layout::Lrgb, TileCodec::Zstd { level: 12 }, None, false),
+        (Layout::Rgb, TileCodec::Zstd { level: 12 }, Some(32), false),
+        (Layout::Ycc, jpeg, None, true),
+        (Layout::Lrgb, jpeg, None, true),
     ];
-    for (layout, codec, codebook) in layouts {
+    for (layout, codec, codebook, gain) in layouts {
         let settings = Settings {
             layout,
             codec,
             codebook,
+            gain,
             components: Some(5),
             tile: 16,
             ..Settings::default()
@@ -526,4 +529,147 @@ fn a_region_reads_only_its_tiles_and_equals_that_crop_of_the_whole_file() {
             assert!(unpack_region(&sparse, outside).is_err(), "{outside:?}");
         }
     }
+}
+
+#[test]
+fn a_gain_file_relights_like_the_maps_in_every_layout() {
+    let img = image("sh:16", 40, 23);
+    for layout in Layout::ALL {
+        let settings = Settings {
+            layout,
+            bits: 16,
+            tile: 16,
+            gain: true,
+            ..Settings::default()
+        };
+        let packed_image = pack(&img, &settings).unwrap();
+        let header = &packed_image.header;
+        assert!(header.gain);
+        assert_eq!(
+            header.planes.last().unwrap().channel,
+            gain::CHANNEL,
+            "the gain is the last plane"
+        );
+        let bytes = packed::to_bytes(&packed_image).unwrap();
+        assert_eq!(
+            &bytes[8..12],
+            &3u32.to_le_bytes(),
+            "gain files are version 3"
+        );
+        let (back, _) = round_trip(&img, &settings);
+        let e = relit_error(&img, &back);
+        // lrgb is exact only for pixels whose channels are scaled copies of one function
+        // (this image's tint varies across it: the same bound as without the gain).
+        let bound = if layout == Layout::Lrgb { 2e-2 } else { 1e-3 };
+        assert!(e < bound, "{layout:?}: {e}");
+    }
+    // The gain scales the planes, so a file without one reads as before.
+    let (plain, _) = round_trip(&img, &Settings::default());
+    assert!(relit_error(&img, &plain) < 1e-3);
+}
+
+#[test]
+fn the_gain_spends_precision_where_the_screen_shows_it() {
+    // Left half a hundred times darker than the right: one quantiser step for the
+    // whole image is invisible on the right and coarse on screen on the left.
+    // Every relit value positive (the constant term dominates), as a lit surface's.
+    let mut img = image("sh:9", 48, 32);
+    let (w, n) = (48, 48 * 32);
+    for (plane, values) in img.maps.data.chunks_exact_mut(n).enumerate() {
+        for (p, v) in values.iter_mut().enumerate() {
+            let lit = if plane < 3 {
+                2.0 + (p as f32 * 0.37).sin()
+            } else {
+                0.2 * *v
+            };
+            *v = lit * if p % w < w / 2 { 0.004 } else { 0.4 };
+        }
+    }
+    let on_screen = |back: &RelightableImage, dark: bool| -> f64 {
+        let (ra, rb) = (Relighter::new(&img).unwrap(), Relighter::new(back).unwrap());
+        let mut sum = 0.0;
+        let mut count = 0;
+        for d in crate::sphere::hemisphere_fibonacci(6) {
+            let rig = LightRig::new(vec![Light::directional(d, [1.0, 1.0, 1.0])]);
+            let options = RelightOptions::default();
+            let (fa, fb) = (
+                ra.relight(&rig, &options).unwrap(),
+                rb.relight(&rig, &options).unwrap(),
+            );
+            for (i, (a, b)) in fa.data.iter().zip(&fb.data).enumerate() {
+                if ((i / 3) % w < w / 2) == dark {
+                    let e = crate::color::linear_to_srgb(*a) - crate::color::linear_to_srgb(*b);
+                    sum += (e as f64).powi(2);
+                    count += 1;
+                }
+            }
+        }
+        (sum / count as f64).sqrt()
+    };
+    let settings = Settings {
+        layout: Layout::Ycc,
+        chroma: Some(9),
+        bits: 8,
+        tile: 16,
+        ..Settings::default()
+    };
+    let (plain, plain_bytes) = round_trip(&img, &settings);
+    let (gained, gained_bytes) = round_trip(
+        &img,
+        &Settings {
+            gain: true,
+            ..settings
+        },
+    );
+    let (plain_dark, gained_dark) = (on_screen(&plain, true), on_screen(&gained, true));
+    let (plain_bright, gained_bright) = (on_screen(&plain, false), on_screen(&gained, false));
+    assert!(
+        gained_dark < plain_dark / 4.0,
+        "dark half on screen: {gained_dark} with the gain, {plain_dark} without"
+    );
+    // The bright half gives up some of the precision it could not show.
+    assert!(
+        gained_bright < 4.0 * plain_bright.max(1.0 / 255.0),
+        "bright half: {gained_bright} against {plain_bright}"
+    );
+    assert!(
+        gained_bytes < 2 * plain_bytes,
+        "{gained_bytes} vs {plain_bytes} bytes"
+    );
+}
+
+#[test]
+fn a_gain_refuses_a_codebook_in_settings_and_in_a_file() {
+    let img = image("sh:9", 20, 20);
+    let both = Settings {
+        codebook: Some(16),
+        gain: true,
+        ..Settings::default()
+    };
+    assert!(pack(&img, &both).is_err());
+    let mut packed_image = pack(
+        &img,
+        &Settings {
+            codebook: Some(16),
+            ..Settings::default()
+        },
+    )
+    .unwrap();
+    packed_image.header.gain = true;
+    assert!(
+        unpack(&packed_image).is_err(),
+        "a codebook file claiming a gain"
+    );
+    // A gain file whose gain plane is missing is refused by name.
+    let mut no_plane = pack(
+        &img,
+        &Settings {
+            gain: true,
+            ..Settings::default()
+        },
+    )
+    .unwrap();
+    no_plane.header.planes.pop();
+    let err = unpack(&no_plane).unwrap_err().to_string();
+    assert!(err.contains("gain"), "{err}");
 }
