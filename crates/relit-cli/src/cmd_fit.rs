@@ -110,50 +110,30 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     let bars = Bars::new(args.quiet || args.json);
-    let output = relit::fit::fit(&capture, &options, &bars)?;
-    match relit::codec::FileForm::for_output(&args.output) {
-        relit::codec::FileForm::Compressed if args.budget.is_some() => {
-            let budget = args.budget.unwrap_or_default();
-            relit::compress::budget::choose(&output.image, &capture, budget, &bars).and_then(
-                |choice| {
-                    if !args.json && !args.quiet {
-                        eprintln!(
-                            "compression: {} ({:.1} bits/pixel, {:.2} dB on {} captured lights; {} candidates within the budget)",
-                            choice.settings.describe(),
-                            choice.bits_per_pixel,
-                            choice.score,
-                            relit::compress::budget::SCORING_LIGHTS.min(capture.len()),
-                            choice.within
-                        );
-                    }
-                    relit::codec::packed::write_packed(&args.output, &choice.packed)
-                },
-            )
-        }
-        _ => relit::codec::write(
-            &args.output,
-            &output.image,
-            &relit::codec::WriteOptions {
-                storage: args.storage,
-                compress: relit::compress::Settings {
-                    directions: Some(capture.directions()),
-                    ..args.compress.settings()
-                },
-                ..Default::default()
-            },
-        ),
-    }
-    .with_context(|| format!("writing {}", args.output.display()))?;
+    let form = relit::codec::FileForm::for_output(&args.output);
+    // The lossless file is written as the strips are solved (the maps are never held
+    // whole); the other forms need the whole image.
+    let (meta, report) = if form == relit::codec::FileForm::Exr {
+        let written = relit::fit::fit_to_exr(&capture, &options, &bars, &args.output, args.storage)
+            .with_context(|| format!("writing {}", args.output.display()))?;
+        (written.meta, written.report)
+    } else {
+        let output = relit::fit::fit(&capture, &options, &bars)?;
+        write_whole(&args, &capture, &output, &bars)
+            .with_context(|| format!("writing {}", args.output.display()))?;
+        (output.image.meta, output.report)
+    };
     let bytes = std::fs::metadata(&args.output)
         .map(|m| m.len())
         .unwrap_or(0);
-    let r = &output.report;
+    let r = &report;
+    let shard = meta.fit.as_ref().and_then(|f| f.shard);
     if args.json {
         let mut value = serde_json::to_value(r)?;
         value["output"] = serde_json::json!(args.output.display().to_string());
         value["file_bytes"] = serde_json::json!(bytes);
         value["bytes_per_pixel"] = serde_json::json!(bytes as f64 / (r.width * r.height) as f64);
-        if let Some(shard) = output.image.meta.fit.as_ref().and_then(|f| f.shard) {
+        if let Some(shard) = shard {
             value["shard"] = serde_json::to_value(shard)?;
         }
         println!("{}", serde_json::to_string_pretty(&value)?);
@@ -188,9 +168,51 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "training residual: RMSE (linear) R {:.4} G {:.4} B {:.4}; 8-bit sRGB PSNR {:.2} dB",
             r.rmse_linear[0], r.rmse_linear[1], r.rmse_linear[2], r.psnr_srgb8
         );
-        if let Some(shard) = output.image.meta.fit.as_ref().and_then(|f| f.shard) {
+        if let Some(shard) = shard {
             println!("{shard} (join the parts with `relit merge`)");
         }
     }
     Ok(())
+}
+
+/// Write a fit held whole: compressed (by `--budget` or the compression flags), an RTI
+/// tool's file or a web folder.
+fn write_whole(
+    args: &Args,
+    capture: &Capture,
+    output: &relit::fit::FitOutput,
+    bars: &Bars,
+) -> relit::Result<()> {
+    match relit::codec::FileForm::for_output(&args.output) {
+        relit::codec::FileForm::Compressed if args.budget.is_some() => {
+            let budget = args.budget.unwrap_or_default();
+            relit::compress::budget::choose(&output.image, capture, budget, bars).and_then(
+                |choice| {
+                    if !args.json && !args.quiet {
+                        eprintln!(
+                            "compression: {} ({:.1} bits/pixel, {:.2} dB on {} captured lights; {} candidates within the budget)",
+                            choice.settings.describe(),
+                            choice.bits_per_pixel,
+                            choice.score,
+                            relit::compress::budget::SCORING_LIGHTS.min(capture.len()),
+                            choice.within
+                        );
+                    }
+                    relit::codec::packed::write_packed(&args.output, &choice.packed)
+                },
+            )
+        }
+        _ => relit::codec::write(
+            &args.output,
+            &output.image,
+            &relit::codec::WriteOptions {
+                storage: args.storage,
+                compress: relit::compress::Settings {
+                    directions: Some(capture.directions()),
+                    ..args.compress.settings()
+                },
+                ..Default::default()
+            },
+        ),
+    }
 }

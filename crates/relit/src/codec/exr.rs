@@ -60,49 +60,26 @@ pub fn write(path: &Path, image: &RelightableImage, precision: Precision) -> Res
     // The header is inferred from channels without samples; each block's bytes are made
     // from the maps as it goes to the compressor, so the writer never holds a second copy
     // of the maps (item1's fit peaked 20 MiB lower, item11's 45).
-    let mut sources: Vec<(String, &[f32], bool)> = (0..maps.k)
-        .flat_map(|i| (0..3).map(move |c| (i, c)))
-        .map(|(i, c)| {
-            (
-                channel_name(i, c),
-                maps.plane(i, c),
-                precision == Precision::F16,
-            )
-        })
-        .collect();
-    if let Some(depth) = &image.depth {
-        sources.push(("Z".to_string(), depth.as_slice(), false));
-    }
-    let channels: Vec<AnyChannel<FlatSamples>> = sources
-        .iter()
-        .map(|(name, _, half)| {
-            let none = if *half {
-                FlatSamples::F16(Vec::new())
-            } else {
-                FlatSamples::F32(Vec::new())
-            };
-            AnyChannel::new(name.as_str(), none)
-        })
-        .collect();
-    let encoding = Encoding {
-        compression: Compression::ZIP16,
-        ..Encoding::default()
-    };
-    let attrs = attributes(&image.meta, precision);
-    let layer = Layer::new((w, h), attrs, encoding, AnyChannels::sort(channels.into()));
-    let headers = Image::from_layer(layer).write().infer_meta_data();
+    let headers = scan_line_headers(
+        w,
+        h,
+        maps.k,
+        precision,
+        image.depth.is_some(),
+        &attributes(&image.meta, precision),
+    );
+    let half = precision == Precision::F16;
     // The sources in the header's channel order (sorted by name).
     let order: Vec<(&[f32], bool)> = headers[0]
         .channels
         .list
         .iter()
-        .map(|ch| {
-            let name = ch.name.to_string();
-            let (_, samples, half) = sources
-                .iter()
-                .find(|(n, _, _)| *n == name)
-                .expect("a channel the header was made from");
-            (*samples, *half)
+        .map(|ch| match parse_channel_name(&ch.name.to_string()) {
+            Some((i, c)) => (maps.plane(i, c), half),
+            None => (
+                image.depth.as_deref().expect("a Z channel only with depth"),
+                false,
+            ),
         })
         .collect();
     write_atomically(path, |out| {
@@ -136,6 +113,300 @@ pub fn write(path: &Path, image: &RelightableImage, precision: Precision) -> Res
 }
 
 /// The `relit.*` attributes of a file of `meta` stored in `precision`.
+/// A file written from rows as they are made (a fit's strips), so that the maps are
+/// never held whole: each block (16 scan lines, as [`write`] makes them) is compressed
+/// as soon as its rows have arrived and its bytes go to a temporary file until
+/// [`ExrStream::finish`] writes the file with the final metadata (the header, which
+/// holds the fit's results, comes first in the file). It reads back as [`write`]'s
+/// file of the same maps and metadata does, bit for bit, and has its size.
+///
+/// Memory: the rows of a block a thread and fewer than 16 more, beside what the caller
+/// passes.
+pub struct ExrStream {
+    width: usize,
+    height: usize,
+    k: usize,
+    precision: Precision,
+    depth: Option<Vec<f32>>,
+    /// Headers made with empty metadata: compression depends only on the channels and
+    /// the blocks, which the final headers share.
+    headers: exr::meta::Headers,
+    /// The channels in the header's order: `Some((i, c))` a coefficient plane, `None`
+    /// depth.
+    order: Vec<Option<(usize, usize)>>,
+    /// Rows `pending_from..` not yet in a compressed block, planar (plane `3i + c`).
+    pending: Vec<Vec<f32>>,
+    pending_from: usize,
+    /// Rows received so far.
+    received: usize,
+    /// Every block of the file, in the order it is written.
+    blocks: Vec<exr::block::BlockIndex>,
+    /// The blocks compressed so far, in order, each with the length of its bytes, which
+    /// are moved to `spill` one after another.
+    chunks: Vec<(exr::block::chunk::Chunk, usize)>,
+    spill: std::fs::File,
+}
+
+impl ExrStream {
+    /// A file of `width × height` pixels with `k` coefficients per channel, in
+    /// `precision` (f32 or f16), with `depth` when given (`width × height` values).
+    pub fn new(
+        width: usize,
+        height: usize,
+        k: usize,
+        precision: Precision,
+        depth: Option<Vec<f32>>,
+    ) -> Result<ExrStream> {
+        let precision = precision.require(&[Precision::F32, Precision::F16], "OpenEXR")?;
+        if depth.as_ref().is_some_and(|d| d.len() != width * height) {
+            return Err(Error::invalid("the depth map does not match the image"));
+        }
+        let headers = scan_line_headers(
+            width,
+            height,
+            k,
+            precision,
+            depth.is_some(),
+            &LayerAttributes::default(),
+        );
+        let order = headers[0]
+            .channels
+            .list
+            .iter()
+            .map(|ch| parse_channel_name(&ch.name.to_string()))
+            .collect();
+        let blocks = exr::block::enumerate_ordered_header_block_indices(&headers)
+            .enumerate()
+            .map(|(at, (index, block))| {
+                debug_assert_eq!(at, index);
+                block
+            })
+            .collect();
+        Ok(ExrStream {
+            width,
+            height,
+            k,
+            precision,
+            depth,
+            headers,
+            order,
+            pending: vec![Vec::new(); 3 * k],
+            pending_from: 0,
+            received: 0,
+            blocks,
+            chunks: Vec::new(),
+            spill: tempfile::tempfile().map_err(|e| {
+                Error::new(
+                    ErrorKind::Io,
+                    "cannot create a temporary file for the blocks",
+                )
+                .with_source(e)
+            })?,
+        })
+    }
+
+    /// The next rows, `strip.height` of them, in order from the first.
+    pub fn rows(&mut self, strip: &CoefficientMaps) -> Result<()> {
+        use rayon::prelude::*;
+        if strip.width != self.width
+            || strip.k != self.k
+            || self.received + strip.height > self.height
+        {
+            return Err(Error::invalid("rows that do not belong to this image"));
+        }
+        for (plane, pending) in self.pending.iter_mut().enumerate() {
+            pending.extend_from_slice(
+                &strip.data[plane * strip.pixels()..(plane + 1) * strip.pixels()],
+            );
+        }
+        self.received += strip.height;
+        // The blocks whose rows have all arrived (blocks go down the image), compressed
+        // in parallel.
+        let first = self.chunks.len();
+        let ready = self.blocks[first..]
+            .iter()
+            .take_while(|b| b.pixel_position.1 + b.pixel_size.1 <= self.received)
+            .count();
+        // A block a thread at least, so that compressing is never one thread's work
+        // while the others wait (a strip of a small image completes about one block).
+        if ready < rayon::current_num_threads() && self.received < self.height {
+            return Ok(());
+        }
+        let this = &*self;
+        let chunks: Vec<exr::block::chunk::Chunk> = self.blocks[first..first + ready]
+            .par_iter()
+            .map(|b| this.block(b))
+            .collect::<Result<_>>()?;
+        for mut chunk in chunks {
+            let bytes = std::mem::take(chunk_bytes(&mut chunk));
+            std::io::Write::write_all(&mut self.spill, &bytes).map_err(|e| {
+                Error::new(ErrorKind::Io, "cannot write the temporary file of blocks")
+                    .with_source(e)
+            })?;
+            self.chunks.push((chunk, bytes.len()));
+        }
+        // Rows above every block still to come are no longer needed.
+        let keep_from = self
+            .blocks
+            .get(self.chunks.len())
+            .map_or(self.received, |b| b.pixel_position.1);
+        if keep_from > self.pending_from {
+            let drop = (keep_from - self.pending_from) * self.width;
+            for pending in &mut self.pending {
+                pending.drain(..drop);
+            }
+            self.pending_from = keep_from;
+        }
+        Ok(())
+    }
+
+    /// All rows of `maps` (the whole image), a row of blocks at a time, so that no
+    /// second copy of the maps is made.
+    pub fn all_rows(&mut self, maps: &CoefficientMaps) -> Result<()> {
+        let rows = self.headers[0].max_block_pixel_size().height().max(1);
+        let w = maps.width;
+        for y0 in (0..maps.height).step_by(rows) {
+            let count = rows.min(maps.height - y0);
+            let mut piece = CoefficientMaps::zeros(w, count, maps.k);
+            for (plane, out) in piece.data.chunks_exact_mut(w * count).enumerate() {
+                out.copy_from_slice(&maps.data[plane * maps.pixels() + y0 * w..][..w * count]);
+            }
+            self.rows(&piece)?;
+        }
+        Ok(())
+    }
+
+    /// One block (all its rows pending), compressed.
+    fn block(&self, block: &exr::block::BlockIndex) -> Result<exr::block::chunk::Chunk> {
+        let w = self.width;
+        let (x0, y0) = (block.pixel_position.0, block.pixel_position.1);
+        let (bw, bh) = (block.pixel_size.0, block.pixel_size.1);
+        let half = self.precision == Precision::F16;
+        let mut data = Vec::with_capacity(bw * bh * 4 * self.order.len());
+        let mut bits = vec![0u16; bw];
+        for y in y0..y0 + bh {
+            let at = (y - self.pending_from) * w + x0;
+            for source in &self.order {
+                match *source {
+                    Some((i, c)) => {
+                        let row = &self.pending[3 * i + c][at..at + bw];
+                        if half {
+                            crate::storage::to_f16_bits(row, &mut bits);
+                            bits.iter()
+                                .for_each(|b| data.extend_from_slice(&b.to_ne_bytes()));
+                        } else {
+                            row.iter()
+                                .for_each(|v| data.extend_from_slice(&v.to_ne_bytes()));
+                        }
+                    }
+                    None => {
+                        let depth = self.depth.as_ref().expect("a Z channel only with depth");
+                        depth[y * w + x0..y * w + x0 + bw]
+                            .iter()
+                            .for_each(|v| data.extend_from_slice(&v.to_ne_bytes()));
+                    }
+                }
+            }
+        }
+        exr::block::UncompressedBlock {
+            index: *block,
+            data,
+        }
+        .compress_to_chunk(&self.headers)
+        .map_err(|e| Error::new(ErrorKind::Io, format!("cannot compress a block: {e}")))
+    }
+
+    /// Write the file with its metadata, once every row has arrived; the file appears
+    /// whole or not at all.
+    pub fn finish(self, path: &Path, meta: &Metadata) -> Result<()> {
+        use exr::block::writer::ChunksWriter;
+        if self.received != self.height {
+            return Err(Error::invalid(format!(
+                "{} of {} rows were made: the file is not written",
+                self.received, self.height
+            )));
+        }
+        let headers = scan_line_headers(
+            self.width,
+            self.height,
+            self.k,
+            self.precision,
+            self.depth.is_some(),
+            &attributes(meta, self.precision),
+        );
+        let (chunks, mut spill) = (self.chunks, self.spill);
+        std::io::Seek::rewind(&mut spill).map_err(|e| {
+            Error::new(ErrorKind::Io, "cannot read the temporary file of blocks").with_source(e)
+        })?;
+        let mut spill = std::io::BufReader::new(spill);
+        write_atomically(path, |out| {
+            exr::block::write(out, headers, true, |_, chunk_writer| {
+                for (index, (mut chunk, length)) in chunks.into_iter().enumerate() {
+                    let bytes = chunk_bytes(&mut chunk);
+                    bytes.resize(length, 0);
+                    std::io::Read::read_exact(&mut spill, bytes)?;
+                    chunk_writer.write_chunk(index, chunk)?;
+                }
+                Ok(())
+            })
+            .map_err(|e| exr_error(path, "write", e))
+        })
+    }
+}
+
+/// The compressed bytes of a block of a flat (not deep) file.
+fn chunk_bytes(chunk: &mut exr::block::chunk::Chunk) -> &mut Vec<u8> {
+    use exr::block::chunk::CompressedBlock;
+    match &mut chunk.compressed_block {
+        CompressedBlock::Tile(tile) => &mut tile.compressed_pixels_le,
+        CompressedBlock::ScanLine(lines) => &mut lines.compressed_pixels_le,
+        CompressedBlock::DeepScanLine(_) | CompressedBlock::DeepTile(_) => {
+            unreachable!("relit writes no deep data")
+        }
+    }
+}
+
+/// The headers of a scan-line file of coefficient planes (and depth), as [`write`]
+/// makes them.
+fn scan_line_headers(
+    width: usize,
+    height: usize,
+    k: usize,
+    precision: Precision,
+    depth: bool,
+    attrs: &LayerAttributes,
+) -> exr::meta::Headers {
+    let half = precision == Precision::F16;
+    let mut channels: Vec<AnyChannel<FlatSamples>> = (0..k)
+        .flat_map(|i| (0..3).map(move |c| (i, c)))
+        .map(|(i, c)| {
+            let none = if half {
+                FlatSamples::F16(Vec::new())
+            } else {
+                FlatSamples::F32(Vec::new())
+            };
+            AnyChannel::new(channel_name(i, c).as_str(), none)
+        })
+        .collect();
+    if depth {
+        channels.push(AnyChannel::new("Z", FlatSamples::F32(Vec::new())));
+    }
+    // Scan lines (the exr crate's default would be 64×64 tiles): a block is 16 rows, so
+    // a file streamed from strips holds fewer than 16 rows beside the strip.
+    let encoding = Encoding {
+        compression: Compression::ZIP16,
+        blocks: Blocks::ScanLines,
+        line_order: LineOrder::Increasing,
+    };
+    let layer = Layer::new(
+        (width, height),
+        attrs.clone(),
+        encoding,
+        AnyChannels::sort(channels.into()),
+    );
+    Image::from_layer(layer).write().infer_meta_data()
+}
+
 fn attributes(meta: &Metadata, precision: Precision) -> LayerAttributes {
     let mut attrs = LayerAttributes::default();
     let other = &mut attrs.other;
@@ -842,6 +1113,87 @@ mod tests {
     use super::*;
     use crate::camera::Projection;
     use crate::storage::{f16_bits, f16_value};
+
+    #[test]
+    fn a_file_written_from_strips_equals_the_file_written_whole() {
+        // 37 rows: blocks of 16 across strips of 1, 5, 16 and 20 rows, and a short last block.
+        let (w, h, k) = (9, 37, 4);
+        let mut image = sample_image(k);
+        let mut maps = CoefficientMaps::zeros(w, h, k);
+        for (i, v) in maps.data.iter_mut().enumerate() {
+            *v = ((i * 7919) % 1000) as f32 / 137.0 - 3.0;
+        }
+        image.maps = maps;
+        let dir = tempfile::tempdir().unwrap();
+        for depth in [
+            None,
+            Some((0..w * h).map(|p| 1.0 + p as f32).collect::<Vec<f32>>()),
+        ] {
+            image.depth = depth.clone();
+            for precision in [Precision::F16, Precision::F32] {
+                let whole = dir.path().join("whole.exr");
+                write(&whole, &image, precision).unwrap();
+                for strip_rows in [1, 5, 16, 20] {
+                    let mut stream = ExrStream::new(w, h, k, precision, depth.clone()).unwrap();
+                    for y0 in (0..h).step_by(strip_rows) {
+                        let rows = strip_rows.min(h - y0);
+                        let mut strip = CoefficientMaps::zeros(w, rows, k);
+                        for plane in 0..3 * k {
+                            strip.data[plane * w * rows..(plane + 1) * w * rows].copy_from_slice(
+                                &image.maps.data[plane * w * h + y0 * w..][..w * rows],
+                            );
+                        }
+                        stream.rows(&strip).unwrap();
+                    }
+                    let streamed = dir.path().join("streamed.exr");
+                    stream.finish(&streamed, &image.meta).unwrap();
+                    // Blocks compressed in parallel may reach the file in another order
+                    // (its line order is unspecified), so compare what a reader gets.
+                    let (a, b) = (read(&whole).unwrap(), read(&streamed).unwrap());
+                    let bits = |m: &CoefficientMaps| {
+                        m.data.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+                    };
+                    let what = format!(
+                        "{precision:?}, depth {}, strips of {strip_rows}",
+                        depth.is_some()
+                    );
+                    assert!(bits(&a.maps) == bits(&b.maps), "{what}");
+                    assert_eq!(a.depth, b.depth, "{what}");
+                    assert_eq!(a.meta, b.meta, "{what}");
+                    assert_eq!(
+                        std::fs::metadata(&whole).unwrap().len(),
+                        std::fs::metadata(&streamed).unwrap().len(),
+                        "{what}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_stream_missing_rows_writes_nothing() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("short.exr");
+        let mut stream = ExrStream::new(4, 20, 1, Precision::F16, None).unwrap();
+        stream.rows(&CoefficientMaps::zeros(4, 17, 1)).unwrap();
+        assert!(
+            stream.rows(&CoefficientMaps::zeros(4, 4, 1)).is_err(),
+            "past the last row"
+        );
+        assert!(
+            stream.rows(&CoefficientMaps::zeros(5, 1, 1)).is_err(),
+            "another width"
+        );
+        let err = stream.finish(&path, &sample_image(1).meta).unwrap_err();
+        assert!(err.to_string().contains("17 of 20 rows"), "{err}");
+        assert!(!path.exists());
+        assert!(
+            std::fs::read_dir(dir.path()).unwrap().next().is_none(),
+            "no partial file"
+        );
+        assert!(ExrStream::new(4, 20, 1, Precision::U8, None).is_err());
+        assert!(ExrStream::new(4, 20, 1, Precision::F16, Some(vec![0.0; 3])).is_err());
+    }
 
     fn sample_image(k: usize) -> RelightableImage {
         let mut maps = CoefficientMaps::zeros(5, 3, k);

@@ -322,7 +322,7 @@ impl Default for FitOptions {
             regularizer: Regularizer::default(),
             lambda: Lambda::Auto,
             reweights: 1,
-            strip_bytes: 8 << 20,
+            strip_bytes: 4 << 20,
             subsample: 1024,
             criterion: None,
             shard: None,
@@ -411,6 +411,13 @@ pub struct ObjectiveScore {
 #[derive(Clone, Debug)]
 pub struct FitOutput {
     pub image: RelightableImage,
+    pub report: FitReport,
+}
+
+/// What [`fit_to_exr`] wrote: the file's metadata and the fit's report.
+#[derive(Debug)]
+pub struct WrittenFit {
+    pub meta: Metadata,
     pub report: FitReport,
 }
 
@@ -750,6 +757,96 @@ fn to_target_values(values: &mut [f32], space: MapSpace) {
 
 /// Fit `capture` with `options`.
 pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> Result<FitOutput> {
+    let (meta, maps, depth, report) = fit_into(capture, options, progress, None)?;
+    Ok(FitOutput {
+        image: RelightableImage {
+            meta,
+            maps: maps.expect("maps are kept when no file is streamed"),
+            depth,
+        },
+        report,
+    })
+}
+
+/// [`fit`], writing the maps to the OpenEXR file `path` (f16 or f32) as the strips are
+/// solved instead of holding them (`codec::exr::ExrStream`): the fit's memory is then
+/// the strip's and the compressed file's, not the maps'. The file reads back as
+/// [`fit`]'s image written with `codec::exr::write` does, bit for bit (the
+/// fit's time in its metadata aside). The linear objective solves all pixels at once
+/// (its sums are the size of the maps) and streams them after.
+pub fn fit_to_exr(
+    capture: &Capture,
+    options: &FitOptions,
+    progress: &dyn Progress,
+    path: &std::path::Path,
+    precision: crate::storage::Precision,
+) -> Result<WrittenFit> {
+    let (meta, _, _, report) = fit_into(capture, options, progress, Some((path, precision)))?;
+    Ok(WrittenFit { meta, report })
+}
+
+/// The coefficients of the subsample pixels inside the fitted band, gathered from the
+/// maps or from each strip as it is solved (the training residual needs no more).
+struct SubCoefficients {
+    k: usize,
+    values: Vec<f32>,
+    have: Vec<bool>,
+}
+
+impl SubCoefficients {
+    fn new(count: usize, k: usize) -> Self {
+        SubCoefficients {
+            k,
+            values: vec![0.0; count * 3 * k],
+            have: vec![false; count],
+        }
+    }
+
+    /// Record the subsample pixels in `maps`, whose first pixel is pixel `first` of the
+    /// band starting at image pixel `band_start`.
+    fn record(
+        &mut self,
+        maps: &CoefficientMaps,
+        first: usize,
+        sub_idx: &[usize],
+        band_start: usize,
+    ) {
+        let k = self.k;
+        let range = band_start + first..band_start + first + maps.pixels();
+        for (s, &p) in sub_idx.iter().enumerate() {
+            if range.contains(&p) {
+                let local = p - range.start;
+                for i in 0..k {
+                    for c in 0..3 {
+                        self.values[s * 3 * k + 3 * i + c] = maps.plane(i, c)[local];
+                    }
+                }
+                self.have[s] = true;
+            }
+        }
+    }
+
+    /// Coefficient `i` of channel `c` of subsample pixel `s`, when it was in the band.
+    fn get(&self, s: usize) -> Option<impl Fn(usize, usize) -> f32 + '_> {
+        let k = self.k;
+        self.have[s].then(move || move |i: usize, c: usize| self.values[s * 3 * k + 3 * i + c])
+    }
+}
+
+/// A fit's metadata, maps (unless streamed to a file), depth band and report.
+type Fitted = (
+    Metadata,
+    Option<CoefficientMaps>,
+    Option<Vec<f32>>,
+    FitReport,
+);
+
+fn fit_into(
+    capture: &Capture,
+    options: &FitOptions,
+    progress: &dyn Progress,
+    stream_to: Option<(&std::path::Path, crate::storage::Precision)>,
+) -> Result<Fitted> {
     let start = Instant::now();
     let mut stages = Stages::new();
     if capture.is_empty() {
@@ -872,7 +969,13 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
 
     // Pass 1: stream the images, a batch of decoders' worth at a time.
     progress.begin("reading images", design.n as u64);
-    let batch = image_batch(DECODE_BATCH_BYTES, pixels * 3 * 4);
+    // The shared sums gain from many images a batch; the spill file takes each image
+    // alone, so a batch of one image a thread keeps decoded images out of the peak.
+    let batch = if accum.is_some() {
+        image_batch(DECODE_BATCH_BYTES, pixels * 3 * 4)
+    } else {
+        rayon::current_num_threads().max(1)
+    };
     for first in (0..design.n).step_by(batch) {
         let indices: Vec<usize> = (first..(first + batch).min(design.n)).collect();
         // Each image's band of rows, and its subsample pixels where still unread.
@@ -922,33 +1025,68 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
     if !have_sub {
         stages.end("objective and λ");
     }
+    let depth = capture
+        .depth
+        .as_ref()
+        .map(|d| d.get(band.clone()).unwrap_or_default().to_vec());
+    let mut stream = match stream_to {
+        Some((_, precision)) => Some(crate::codec::exr::ExrStream::new(
+            w,
+            rows.len(),
+            design.k,
+            precision,
+            depth.clone(),
+        )?),
+        None => None,
+    };
+    let mut sub_coefs = SubCoefficients::new(sub_idx.len(), design.k);
     let maps = if let Some(mut sums) = accum.take() {
         solve_shared(&mut sums, &design, lambda)?;
-        sums
+        sub_coefs.record(&sums, 0, &sub_idx, band.start);
+        match stream.as_mut() {
+            Some(stream) => {
+                stream.all_rows(&sums)?;
+                None
+            }
+            None => Some(sums),
+        }
     } else {
-        let mut maps = CoefficientMaps::zeros(w, rows.len(), design.k);
+        let mut maps = stream
+            .is_none()
+            .then(|| CoefficientMaps::zeros(w, rows.len(), design.k));
         if let Some(spill) = spill.as_ref() {
             solve_per_pixel(
                 spill,
                 &design,
                 lambda,
                 options.reweights,
-                &mut maps,
                 progress,
+                &mut |p0, runs| {
+                    match (maps.as_mut(), stream.as_mut()) {
+                        (Some(maps), _) => scatter_planar(runs, p0, maps),
+                        (None, Some(stream)) => {
+                            let count: usize =
+                                runs.iter().map(|r| r.len()).sum::<usize>() / (3 * design.k);
+                            let mut strip = CoefficientMaps::zeros(w, count / w, design.k);
+                            scatter_planar(runs, 0, &mut strip);
+                            sub_coefs.record(&strip, p0, &sub_idx, band.start);
+                            stream.rows(&strip)?;
+                        }
+                        (None, None) => unreachable!("the maps or a file"),
+                    }
+                    Ok(())
+                },
             )?;
+        }
+        if let Some(maps) = &maps {
+            sub_coefs.record(maps, 0, &sub_idx, band.start);
         }
         maps
     };
 
     stages.end("solve");
-    let (rmse_linear, psnr_srgb8) = training_residual(
-        &design,
-        &maps,
-        &sub,
-        &sub_idx,
-        band.clone(),
-        options.color_space,
-    );
+    let (rmse_linear, psnr_srgb8) =
+        training_residual(&design, &sub_coefs, &sub, options.color_space);
     stages.end("residual");
     let seconds = start.elapsed().as_secs_f64();
     let mut meta = Metadata::new(
@@ -976,6 +1114,10 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
         seconds,
         shard,
     });
+    if let (Some(stream), Some((path, _))) = (stream, stream_to) {
+        stream.finish(path, &meta)?;
+        stages.end("write");
+    }
     let report = FitReport {
         basis: design.basis.name(),
         objective_scores,
@@ -996,14 +1138,7 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
         rmse_linear,
         psnr_srgb8,
     };
-    let depth = capture
-        .depth
-        .as_ref()
-        .map(|d| d.get(band.clone()).unwrap_or_default().to_vec());
-    Ok(FitOutput {
-        image: RelightableImage { meta, maps, depth },
-        report,
-    })
+    Ok((meta, maps, depth, report))
 }
 
 /// The objective and λ of a fit (leave-one-out on the subsample `sub`, `count` pixels of
@@ -1258,14 +1393,15 @@ pub(super) fn packed_pairs(k: usize) -> Vec<(usize, usize)> {
     (0..k).flat_map(|r| (r..k).map(move |c| (r, c))).collect()
 }
 
-/// Per-pixel weighted fit of every strip in the spill file.
+/// Per-pixel weighted fit of every strip in the spill file; each strip's coefficients
+/// go to `emit` (its first pixel, then runs of pixel-major coefficients).
 fn solve_per_pixel(
     spill: &spill::Spill,
     design: &Design,
     lambda: f64,
     reweights: usize,
-    maps: &mut CoefficientMaps,
     progress: &dyn Progress,
+    emit: &mut dyn FnMut(usize, &[Vec<f32>]) -> Result<()>,
 ) -> Result<()> {
     let (k, n) = (design.k, design.n);
     let pairs = packed_pairs(k);
@@ -1328,7 +1464,7 @@ fn solve_per_pixel(
                 },
             )
             .collect();
-        scatter_planar(&results, p0, maps);
+        emit(p0, &results)?;
         progress.advance(1);
     }
     progress.end();
@@ -1796,24 +1932,21 @@ enum LooObjective {
 /// Training residual on the subsample: RMSE in linear radiance per channel and 8-bit sRGB PSNR.
 fn training_residual(
     design: &Design,
-    maps: &CoefficientMaps,
+    sub_coefs: &SubCoefficients,
     sub: &[f32],
-    sub_idx: &[usize],
-    band: std::ops::Range<usize>,
     space: MapSpace,
 ) -> ([f64; 3], f64) {
     let (k, n) = (design.k, design.n);
     let mut sq = [0.0f64; 3];
     let mut sq8 = 0.0f64;
     let mut count = 0usize;
-    for (s, &p) in sub_idx.iter().enumerate() {
-        if !band.contains(&p) {
+    for s in 0..sub_coefs.have.len() {
+        let Some(coefficient) = sub_coefs.get(s) else {
             continue;
-        }
+        };
         count += n;
-        let p = p - band.start;
         for c in 0..3 {
-            let coef: Vec<f64> = (0..k).map(|i| maps.plane(i, c)[p] as f64).collect();
+            let coef: Vec<f64> = (0..k).map(|i| coefficient(i, c) as f64).collect();
             for j in 0..n {
                 let pred: f64 = design.row(j).iter().zip(&coef).map(|(a, b)| a * b).sum();
                 let obs = sub[(s * n + j) * 3 + c] as f64;

@@ -77,14 +77,19 @@ impl Spill {
     pub fn read_strip(&self, s: usize, buffer: &mut Vec<f32>) -> Result<(usize, usize)> {
         let (r0, r1) = self.strip_rows(s);
         let count = (r1 - r0) * self.width;
-        let mut bytes = vec![0u8; count * 3 * 4 * self.images];
-        read_at(&self.file, &mut bytes, self.offset(s, 0))?;
+        // One image's part at a time, so that the bytes read add one image's strip to
+        // the floats, not a second strip.
+        let mut bytes = vec![0u8; count * 3 * 4];
         buffer.clear();
-        buffer.extend(
-            bytes
-                .chunks_exact(4)
-                .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
-        );
+        buffer.reserve_exact(count * 3 * self.images);
+        for j in 0..self.images {
+            read_at(&self.file, &mut bytes, self.offset(s, j))?;
+            buffer.extend(
+                bytes
+                    .chunks_exact(4)
+                    .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+            );
+        }
         Ok((r0 * self.width, count))
     }
 }
