@@ -582,7 +582,7 @@ pub fn pack_with_gain(
             PlaneEntry {
                 channel: gain::CHANNEL.to_string(),
                 index: 0,
-                quantizer: quantizer.clone(),
+                quantizer: *quantizer,
             },
             values,
         ));

@@ -202,10 +202,12 @@ pub struct FitOptions {
     pub lambda: Lambda,
     /// Reweighting passes of the perceptual objective after the first solve.
     pub reweights: usize,
-    /// Bytes of one strip of all images held in memory by the perceptual fit. The
-    /// default, 8 MiB, holds thousands of pixels (enough parallel work) and keeps the
-    /// strip and its results small beside the maps: RealRTI item1's fit peaked at
-    /// 174 MiB with 64 MiB strips, 82 MiB with 8 MiB ones, in the same time.
+    /// Bytes of one strip of all images held in memory by the perceptual fit (and by a
+    /// linear one streamed to a file). The default, 3 MiB, still holds thousands of
+    /// pixels (enough parallel work): RealRTI item1's fit peaked at 174 MiB with 64 MiB
+    /// strips, 82 MiB with 8 MiB ones, in the same time; once the file was streamed
+    /// (maps no longer held), item9's peaked at 35.6, 35.8 and 31.1 MiB with 8, 4 and
+    /// 3 MiB strips, again in the same time (1.7 s).
     pub strip_bytes: usize,
     /// Pixels in the subsample used to choose λ and estimate the training residual.
     pub subsample: usize,
@@ -322,7 +324,7 @@ impl Default for FitOptions {
             regularizer: Regularizer::default(),
             lambda: Lambda::Auto,
             reweights: 1,
-            strip_bytes: 4 << 20,
+            strip_bytes: 3 << 20,
             subsample: 1024,
             criterion: None,
             shard: None,
@@ -826,10 +828,11 @@ impl SubCoefficients {
         }
     }
 
-    /// Coefficient `i` of channel `c` of subsample pixel `s`, when it was in the band.
-    fn get(&self, s: usize) -> Option<impl Fn(usize, usize) -> f32 + '_> {
-        let k = self.k;
-        self.have[s].then(move || move |i: usize, c: usize| self.values[s * 3 * k + 3 * i + c])
+    /// Subsample pixel `s`'s coefficients (coefficient `i` of channel `c` at `3i + c`),
+    /// when it was in the band.
+    fn get(&self, s: usize) -> Option<&[f32]> {
+        let n = 3 * self.k;
+        self.have[s].then_some(&self.values[s * n..(s + 1) * n])
     }
 }
 
@@ -955,7 +958,10 @@ fn fit_into(
     // The automatic objective keeps both kinds of pass-1 state until it has chosen.
     let mut accum = None;
     let mut spill = None;
-    if objective != Objective::Linear {
+    // A fit streamed to a file takes the linear objective's sums strip by strip from the
+    // spill file too, so that no state the size of the maps is held.
+    let linear_by_strips = stream_to.is_some() && objective == Objective::Linear;
+    if objective != Objective::Linear || linear_by_strips {
         spill = Some(spill::Spill::create(
             w,
             rows.len(),
@@ -963,7 +969,7 @@ fn fit_into(
             options.strip_bytes,
         )?);
     }
-    if objective != Objective::Perceptual {
+    if objective != Objective::Perceptual && !linear_by_strips {
         accum = Some(CoefficientMaps::zeros(w, rows.len(), design.k));
     }
 
@@ -1019,7 +1025,7 @@ fn fit_into(
     } = choice;
     if objective == Objective::Perceptual {
         accum = None;
-    } else {
+    } else if !linear_by_strips {
         spill = None;
     }
     if !have_sub {
@@ -1040,7 +1046,27 @@ fn fit_into(
         None => None,
     };
     let mut sub_coefs = SubCoefficients::new(sub_idx.len(), design.k);
-    let maps = if let Some(mut sums) = accum.take() {
+    let maps = if linear_by_strips {
+        let (spill, stream) = (
+            spill.as_ref().expect("a spill file for the strips"),
+            stream.as_mut().expect("a file to stream to"),
+        );
+        let indices: Vec<usize> = (0..design.n).collect();
+        let mut buffer = Vec::new();
+        progress.begin("fitting strips", spill.strips() as u64);
+        for s in 0..spill.strips() {
+            let (p0, count) = spill.read_strip(s, &mut buffer)?;
+            let images: Vec<&[f32]> = buffer.chunks_exact(3 * count).collect();
+            let mut strip = CoefficientMaps::zeros(w, count / w, design.k);
+            accumulate(&mut strip, &design, &indices, &images);
+            solve_shared(&mut strip, &design, lambda)?;
+            sub_coefs.record(&strip, p0, &sub_idx, band.start);
+            stream.rows(&strip)?;
+            progress.advance(1);
+        }
+        progress.end();
+        None
+    } else if let Some(mut sums) = accum.take() {
         solve_shared(&mut sums, &design, lambda)?;
         sub_coefs.record(&sums, 0, &sub_idx, band.start);
         match stream.as_mut() {
@@ -1393,6 +1419,9 @@ pub(super) fn packed_pairs(k: usize) -> Vec<(usize, usize)> {
     (0..k).flat_map(|r| (r..k).map(move |c| (r, c))).collect()
 }
 
+/// Where a solved strip goes: its first pixel, then runs of pixel-major coefficients.
+type StripSink<'a> = dyn FnMut(usize, &[Vec<f32>]) -> Result<()> + 'a;
+
 /// Per-pixel weighted fit of every strip in the spill file; each strip's coefficients
 /// go to `emit` (its first pixel, then runs of pixel-major coefficients).
 fn solve_per_pixel(
@@ -1401,7 +1430,7 @@ fn solve_per_pixel(
     lambda: f64,
     reweights: usize,
     progress: &dyn Progress,
-    emit: &mut dyn FnMut(usize, &[Vec<f32>]) -> Result<()>,
+    emit: &mut StripSink,
 ) -> Result<()> {
     let (k, n) = (design.k, design.n);
     let pairs = packed_pairs(k);
@@ -1946,7 +1975,7 @@ fn training_residual(
         };
         count += n;
         for c in 0..3 {
-            let coef: Vec<f64> = (0..k).map(|i| coefficient(i, c) as f64).collect();
+            let coef: Vec<f64> = (0..k).map(|i| coefficient[3 * i + c] as f64).collect();
             for j in 0..n {
                 let pred: f64 = design.row(j).iter().zip(&coef).map(|(a, b)| a * b).sum();
                 let obs = sub[(s * n + j) * 3 + c] as f64;
