@@ -206,8 +206,8 @@ pub struct FitOptions {
     /// linear one streamed to a file). The default, 3 MiB, still holds thousands of
     /// pixels (enough parallel work): RealRTI item1's fit peaked at 174 MiB with 64 MiB
     /// strips, 82 MiB with 8 MiB ones, in the same time; once the file was streamed
-    /// (maps no longer held), item9's peaked at 35.6, 35.8 and 31.1 MiB with 8, 4 and
-    /// 3 MiB strips, again in the same time (1.7 s).
+    /// (maps no longer held), item9's peaked at 35.6 MiB with 4 MiB strips and 31.1 with
+    /// 3 MiB ones, again in the same time (1.7 s).
     pub strip_bytes: usize,
     /// Pixels in the subsample used to choose λ and estimate the training residual.
     pub subsample: usize,
