@@ -114,9 +114,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // The lossless file is written as the strips are solved (the maps are never held
     // whole); the other forms need the whole image.
     let (meta, report) = if form == relit::codec::FileForm::Exr {
-        let written = relit::fit::fit_to_exr(&capture, &options, &bars, &args.output, args.storage)
-            .with_context(|| format!("writing {}", args.output.display()))?;
-        (written.meta, written.report)
+        relit::codec::exr::fit_to_exr(&capture, &options, &bars, &args.output, args.storage)
+            .with_context(|| format!("writing {}", args.output.display()))?
     } else {
         let output = relit::fit::fit(&capture, &options, &bars)?;
         write_whole(&args, &capture, &output, &bars)

@@ -260,22 +260,6 @@ impl ExrStream {
         Ok(())
     }
 
-    /// All rows of `maps` (the whole image), a row of blocks at a time, so that no
-    /// second copy of the maps is made.
-    pub fn all_rows(&mut self, maps: &CoefficientMaps) -> Result<()> {
-        let rows = self.headers[0].max_block_pixel_size().height().max(1);
-        let w = maps.width;
-        for y0 in (0..maps.height).step_by(rows) {
-            let count = rows.min(maps.height - y0);
-            let mut piece = CoefficientMaps::zeros(w, count, maps.k);
-            for (plane, out) in piece.data.chunks_exact_mut(w * count).enumerate() {
-                out.copy_from_slice(&maps.data[plane * maps.pixels() + y0 * w..][..w * count]);
-            }
-            self.rows(&piece)?;
-        }
-        Ok(())
-    }
-
     /// One block (all its rows pending), compressed.
     fn block(&self, block: &exr::block::BlockIndex) -> Result<exr::block::chunk::Chunk> {
         let w = self.width;
@@ -363,6 +347,61 @@ fn chunk_bytes(chunk: &mut exr::block::chunk::Chunk) -> &mut Vec<u8> {
         CompressedBlock::DeepScanLine(_) | CompressedBlock::DeepTile(_) => {
             unreachable!("relit writes no deep data")
         }
+    }
+}
+
+/// A fit written to the OpenEXR file `path` (f16 or f32) as its strips are solved
+/// ([`crate::fit::fit_streamed`] into an [`ExrStream`]): the maps are never held whole.
+/// The file reads back as [`crate::fit::fit`]'s image written with [`write`] does, bit
+/// for bit (the fit's time in its metadata aside). Returns the metadata and the fit's
+/// report, whose peak memory includes the writing.
+pub fn fit_to_exr(
+    capture: &crate::capture::Capture,
+    options: &crate::fit::FitOptions,
+    progress: &dyn crate::progress::Progress,
+    path: &Path,
+    precision: Precision,
+) -> Result<(Metadata, crate::fit::FitReport)> {
+    let mut sink = StreamSink {
+        precision,
+        stream: None,
+    };
+    let (meta, mut report) = crate::fit::fit_streamed(capture, options, progress, &mut sink)?;
+    let started = std::time::Instant::now();
+    sink.stream
+        .ok_or_else(|| Error::invalid("the fit produced no rows"))?
+        .finish(path, &meta)?;
+    report.stages.push(crate::fit::Stage {
+        name: "write",
+        seconds: started.elapsed().as_secs_f64(),
+    });
+    report.peak_rss_bytes = crate::memory::peak_rss_bytes();
+    Ok((meta, report))
+}
+
+/// An [`ExrStream`] made when the fit knows its size.
+struct StreamSink {
+    precision: Precision,
+    stream: Option<ExrStream>,
+}
+
+impl crate::fit::RowSink for StreamSink {
+    fn begin(
+        &mut self,
+        width: usize,
+        height: usize,
+        k: usize,
+        depth: Option<Vec<f32>>,
+    ) -> Result<()> {
+        self.stream = Some(ExrStream::new(width, height, k, self.precision, depth)?);
+        Ok(())
+    }
+
+    fn rows(&mut self, strip: &CoefficientMaps) -> Result<()> {
+        self.stream
+            .as_mut()
+            .ok_or_else(|| Error::invalid("rows before the stream began"))?
+            .rows(strip)
     }
 }
 
@@ -1167,6 +1206,55 @@ mod tests {
                     );
                 }
             }
+        }
+    }
+
+    #[test]
+    fn a_fit_streamed_to_a_file_equals_the_fit_held_whole() {
+        // Strips of one row (16-pixel tiles span several), both objectives, a shard, both
+        // precisions: the file streamed as the strips are solved reads back as the whole
+        // maps written at once, with the same metadata but the fit's time.
+        let plane = crate::synth::BumpyPlane {
+            width: 70,
+            height: 37,
+        };
+        let capture = plane.capture(&crate::sphere::hemisphere_fibonacci(30));
+        let dir = tempfile::tempdir().unwrap();
+        let bits = |m: &CoefficientMaps| m.data.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        for (objective, shard, precision) in [
+            (crate::fit::Objective::Perceptual, None, Precision::F16),
+            (crate::fit::Objective::Linear, None, Precision::F32),
+            (
+                crate::fit::Objective::Perceptual,
+                Some((1, 3)),
+                Precision::F32,
+            ),
+        ] {
+            let mut opts = crate::fit::FitOptions {
+                basis: crate::fit::BasisRequest::parse("sh:9").unwrap(),
+                objective,
+                lambda: crate::fit::Lambda::Fixed(1e-4),
+                ..crate::fit::FitOptions::default()
+            };
+            opts.strip_bytes = 1;
+            opts.shard = shard;
+            let whole = crate::fit::fit(&capture, &opts, &crate::progress::Silent).unwrap();
+            let path = dir.path().join("streamed.exr");
+            let (meta, report) =
+                fit_to_exr(&capture, &opts, &crate::progress::Silent, &path, precision).unwrap();
+            let back = crate::codec::exr::read(&path).unwrap();
+            let mut expected = whole.image.clone();
+            expected.meta.fit.as_mut().unwrap().seconds = meta.fit.as_ref().unwrap().seconds;
+            let reference = dir.path().join("whole.exr");
+            crate::codec::exr::write(&reference, &expected, precision).unwrap();
+            let want = crate::codec::exr::read(&reference).unwrap();
+            let what = format!("{objective:?} {shard:?} {precision:?}");
+            assert!(bits(&back.maps) == bits(&want.maps), "{what}");
+            assert_eq!(back.depth, want.depth, "{what}");
+            assert_eq!(back.meta, want.meta, "{what}");
+            assert_eq!(report.psnr_srgb8, whole.report.psnr_srgb8, "{what}");
+            assert_eq!(report.rmse_linear, whole.report.rmse_linear, "{what}");
+            assert_eq!(report.objective, objective, "{what}");
         }
     }
 

@@ -416,13 +416,6 @@ pub struct FitOutput {
     pub report: FitReport,
 }
 
-/// What [`fit_to_exr`] wrote: the file's metadata and the fit's report.
-#[derive(Debug)]
-pub struct WrittenFit {
-    pub meta: Metadata,
-    pub report: FitReport,
-}
-
 /// The multiple of the data weight added to the diagonal of every normal matrix, so
 /// that it stays definite when the data leave a coefficient undetermined: far below
 /// any λ.
@@ -770,21 +763,34 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
     })
 }
 
-/// [`fit`], writing the maps to the OpenEXR file `path` (f16 or f32) as the strips are
-/// solved instead of holding them (`codec::exr::ExrStream`): the fit's memory is then
-/// the strip's and the compressed file's, not the maps'. The file reads back as
-/// [`fit`]'s image written with `codec::exr::write` does, bit for bit (the
-/// fit's time in its metadata aside). The linear objective solves all pixels at once
-/// (its sums are the size of the maps) and streams them after.
-pub fn fit_to_exr(
+/// Where a streamed fit's coefficients go as the strips are solved (a file being
+/// written: `codec::exr::fit_to_exr`).
+pub trait RowSink {
+    /// Called once, before any rows, when the fitted image's size and coefficients per
+    /// channel are known; `depth` is its depth map, when the capture has one.
+    fn begin(
+        &mut self,
+        width: usize,
+        height: usize,
+        k: usize,
+        depth: Option<Vec<f32>>,
+    ) -> Result<()>;
+    /// The next rows, in order from the first.
+    fn rows(&mut self, strip: &CoefficientMaps) -> Result<()>;
+}
+
+/// [`fit`], handing the maps to `sink` as the strips are solved instead of holding
+/// them: the fit's memory is then the strip's, not the maps'. The rows are bit for bit
+/// [`fit`]'s maps. The linear objective's sums are taken strip by strip from the spill
+/// file too. Returns the metadata and the report ([`fit`]'s, its image aside).
+pub fn fit_streamed(
     capture: &Capture,
     options: &FitOptions,
     progress: &dyn Progress,
-    path: &std::path::Path,
-    precision: crate::storage::Precision,
-) -> Result<WrittenFit> {
-    let (meta, _, _, report) = fit_into(capture, options, progress, Some((path, precision)))?;
-    Ok(WrittenFit { meta, report })
+    sink: &mut dyn RowSink,
+) -> Result<(Metadata, FitReport)> {
+    let (meta, _, _, report) = fit_into(capture, options, progress, Some(sink))?;
+    Ok((meta, report))
 }
 
 /// The coefficients of the subsample pixels inside the fitted band, gathered from the
@@ -848,7 +854,7 @@ fn fit_into(
     capture: &Capture,
     options: &FitOptions,
     progress: &dyn Progress,
-    stream_to: Option<(&std::path::Path, crate::storage::Precision)>,
+    mut stream: Option<&mut dyn RowSink>,
 ) -> Result<Fitted> {
     let start = Instant::now();
     let mut stages = Stages::new();
@@ -960,7 +966,7 @@ fn fit_into(
     let mut spill = None;
     // A fit streamed to a file takes the linear objective's sums strip by strip from the
     // spill file too, so that no state the size of the maps is held.
-    let linear_by_strips = stream_to.is_some() && objective == Objective::Linear;
+    let linear_by_strips = stream.is_some() && objective == Objective::Linear;
     if objective != Objective::Linear || linear_by_strips {
         spill = Some(spill::Spill::create(
             w,
@@ -1035,21 +1041,14 @@ fn fit_into(
         .depth
         .as_ref()
         .map(|d| d.get(band.clone()).unwrap_or_default().to_vec());
-    let mut stream = match stream_to {
-        Some((_, precision)) => Some(crate::codec::exr::ExrStream::new(
-            w,
-            rows.len(),
-            design.k,
-            precision,
-            depth.clone(),
-        )?),
-        None => None,
-    };
+    if let Some(sink) = stream.as_mut() {
+        sink.begin(w, rows.len(), design.k, depth.clone())?;
+    }
     let mut sub_coefs = SubCoefficients::new(sub_idx.len(), design.k);
     let maps = if linear_by_strips {
         let (spill, stream) = (
             spill.as_ref().expect("a spill file for the strips"),
-            stream.as_mut().expect("a file to stream to"),
+            stream.as_mut().expect("a sink to stream to"),
         );
         let indices: Vec<usize> = (0..design.n).collect();
         let mut buffer = Vec::new();
@@ -1071,7 +1070,7 @@ fn fit_into(
         sub_coefs.record(&sums, 0, &sub_idx, band.start);
         match stream.as_mut() {
             Some(stream) => {
-                stream.all_rows(&sums)?;
+                stream_all_rows(&mut **stream, &sums)?;
                 None
             }
             None => Some(sums),
@@ -1140,10 +1139,6 @@ fn fit_into(
         seconds,
         shard,
     });
-    if let (Some(stream), Some((path, _))) = (stream, stream_to) {
-        stream.finish(path, &meta)?;
-        stages.end("write");
-    }
     let report = FitReport {
         basis: design.basis.name(),
         objective_scores,
@@ -1417,6 +1412,22 @@ struct Scratch {
 /// Indices of the packed upper triangle of a k×k symmetric matrix, row by row.
 pub(super) fn packed_pairs(k: usize) -> Vec<(usize, usize)> {
     (0..k).flat_map(|r| (r..k).map(move |c| (r, c))).collect()
+}
+
+/// Hand whole maps to `sink` sixteen rows at a time (so that no second copy of them is
+/// made).
+fn stream_all_rows(sink: &mut dyn RowSink, maps: &CoefficientMaps) -> Result<()> {
+    const ROWS: usize = 16;
+    let w = maps.width;
+    for y0 in (0..maps.height).step_by(ROWS) {
+        let count = ROWS.min(maps.height - y0);
+        let mut piece = CoefficientMaps::zeros(w, count, maps.k);
+        for (plane, out) in piece.data.chunks_exact_mut(w * count).enumerate() {
+            out.copy_from_slice(&maps.data[plane * maps.pixels() + y0 * w..][..w * count]);
+        }
+        sink.rows(&piece)?;
+    }
+    Ok(())
 }
 
 /// Where a solved strip goes: its first pixel, then runs of pixel-major coefficients.

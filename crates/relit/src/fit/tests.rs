@@ -127,52 +127,6 @@ fn strips_do_not_change_the_perceptual_fit() {
 }
 
 #[test]
-fn a_fit_streamed_to_a_file_equals_the_fit_held_whole() {
-    // Strips of one row (16-pixel tiles span several), both objectives, a shard, both
-    // precisions: the file streamed as the strips are solved reads back as the whole
-    // maps written at once, with the same metadata but the fit's time.
-    let plane = crate::synth::BumpyPlane {
-        width: 70,
-        height: 37,
-    };
-    let capture = plane.capture(&hemisphere_fibonacci(30));
-    let dir = tempfile::tempdir().unwrap();
-    let bits = |m: &CoefficientMaps| m.data.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
-    for (objective, shard, precision) in [
-        (Objective::Perceptual, None, crate::storage::Precision::F16),
-        (Objective::Linear, None, crate::storage::Precision::F32),
-        (
-            Objective::Perceptual,
-            Some((1, 3)),
-            crate::storage::Precision::F32,
-        ),
-    ] {
-        let mut opts = options(3, objective, 1e-4);
-        opts.strip_bytes = 1;
-        opts.shard = shard;
-        let whole = fit(&capture, &opts, &Silent).unwrap();
-        let path = dir.path().join("streamed.exr");
-        let written = fit_to_exr(&capture, &opts, &Silent, &path, precision).unwrap();
-        let back = crate::codec::exr::read(&path).unwrap();
-        let mut expected = whole.image.clone();
-        expected.meta.fit.as_mut().unwrap().seconds = written.meta.fit.as_ref().unwrap().seconds;
-        let reference = dir.path().join("whole.exr");
-        crate::codec::exr::write(&reference, &expected, precision).unwrap();
-        let want = crate::codec::exr::read(&reference).unwrap();
-        let what = format!("{objective:?} {shard:?} {precision:?}");
-        assert!(bits(&back.maps) == bits(&want.maps), "{what}");
-        assert_eq!(back.depth, want.depth, "{what}");
-        assert_eq!(back.meta, want.meta, "{what}");
-        assert_eq!(written.report.psnr_srgb8, whole.report.psnr_srgb8, "{what}");
-        assert_eq!(
-            written.report.rmse_linear, whole.report.rmse_linear,
-            "{what}"
-        );
-        assert_eq!(written.report.objective, objective, "{what}");
-    }
-}
-
-#[test]
 fn fit_then_relight_reproduces_captured_and_new_lights() {
     let plane = crate::synth::BumpyPlane {
         width: 40,
