@@ -92,14 +92,7 @@ pub fn write(path: &Path, image: &RelightableImage, precision: Precision) -> Res
                 for y in y0..y0 + bh {
                     for &(samples, half) in &order {
                         let row = &samples[y * w + x0..y * w + x0 + bw];
-                        if half {
-                            crate::storage::to_f16_bits(row, &mut bits);
-                            bits.iter()
-                                .for_each(|b| data.extend_from_slice(&b.to_ne_bytes()));
-                        } else {
-                            row.iter()
-                                .for_each(|v| data.extend_from_slice(&v.to_ne_bytes()));
-                        }
+                        push_samples(&mut data, row, half, &mut bits);
                     }
                 }
                 data
@@ -274,20 +267,16 @@ impl ExrStream {
                 match *source {
                     Some((i, c)) => {
                         let row = &self.pending[3 * i + c][at..at + bw];
-                        if half {
-                            crate::storage::to_f16_bits(row, &mut bits);
-                            bits.iter()
-                                .for_each(|b| data.extend_from_slice(&b.to_ne_bytes()));
-                        } else {
-                            row.iter()
-                                .for_each(|v| data.extend_from_slice(&v.to_ne_bytes()));
-                        }
+                        push_samples(&mut data, row, half, &mut bits);
                     }
                     None => {
                         let depth = self.depth.as_ref().expect("a Z channel only with depth");
-                        depth[y * w + x0..y * w + x0 + bw]
-                            .iter()
-                            .for_each(|v| data.extend_from_slice(&v.to_ne_bytes()));
+                        push_samples(
+                            &mut data,
+                            &depth[y * w + x0..y * w + x0 + bw],
+                            false,
+                            &mut bits,
+                        );
                     }
                 }
             }
@@ -407,6 +396,20 @@ impl crate::fit::RowSink for StreamSink {
             .as_mut()
             .ok_or_else(|| Error::invalid("rows before the stream began"))?
             .rows(strip)
+    }
+}
+
+/// Append one row of a block's channel as the file stores it (native-endian, as the
+/// exr crate's uncompressed blocks are): half floats, or f32. `bits` is scratch of the
+/// row's length.
+fn push_samples(data: &mut Vec<u8>, row: &[f32], half: bool, bits: &mut [u16]) {
+    if half {
+        crate::storage::to_f16_bits(row, bits);
+        bits.iter()
+            .for_each(|b| data.extend_from_slice(&b.to_ne_bytes()));
+    } else {
+        row.iter()
+            .for_each(|v| data.extend_from_slice(&v.to_ne_bytes()));
     }
 }
 
