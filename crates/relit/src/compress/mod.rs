@@ -371,15 +371,11 @@ pub fn pack_with_gain(
     let max_levels = settings.codec.max_levels();
 
     // The gain as a reader will decode it (the function planes carry its error).
-    let gain_plane: Option<(Vec<f32>, Quantizer)> = if settings.gain {
-        let computed;
-        let values = match perceptual_gain {
-            Some(g) if g.len() == n => g,
+    let gain_plane: Option<(std::borrow::Cow<[f32]>, Quantizer)> = if settings.gain {
+        let values: std::borrow::Cow<[f32]> = match perceptual_gain {
+            Some(g) if g.len() == n => g.into(),
             Some(_) => return Err(Error::invalid("the gain has the wrong number of pixels")),
-            None => {
-                computed = gain::perceptual(maps, basis.as_ref(), settings.directions.as_deref());
-                &computed
-            }
+            None => gain::perceptual(maps, basis.as_ref(), settings.directions.as_deref()).into(),
         };
         let quantizer = match settings.codec {
             TileCodec::Zstd { .. } => {
@@ -387,16 +383,21 @@ pub fn pack_with_gain(
                 Quantizer::spanning(r.lo, r.hi, (r.hi - r.lo) / 255.0, max_levels)
             }
             TileCodec::Jpeg { .. } | TileCodec::Webp { .. } => {
-                plane_quantizer(values, settings.codec, 0.0, max_levels)
+                plane_quantizer(&values, settings.codec, 0.0, max_levels)
             }
         };
-        Some((values.to_vec(), quantizer))
+        Some((values, quantizer))
     } else {
         None
     };
-    let divisor: Option<Vec<f32>> = match &gain_plane {
-        Some((values, q)) => Some(coded_plane(values, q, maps.width, maps.height, settings)?),
-        None => None,
+    // Its tiles are coded once: their bytes are the gain plane's sections, and what a
+    // reader decodes from them is the divisor.
+    let (gain_sections, divisor) = match &gain_plane {
+        Some((values, q)) => {
+            let (sections, decoded) = coded_gain(values, q, maps.width, maps.height, settings)?;
+            (sections, Some(decoded))
+        }
+        None => (Vec::new(), None),
     };
 
     // Layout: the function channels' coefficient planes (plane i·F + f), per-pixel
@@ -633,33 +634,27 @@ pub fn pack_with_gain(
     };
     let (across, down) = header.tiles();
     let tiles = across * down;
-    let tile_codes = |t: usize, code: &dyn Fn(usize) -> u16| -> Vec<u16> {
-        let (x0, y0, w, h) = header.tile_rect(t);
-        let mut codes = Vec::with_capacity(w * h);
-        for y in y0..y0 + h {
-            codes.extend((y * maps.width + x0..y * maps.width + x0 + w).map(code));
-        }
-        codes
-    };
+    let tile_codes =
+        |t: usize, code: &dyn Fn(usize) -> u16| tile_codes(maps.width, header.tile_rect(t), code);
     let mut sections: Vec<Vec<u8>> = match &quantized {
         None => {
-            let jobs: Vec<(usize, usize)> = (0..entries.len())
+            // The gain plane, the last, is coded already.
+            let coded = entries.len() - gain_plane.is_some() as usize;
+            let jobs: Vec<(usize, usize)> = (0..coded)
                 .flat_map(|p| (0..tiles).map(move |t| (p, t)))
                 .collect();
-            jobs.par_iter()
+            let mut sections: Vec<Vec<u8>> = jobs
+                .par_iter()
                 .map(|&(p, t)| {
                     let (entry, plane) = &entries[p];
                     let q = &entry.quantizer;
                     let codes = tile_codes(t, &|i| q.code(plane[i]));
                     let (_, _, w, h) = header.tile_rect(t);
-                    let codec = if entry.channel == gain::CHANNEL {
-                        gain::codec(settings.codec)
-                    } else {
-                        settings.codec
-                    };
-                    planes::encode_tile(&codes, w, h, q.width(), codec)
+                    planes::encode_tile(&codes, w, h, q.width(), settings.codec)
                 })
-                .collect::<Result<_>>()?
+                .collect::<Result<_>>()?;
+            sections.extend(gain_sections);
+            sections
         }
         Some((book, indices)) => {
             let mut codes: Vec<u8> = Vec::with_capacity(2 * book.values.len());
@@ -705,62 +700,67 @@ pub fn pack_with_gain(
     Ok(Packed { header, sections })
 }
 
-/// The values of `plane` as a reader decodes them from its tiles, coded by `quantizer`
-/// with the settings' codec.
-fn coded_plane(
+/// The codes of the pixels of the rectangle `(x0, y0, w, h)` of a plane `width` pixels
+/// wide, row by row: `code(i)` of each pixel index `i`.
+fn tile_codes(
+    width: usize,
+    (x0, y0, w, h): (usize, usize, usize, usize),
+    code: &dyn Fn(usize) -> u16,
+) -> Vec<u16> {
+    let mut codes = Vec::with_capacity(w * h);
+    for y in y0..y0 + h {
+        codes.extend((y * width + x0..y * width + x0 + w).map(code));
+    }
+    codes
+}
+
+/// The gain plane coded by `quantizer` in tiles with [`gain::codec`]: the tiles' bytes
+/// (its sections in the file) and the gain a reader applies from them, per pixel.
+fn coded_gain(
     plane: &[f32],
     quantizer: &Quantizer,
     width: usize,
     height: usize,
     settings: &Settings,
-) -> Result<Vec<f32>> {
+) -> Result<(Vec<Vec<u8>>, Vec<f32>)> {
+    let codec = gain::codec(settings.codec);
     let tiles = width.div_ceil(settings.tile) * height.div_ceil(settings.tile);
-    let decoded: Vec<(usize, Vec<u16>)> = (0..tiles)
+    let coded: Vec<(Vec<u8>, Vec<u16>)> = (0..tiles)
         .into_par_iter()
         .map(|t| {
-            let (x0, y0, w, h) = tile_rect(width, height, settings.tile, t);
-            let mut codes = Vec::with_capacity(w * h);
-            for y in y0..y0 + h {
-                codes.extend(
-                    plane[y * width + x0..y * width + x0 + w]
-                        .iter()
-                        .map(|&v| quantizer.code(v)),
-                );
-            }
-            if !settings.codec.lossless() {
-                let bytes = planes::encode_tile(
-                    &codes,
-                    w,
-                    h,
-                    quantizer.width(),
-                    gain::codec(settings.codec),
-                )?;
+            let rect = tile_rect(width, height, settings.tile, t);
+            let (_, _, w, h) = rect;
+            let mut codes = tile_codes(width, rect, &|i| quantizer.code(plane[i]));
+            let bytes = planes::encode_tile(&codes, w, h, quantizer.width(), codec)?;
+            if !codec.lossless() {
                 planes::decode_tile(
                     &bytes,
                     w,
                     h,
                     quantizer.width(),
                     quantizer.levels,
-                    settings.codec,
+                    codec,
                     &mut codes,
                 )?;
             }
-            Ok((t, codes))
+            Ok((bytes, codes))
         })
         .collect::<Result<_>>()?;
-    let mut out = vec![0.0f32; width * height];
-    for (t, codes) in decoded {
+    let mut gain = vec![0.0f32; width * height];
+    let mut sections = Vec::with_capacity(tiles);
+    for (t, (bytes, codes)) in coded.into_iter().enumerate() {
         let (x0, y0, w, h) = tile_rect(width, height, settings.tile, t);
         for y in 0..h {
-            for (o, &q) in out[(y0 + y) * width + x0..(y0 + y) * width + x0 + w]
+            for (o, &q) in gain[(y0 + y) * width + x0..(y0 + y) * width + x0 + w]
                 .iter_mut()
                 .zip(&codes[y * w..(y + 1) * w])
             {
                 *o = gain::applied(quantizer.coding.decode(q as f32));
             }
         }
+        sections.push(bytes);
     }
-    Ok(out)
+    Ok((sections, gain))
 }
 
 /// Vector-quantise the per-pixel values of `entries`: the codebook (in the planes'
