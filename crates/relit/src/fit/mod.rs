@@ -964,10 +964,11 @@ fn fit_into(
     // The automatic objective keeps both kinds of pass-1 state until it has chosen.
     let mut accum = None;
     let mut spill = None;
-    // A fit streamed to a file takes the linear objective's sums strip by strip from the
-    // spill file too, so that no state the size of the maps is held.
-    let linear_by_strips = stream.is_some() && objective == Objective::Linear;
-    if objective != Objective::Linear || linear_by_strips {
+    // A fit streamed to a sink always keeps the spill file, and takes the linear
+    // objective's sums strip by strip from it too, so that no state the size of the maps
+    // is held.
+    let streaming = stream.is_some();
+    if objective != Objective::Linear || streaming {
         spill = Some(spill::Spill::create(
             w,
             rows.len(),
@@ -975,7 +976,7 @@ fn fit_into(
             options.strip_bytes,
         )?);
     }
-    if objective != Objective::Perceptual && !linear_by_strips {
+    if objective != Objective::Perceptual && !streaming {
         accum = Some(CoefficientMaps::zeros(w, rows.len(), design.k));
     }
 
@@ -1031,7 +1032,7 @@ fn fit_into(
     } = choice;
     if objective == Objective::Perceptual {
         accum = None;
-    } else if !linear_by_strips {
+    } else if !streaming {
         spill = None;
     }
     if !have_sub {
@@ -1045,7 +1046,7 @@ fn fit_into(
         sink.begin(w, rows.len(), design.k, depth.clone())?;
     }
     let mut sub_coefs = SubCoefficients::new(sub_idx.len(), design.k);
-    let maps = if linear_by_strips {
+    let maps = if streaming && objective == Objective::Linear {
         let (spill, stream) = (
             spill.as_ref().expect("a spill file for the strips"),
             stream.as_mut().expect("a sink to stream to"),
@@ -1066,15 +1067,10 @@ fn fit_into(
         progress.end();
         None
     } else if let Some(mut sums) = accum.take() {
+        // Only a fit held whole has the sums in memory.
         solve_shared(&mut sums, &design, lambda)?;
         sub_coefs.record(&sums, 0, &sub_idx, band.start);
-        match stream.as_mut() {
-            Some(stream) => {
-                stream_all_rows(&mut **stream, &sums)?;
-                None
-            }
-            None => Some(sums),
-        }
+        Some(sums)
     } else {
         let mut maps = stream
             .is_none()
@@ -1412,22 +1408,6 @@ struct Scratch {
 /// Indices of the packed upper triangle of a k×k symmetric matrix, row by row.
 pub(super) fn packed_pairs(k: usize) -> Vec<(usize, usize)> {
     (0..k).flat_map(|r| (r..k).map(move |c| (r, c))).collect()
-}
-
-/// Hand whole maps to `sink` sixteen rows at a time (so that no second copy of them is
-/// made).
-fn stream_all_rows(sink: &mut dyn RowSink, maps: &CoefficientMaps) -> Result<()> {
-    const ROWS: usize = 16;
-    let w = maps.width;
-    for y0 in (0..maps.height).step_by(ROWS) {
-        let count = ROWS.min(maps.height - y0);
-        let mut piece = CoefficientMaps::zeros(w, count, maps.k);
-        for (plane, out) in piece.data.chunks_exact_mut(w * count).enumerate() {
-            out.copy_from_slice(&maps.data[plane * maps.pixels() + y0 * w..][..w * count]);
-        }
-        sink.rows(&piece)?;
-    }
-    Ok(())
 }
 
 /// Where a solved strip goes: its first pixel, then runs of pixel-major coefficients.
