@@ -29,6 +29,9 @@ sudo=""
 [ "$(id -u)" -ne 0 ] && sudo="sudo -n"
 missing=()
 dpkg -s mesa-vulkan-drivers >/dev/null 2>&1 || missing+=(mesa-vulkan-drivers)
+# The assembler of libjpeg-turbo's SIMD decoder (photographs); without it the decoder
+# builds in portable C, slower but the same images.
+command -v nasm >/dev/null 2>&1 || missing+=(nasm)
 if [ "${RELIT_SKIP_VIEWER_TEST:-0}" != "1" ]; then
   command -v chromium >/dev/null 2>&1 || missing+=(chromium)
   command -v node >/dev/null 2>&1 || missing+=(nodejs)

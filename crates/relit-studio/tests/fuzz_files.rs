@@ -1,7 +1,7 @@
 //! Fuzzing of the readers that take a file: fitted EXR maps, the compressed `.rlz` file
 //! (whole, and its header and tiles behind the checksums), the RTI tools' `.ptm` and
-//! `.rti` files, environment maps (Radiance
-//! HDR), OBJ models and capture manifests. Same harness as `fuzz.rs` (a deterministic
+//! `.rti` files, JPEG photographs, environment maps (Radiance HDR), OBJ models and
+//! capture manifests. Same harness as `fuzz.rs` (a deterministic
 //! mutation fuzzer on stable), each mutant written to a file in a temporary folder and
 //! read back; a reader may return any error but must not panic. The writes make these
 //! targets slower, so the test run feeds each 300 mutants; `RELIT_FUZZ_FILE_EXECS=N`
@@ -248,6 +248,23 @@ fn no_file_reader_panics_on_mutated_files() {
         let codec = relit::compress::TileCodec::Zstd { level: 3 };
         let _ = relit::compress::planes::decode_tile(&bytes, 12, 8, 2, 1 << 16, codec, &mut codes);
     }));
+    // A capture's photograph: libjpeg (C) reports errors by unwinding, which the reader
+    // must turn into errors, whole images and parts alike.
+    let mut photo = relit::image::ImageRgb::new(24, 16);
+    for (i, v) in photo.data.iter_mut().enumerate() {
+        *v = ((i * 37) % 101) as f32 / 100.0;
+    }
+    let seed_jpg = d.join("seed.jpg");
+    relit::image::save(&seed_jpg, &photo, 0.0).unwrap();
+    crashes.extend(fuzz(
+        d,
+        "photo.jpg",
+        &std::fs::read(&seed_jpg).unwrap(),
+        |p| {
+            let _ = relit::image::load_linear(p, None);
+            let _ = relit::image::load_linear_parts(p, None, 3..9, &[5, 100, 2]);
+        },
+    ));
     crashes.extend(fuzz(d, "sky.hdr", &hdr, |p| {
         let _ = relit::envmap::EnvironmentLight::load(p);
     }));

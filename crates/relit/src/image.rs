@@ -8,7 +8,14 @@ use crate::color::{self, Encoding};
 use crate::fsutil::write_atomically;
 use crate::{Error, ErrorKind, Result};
 use image::{DynamicImage, ImageReader};
+use std::cell::Cell;
 use std::path::Path;
+
+mod jpeg;
+
+/// The most bytes a decoded image may take in its own 8-bit or 16-bit samples: a header
+/// that claims more is refused before anything is allocated.
+const MAX_DECODED_BYTES: u64 = 4 << 30;
 
 /// A linear RGB image, interleaved, row-major from the top-left corner.
 #[derive(Clone, Debug, PartialEq)]
@@ -83,7 +90,7 @@ fn open_reader(path: &Path) -> Result<ImageReader<std::io::BufReader<std::fs::Fi
     // The decoder refuses images whose header asks for more than this, so a corrupt
     // header cannot make relit allocate without bound.
     let mut limits = image::Limits::default();
-    limits.max_alloc = Some(4 << 30);
+    limits.max_alloc = Some(MAX_DECODED_BYTES);
     reader.limits(limits);
     Ok(reader)
 }
@@ -93,6 +100,33 @@ fn open_reader(path: &Path) -> Result<ImageReader<std::io::BufReader<std::fs::Fi
 /// `encoding` overrides how integer samples are interpreted; by default 8/16-bit
 /// samples are sRGB and float samples linear (see the [conventions](crate)).
 pub fn load_linear(path: &Path, encoding: Option<Encoding>) -> Result<ImageRgb> {
+    if jpeg::is_jpeg(path) {
+        let table = eight_bit_table(encoding);
+        let size = Cell::new((0, 0));
+        let mut data = Vec::new();
+        let streamed = jpeg::stream_rows(
+            path,
+            |w, h| {
+                refuse_oversized(path, w, h)?;
+                size.set((w, h));
+                Ok(h)
+            },
+            |y, row| {
+                if y == 0 {
+                    let (w, h) = size.get();
+                    data.reserve_exact(3 * w * h);
+                }
+                data.extend(row.iter().map(|&b| table[b as usize]));
+            },
+        )?;
+        if let jpeg::Streamed::Done { width, height } = streamed {
+            return Ok(ImageRgb {
+                width,
+                height,
+                data,
+            });
+        }
+    }
     let decoded = decode(path)?;
     let (width, height) = (decoded.width() as usize, decoded.height() as usize);
     let data = linear_samples(&decoded, path, encoding, 0..3 * width * height);
@@ -105,39 +139,151 @@ pub fn load_linear(path: &Path, encoding: Option<Encoding>) -> Result<ImageRgb> 
 
 /// Parts of an image in linear RGB, as [`load_linear`] would give them: the rows
 /// `rows` (`3·width` values a row) and the pixels `pixels` (3 values each), and the
-/// image's size. Only those samples are converted to `f32`: the decoded image stays in
-/// its own type (3 bytes a pixel for 8-bit files instead of 12), so a fit reading a band
-/// of a big image holds the band, not the whole image, in floats.
+/// image's size. See [`read_linear_parts`], which hands the rows over one at a time.
 pub fn load_linear_parts(
     path: &Path,
     encoding: Option<Encoding>,
     rows: std::ops::Range<usize>,
     pixels: &[usize],
 ) -> Result<(usize, usize, Vec<f32>, Vec<f32>)> {
+    let mut band = Vec::new();
+    let (width, height, picked) =
+        read_linear_parts(path, encoding, rows.clone(), pixels, &mut |_, row| {
+            if band.is_empty() {
+                band.reserve_exact(row.len() * rows.len());
+            }
+            band.extend_from_slice(row);
+            Ok(())
+        })?;
+    Ok((width, height, band, picked))
+}
+
+/// Parts of an image in linear RGB: each row of `rows`, in order, handed to
+/// `row(y, values)` (`3·width` values, the caller may change them), and the pixels
+/// `pixels` returned (3 values each, in the order asked), with the image's size. Only
+/// those samples are converted to `f32`. A JPEG is decoded a few rows at a time and
+/// only down to the last row wanted, so a reader that keeps nothing of a row holds a few
+/// rows of the image, whatever its size; other formats are decoded whole, in their own
+/// type (3 bytes a pixel for 8-bit files instead of 12).
+pub fn read_linear_parts(
+    path: &Path,
+    encoding: Option<Encoding>,
+    rows: std::ops::Range<usize>,
+    pixels: &[usize],
+    row: &mut dyn FnMut(usize, &mut [f32]) -> Result<()>,
+) -> Result<(usize, usize, Vec<f32>)> {
+    if jpeg::is_jpeg(path) {
+        if let Some(parts) = jpeg_parts(path, encoding, rows.clone(), pixels, row)? {
+            return Ok(parts);
+        }
+    }
     let decoded = decode(path)?;
     let (width, height) = (decoded.width() as usize, decoded.height() as usize);
     if rows.end > height || pixels.iter().any(|&p| p >= width * height) {
-        return Err(Error::new(
-            ErrorKind::InvalidInput,
-            format!(
-                "{}: {width}×{height} has no rows {rows:?} or pixels that far",
-                path.display()
-            ),
-        ));
+        return Err(missing_parts(path, width, height, &rows));
     }
-    let band = linear_samples(
-        &decoded,
-        path,
-        encoding,
-        3 * width * rows.start..3 * width * rows.end,
-    );
+    for y in rows {
+        let mut values =
+            linear_samples(&decoded, path, encoding, 3 * width * y..3 * width * (y + 1));
+        row(y, &mut values)?;
+    }
     let picked = linear_samples(
         &decoded,
         path,
         encoding,
         pixels.iter().flat_map(|&p| 3 * p..3 * p + 3),
     );
-    Ok((width, height, band, picked))
+    Ok((width, height, picked))
+}
+
+/// [`read_linear_parts`] for a JPEG, decoded row by row. `None` when libjpeg leaves the
+/// file to the general decoder.
+fn jpeg_parts(
+    path: &Path,
+    encoding: Option<Encoding>,
+    rows: std::ops::Range<usize>,
+    pixels: &[usize],
+    row: &mut dyn FnMut(usize, &mut [f32]) -> Result<()>,
+) -> Result<Option<(usize, usize, Vec<f32>)>> {
+    let table = eight_bit_table(encoding);
+    // The picked pixels in file order, each with where its samples go.
+    let mut order: Vec<(usize, usize)> = pixels.iter().copied().zip(0..).collect();
+    order.sort_unstable();
+    let mut next = 0;
+    let mut picked = vec![0f32; 3 * pixels.len()];
+    let mut values = Vec::new();
+    // The first error of the caller's, which stops the rows handed over.
+    let mut failed = None;
+    let width = Cell::new(0);
+    let streamed = jpeg::stream_rows(
+        path,
+        |w, h| {
+            let last = order.last().map_or(0, |&(p, _)| p + 1);
+            if rows.end > h || last > w * h {
+                return Err(missing_parts(path, w, h, &rows));
+            }
+            width.set(w);
+            Ok(rows.end.max(last.div_ceil(w.max(1))))
+        },
+        |y, codes| {
+            let w = width.get();
+            while let Some(&(p, slot)) = order.get(next).filter(|&&(p, _)| p / w == y) {
+                let x = p % w;
+                for c in 0..3 {
+                    picked[3 * slot + c] = table[codes[3 * x + c] as usize];
+                }
+                next += 1;
+            }
+            if rows.contains(&y) && failed.is_none() {
+                values.clear();
+                values.extend(codes.iter().map(|&b| table[b as usize]));
+                if let Err(e) = row(y, &mut values) {
+                    failed = Some(e);
+                }
+            }
+        },
+    )?;
+    if let Some(e) = failed {
+        return Err(e);
+    }
+    Ok(match streamed {
+        jpeg::Streamed::Done { width, height } => Some((width, height, picked)),
+        jpeg::Streamed::Unsupported => None,
+    })
+}
+
+/// Linear values of the 256 codes of an 8-bit file: sRGB-decoded unless `encoding`
+/// says the codes are linear.
+fn eight_bit_table(encoding: Option<Encoding>) -> [f32; 256] {
+    if encoding.unwrap_or(Encoding::Srgb) == Encoding::Srgb {
+        *color::srgb8_table()
+    } else {
+        std::array::from_fn(|i| i as f32 / 255.0)
+    }
+}
+
+fn refuse_oversized(path: &Path, width: usize, height: usize) -> Result<()> {
+    if 3 * width as u64 * height as u64 > MAX_DECODED_BYTES {
+        return Err(Error::new(
+            ErrorKind::Image,
+            format!(
+                "{}: a {width}×{height} image is larger than relit decodes ({} GiB)",
+                path.display(),
+                MAX_DECODED_BYTES >> 30
+            ),
+        ));
+    }
+    Ok(())
+}
+
+fn missing_parts(path: &Path, width: usize, height: usize, rows: &std::ops::Range<usize>) -> Error {
+    Error::new(
+        ErrorKind::InvalidInput,
+        format!(
+            "{}: {width}×{height} has no rows {rows:?} or pixels that far",
+            path.display()
+        ),
+    )
 }
 
 fn decode(path: &Path) -> Result<DynamicImage> {
@@ -468,6 +614,106 @@ mod tests {
         for (a, b) in back.data.iter().zip(&img.data) {
             assert!((a - 2.0 * b).abs() < 2e-3 * b.max(1.0), "{a} vs {b}");
         }
+    }
+
+    /// A coloured test image with detail everywhere, so that every row of its JPEG
+    /// takes bytes.
+    fn textured(width: usize, height: usize) -> ImageRgb {
+        let mut img = ImageRgb::new(width, height);
+        for y in 0..height {
+            for x in 0..width {
+                let code = |k: usize| ((x * 7 + y * 13 + k * 50 + (x * y) % 31) % 256) as usize;
+                for c in 0..3 {
+                    img.data[3 * (y * width + x) + c] = color::srgb8_table()[code(c)];
+                }
+            }
+        }
+        img
+    }
+
+    #[test]
+    fn jpeg_rows_and_pixels_are_those_of_the_whole_image() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.jpg");
+        let (w, h) = (37, 29);
+        save(&path, &textured(w, h), 0.0).unwrap();
+        for encoding in [None, Some(Encoding::Linear)] {
+            let whole = load_linear(&path, encoding).unwrap();
+            assert_eq!((whole.width, whole.height), (w, h));
+            let pixels = [40, 0, w * h - 1, 5, 3 * w + 2];
+            let (pw, ph, band, picked) =
+                load_linear_parts(&path, encoding, 7..19, &pixels).unwrap();
+            assert_eq!((pw, ph), (w, h));
+            assert_eq!(band, whole.data[3 * w * 7..3 * w * 19]);
+            for (i, &p) in pixels.iter().enumerate() {
+                assert_eq!(picked[3 * i..3 * i + 3], whole.data[3 * p..3 * p + 3]);
+            }
+            assert!(load_linear_parts(&path, encoding, 0..h + 1, &[]).is_err());
+            assert!(load_linear_parts(&path, encoding, 0..1, &[w * h]).is_err());
+        }
+        // Linear codes are code / 255.
+        let linear = load_linear(&path, Some(Encoding::Linear)).unwrap();
+        let srgb = load_linear(&path, None).unwrap();
+        for (l, s) in linear.data.iter().zip(&srgb.data) {
+            assert_eq!(color::srgb8_table()[(l * 255.0).round() as usize], *s);
+        }
+    }
+
+    #[test]
+    fn jpeg_decodes_like_the_general_decoder() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.jpg");
+        save(&path, &textured(64, 48), 0.0).unwrap();
+        let ours = load_linear(&path, None).unwrap().to_srgb8();
+        let theirs = image::open(&path).unwrap().to_rgb8().into_raw();
+        assert_eq!(ours.len(), theirs.len());
+        let worst = ours
+            .iter()
+            .zip(&theirs)
+            .map(|(&a, &b)| (a as i32 - b as i32).abs())
+            .max()
+            .unwrap();
+        // Two IDCTs and two chroma upsamplers: a few codes apart, never more.
+        assert!(worst <= 4, "differs by {worst} codes");
+    }
+
+    #[test]
+    fn a_truncated_jpeg_is_an_error_but_the_rows_above_the_cut_read() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.jpg");
+        save(&path, &textured(64, 256), 0.0).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        std::fs::write(&path, &bytes[..bytes.len() * 3 / 5]).unwrap();
+        let err = load_linear(&path, None).unwrap_err();
+        assert_eq!(err.kind(), ErrorKind::Image, "{err}");
+        assert!(load_linear_parts(&path, None, 0..200, &[]).is_err());
+        // The first rows are read without decoding the missing ones below them.
+        let (_, _, band, _) = load_linear_parts(&path, None, 0..8, &[64 * 3 + 1]).unwrap();
+        assert_eq!(band.len(), 3 * 64 * 8);
+    }
+
+    #[test]
+    fn grey_and_cmyk_jpegs_read_as_rgb() {
+        let dir = tempfile::tempdir().unwrap();
+        let grey = dir.path().join("grey.jpg");
+        image::GrayImage::from_fn(20, 10, |x, y| image::Luma([(x * 10 + y) as u8]))
+            .save(&grey)
+            .unwrap();
+        let img = load_linear(&grey, None).unwrap();
+        assert_eq!((img.width, img.height), (20, 10));
+        assert!(img.data.chunks(3).all(|p| p[0] == p[1] && p[1] == p[2]));
+        let (_, _, band, _) = load_linear_parts(&grey, None, 2..4, &[]).unwrap();
+        assert_eq!(band, img.data[3 * 20 * 2..3 * 20 * 4]);
+        // libjpeg does not convert CMYK: the general decoder does, through the same calls.
+        let cmyk = dir.path().join("cmyk.jpg");
+        let samples: Vec<u8> = (0..16 * 8 * 4).map(|i| (i * 3 % 256) as u8).collect();
+        jpeg_encoder::Encoder::new_file(&cmyk, 90)
+            .unwrap()
+            .encode(&samples, 16, 8, jpeg_encoder::ColorType::Cmyk)
+            .unwrap();
+        let img = load_linear(&cmyk, None).unwrap();
+        let (_, _, band, _) = load_linear_parts(&cmyk, None, 1..3, &[]).unwrap();
+        assert_eq!(band, img.data[3 * 16..3 * 16 * 3]);
     }
 
     #[test]

@@ -1,0 +1,150 @@
+//! JPEG photographs decoded row by row (libjpeg-turbo, through MozJPEG).
+//!
+//! A capture's photographs are read many times over: once for the subsample the basis is
+//! chosen on, once for the rows a fit (or one part of a sharded fit) solves. Decoding a
+//! whole image for either holds `3·W·H` bytes a thread; libjpeg hands rows out one at a
+//! time and can stop anywhere, so a reader holds a few rows and never decodes below the
+//! last one it needs. Every JPEG photograph relit reads comes through here, so that the
+//! images a fit sees and the images an evaluation compares with are decoded alike.
+
+use crate::{Error, ErrorKind, Result};
+use mozjpeg_sys as ffi;
+use std::fs::File;
+use std::io::{BufRead, BufReader};
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::Path;
+
+/// Whether a file starts like a JPEG (SOI then a marker).
+pub(super) fn is_jpeg(path: &Path) -> bool {
+    use std::io::Read;
+    let mut head = [0u8; 3];
+    File::open(path)
+        .and_then(|mut f| f.read_exact(&mut head))
+        .is_ok()
+        && head == [0xFF, 0xD8, 0xFF]
+}
+
+/// What [`stream_rows`] found: a JPEG libjpeg decodes to RGB, or one it leaves to the
+/// general decoder (CMYK and YCCK photographs, which libjpeg does not convert to RGB).
+pub(super) enum Streamed {
+    Done { width: usize, height: usize },
+    Unsupported,
+}
+
+/// Decode the JPEG at `path` from the top, handing each 8-bit RGB row (`3·width` bytes)
+/// to `row` with its index. `rows_to_read(width, height)` says, once the header is read,
+/// how many rows from the top are wanted: decoding stops there, so nothing below them is
+/// decoded. A file that ends early is an error, not grey rows (libjpeg's default).
+pub(super) fn stream_rows(
+    path: &Path,
+    rows_to_read: impl FnOnce(usize, usize) -> Result<usize>,
+    mut row: impl FnMut(usize, &[u8]),
+) -> Result<Streamed> {
+    let file = File::open(path).map_err(|e| Error::io(path, "open image", e))?;
+    let reader = BufReader::new(file);
+    // libjpeg reports a fatal error by calling the error manager, which unwinds (the
+    // only way out of C without longjmp); the unwind stops here and becomes an error.
+    let outcome = catch_unwind(AssertUnwindSafe(|| decode(reader, rows_to_read, &mut row)));
+    match outcome {
+        Ok(result) => result,
+        Err(payload) => {
+            let message = payload
+                .downcast_ref::<LibjpegFailure>()
+                .map(|f| f.0.clone())
+                .unwrap_or_else(|| "the JPEG decoder failed".into());
+            Err(Error::new(
+                ErrorKind::Image,
+                format!("cannot decode {}: {message}", path.display()),
+            ))
+        }
+    }
+}
+
+fn decode<R: BufRead>(
+    reader: R,
+    rows_to_read: impl FnOnce(usize, usize) -> Result<usize>,
+    row: &mut impl FnMut(usize, &[u8]),
+) -> Result<Streamed> {
+    let decompress = mozjpeg::Decompress::builder()
+        .with_err(error_manager())
+        .from_reader(reader)
+        .map_err(|e| Error::new(ErrorKind::Image, e.to_string()))?;
+    if matches!(
+        decompress.color_space(),
+        ffi::J_COLOR_SPACE::JCS_CMYK | ffi::J_COLOR_SPACE::JCS_YCCK
+    ) {
+        return Ok(Streamed::Unsupported);
+    }
+    let (width, height) = (decompress.width(), decompress.height());
+    let wanted = rows_to_read(width, height)?.min(height);
+    let mut started = decompress
+        .rgb()
+        .map_err(|e| Error::new(ErrorKind::Image, e.to_string()))?;
+    // A few rows a call: libjpeg decodes a whole row of 8×8 or 16×16 blocks at a time
+    // and keeps it, so a small buffer costs no extra decoding.
+    const ROWS_A_CALL: usize = 16;
+    let mut buffer = vec![0u8; 3 * width * ROWS_A_CALL.min(wanted.max(1))];
+    let mut y = 0;
+    while y < wanted {
+        let count = ROWS_A_CALL.min(wanted - y);
+        let lines = started
+            .read_scanlines_into(&mut buffer[..3 * width * count])
+            .map_err(|e| Error::new(ErrorKind::Image, format!("rows {y}…: {e}")))?;
+        for (i, line) in lines.chunks_exact(3 * width).enumerate() {
+            row(y + i, line);
+        }
+        y += count;
+    }
+    // Rows below `wanted` are never decoded: dropping the decoder aborts it.
+    Ok(Streamed::Done { width, height })
+}
+
+/// The payload an unwinding libjpeg error carries: its own message.
+struct LibjpegFailure(String);
+
+/// libjpeg's standard error manager with two changes: a fatal error unwinds (with
+/// [`LibjpegFailure`]) instead of exiting the process, and a file that ends before its
+/// last row is fatal instead of a warning, so a truncated photograph is never fitted
+/// as grey. Other warnings (extraneous bytes, which some cameras write) stay silent,
+/// as libjpeg leaves them.
+fn error_manager() -> ffi::jpeg_error_mgr {
+    // SAFETY: jpeg_std_error fills every field of the zeroed struct.
+    let mut manager: ffi::jpeg_error_mgr = unsafe { std::mem::zeroed() };
+    unsafe { ffi::jpeg_std_error(&mut manager) };
+    manager.error_exit = Some(fail);
+    manager.emit_message = Some(warn);
+    manager
+}
+
+extern "C-unwind" fn fail(cinfo: &mut ffi::jpeg_common_struct) {
+    let message = message(cinfo);
+    std::panic::resume_unwind(Box::new(LibjpegFailure(message)));
+}
+
+extern "C-unwind" fn warn(cinfo: &mut ffi::jpeg_common_struct, level: std::os::raw::c_int) {
+    // SAFETY: libjpeg calls this with its own struct, whose `err` is the manager above.
+    let code = unsafe { cinfo.err.as_ref() }.map(|e| e.msg_code);
+    if level < 0 && code == Some(ffi::JWRN_JPEG_EOF) {
+        fail(cinfo);
+    }
+}
+
+/// libjpeg's text for its current message.
+fn message(cinfo: &mut ffi::jpeg_common_struct) -> String {
+    type Format = unsafe extern "C-unwind" fn(&mut ffi::jpeg_common_struct, &mut [u8; 80]);
+    let mut buffer = [0u8; 80];
+    // SAFETY: `err` points to the manager libjpeg was given. format_message writes its
+    // text, NUL-terminated, into the buffer (at most JMSG_LENGTH_MAX = 80 bytes): the
+    // binding declares the buffer shared, so it is called through a type that says it
+    // is written.
+    let format = unsafe { cinfo.err.as_ref() }.and_then(|e| e.format_message);
+    match format {
+        Some(format) => {
+            let format: Format = unsafe { std::mem::transmute(format) };
+            unsafe { format(cinfo, &mut buffer) };
+            let end = buffer.iter().position(|&b| b == 0).unwrap_or(buffer.len());
+            String::from_utf8_lossy(&buffer[..end]).into_owned()
+        }
+        None => "unknown libjpeg error".into(),
+    }
+}
