@@ -239,46 +239,90 @@ impl Capture {
         rows: std::ops::Range<usize>,
         pixels: &[usize],
     ) -> Result<(Vec<f32>, Vec<f32>)> {
+        let mut band = Vec::new();
+        let picked = self.read_parts(index, rows.clone(), pixels, &mut |_, row| {
+            if band.is_empty() {
+                band.reserve_exact(row.len() * rows.len());
+            }
+            band.extend_from_slice(row);
+            Ok(())
+        })?;
+        Ok((band, picked))
+    }
+
+    /// Parts of image `index` as [`Capture::load`] gives them, the rows handed over one
+    /// at a time: `row(y, values)` gets each row of `rows` in order (`3·width` values,
+    /// the caller may change them), and the pixels `pixels` are returned (3 values each,
+    /// in the order asked). A JPEG photograph is decoded a few rows at a time, down to
+    /// the last row wanted ([`image::read_linear_parts`]), so a caller that keeps no row
+    /// holds a few rows of the image, whatever its size.
+    pub fn read_parts(
+        &self,
+        index: usize,
+        rows: std::ops::Range<usize>,
+        pixels: &[usize],
+        row: &mut dyn FnMut(usize, &mut [f32]) -> Result<()>,
+    ) -> Result<Vec<f32>> {
         let light = &self.lights[index];
-        let (mut band, mut picked) = match &light.image {
-            ImageSource::File { path, encoding } => {
-                let (w, h, band, picked) =
-                    image::load_linear_parts(path, *encoding, rows.clone(), pixels)?;
-                if (w, h) != (self.width, self.height) {
-                    return Err(Error::new(
-                        ErrorKind::InvalidInput,
-                        format!(
-                            "{} is {w}×{h} but the capture is {}×{}",
-                            self.image_name(index),
-                            self.width,
-                            self.height
-                        ),
-                    ));
-                }
-                (band, picked)
-            }
-            ImageSource::Memory(_) | ImageSource::Generated(_) => {
-                let img = self.load_raw(index)?;
-                let w = self.width;
-                let band = img.data[3 * w * rows.start..3 * w * rows.end].to_vec();
-                let picked = pixels
-                    .iter()
-                    .flat_map(|&p| img.data[3 * p..3 * p + 3].iter().copied())
-                    .collect();
-                (band, picked)
-            }
-        };
-        if light.intensity != [1.0; 3] {
-            let inv = light.intensity.map(|v| 1.0 / v);
-            for part in [&mut band, &mut picked] {
-                for px in part.chunks_exact_mut(3) {
+        let inv = light.intensity.map(|v| 1.0 / v);
+        let divide = |values: &mut [f32]| {
+            if light.intensity != [1.0; 3] {
+                for px in values.chunks_exact_mut(3) {
                     px[0] *= inv[0];
                     px[1] *= inv[1];
                     px[2] *= inv[2];
                 }
             }
-        }
-        Ok((band, picked))
+        };
+        let wrong_size = |size: String| {
+            Error::new(
+                ErrorKind::InvalidInput,
+                format!(
+                    "{} is {size} but the capture is {}×{}",
+                    self.image_name(index),
+                    self.width,
+                    self.height
+                ),
+            )
+        };
+        let w = self.width;
+        let mut picked = match &light.image {
+            ImageSource::File { path, encoding } => {
+                let (fw, fh, picked) = image::read_linear_parts(
+                    path,
+                    *encoding,
+                    rows.clone(),
+                    pixels,
+                    &mut |y, values| {
+                        // A file of another width shows at its first row; its height
+                        // once it is read.
+                        if values.len() != 3 * w {
+                            return Err(wrong_size(format!("{} pixels wide", values.len() / 3)));
+                        }
+                        divide(values);
+                        row(y, values)
+                    },
+                )?;
+                if (fw, fh) != (self.width, self.height) {
+                    return Err(wrong_size(format!("{fw}×{fh}")));
+                }
+                picked
+            }
+            ImageSource::Memory(_) | ImageSource::Generated(_) => {
+                let img = self.load_raw(index)?;
+                for y in rows {
+                    let mut values = img.data[3 * w * y..3 * w * (y + 1)].to_vec();
+                    divide(&mut values);
+                    row(y, &mut values)?;
+                }
+                pixels
+                    .iter()
+                    .flat_map(|&p| img.data[3 * p..3 * p + 3].iter().copied())
+                    .collect()
+            }
+        };
+        divide(&mut picked);
+        Ok(picked)
     }
 
     /// Image `index` in linear RGB as recorded (intensity not divided out).

@@ -996,12 +996,29 @@ fn fit_into(
             .par_iter()
             .map(|&j| {
                 let wanted: &[usize] = if have_sub { &[] } else { &sub_idx };
-                let (mut img, mut samples) = capture.load_parts(j, rows.clone(), wanted)?;
-                to_target_values(&mut img, options.color_space);
+                let (img, mut samples) = match (&spill, &accum) {
+                    // Only the spill file takes the band: it goes there a row at a
+                    // time, as the image is decoded, and is never held whole.
+                    (Some(spill), None) => {
+                        let mut writer = spill.image_rows(j);
+                        let samples =
+                            capture.read_parts(j, rows.clone(), wanted, &mut |_, values| {
+                                to_target_values(values, options.color_space);
+                                writer.push(values)
+                            })?;
+                        writer.finish()?;
+                        (Vec::new(), samples)
+                    }
+                    _ => {
+                        let (mut img, samples) = capture.load_parts(j, rows.clone(), wanted)?;
+                        to_target_values(&mut img, options.color_space);
+                        if let Some(spill) = &spill {
+                            spill.write_image(j, &img)?;
+                        }
+                        (img, samples)
+                    }
+                };
                 to_target_values(&mut samples, options.color_space);
-                if let Some(spill) = &spill {
-                    spill.write_image(j, &img)?;
-                }
                 progress.advance(1);
                 Ok((img, samples))
             })

@@ -63,13 +63,22 @@ impl Spill {
 
     /// Store image `j` (interleaved linear RGB of the full frame).
     pub fn write_image(&self, j: usize, data: &[f32]) -> Result<()> {
-        for s in 0..self.strips() {
-            let (r0, r1) = self.strip_rows(s);
-            let values = &data[r0 * self.width * 3..r1 * self.width * 3];
-            let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
-            write_at(&self.file, &bytes, self.offset(s, j))?;
+        let mut rows = self.image_rows(j);
+        for row in data.chunks_exact(3 * self.width.max(1)) {
+            rows.push(row)?;
         }
-        Ok(())
+        rows.finish()
+    }
+
+    /// A writer of image `j`'s rows, from the first down: each strip goes to the file
+    /// once its rows are in, so an image read row by row is held one strip at a time.
+    pub fn image_rows(&self, j: usize) -> ImageRows<'_> {
+        ImageRows {
+            spill: self,
+            image: j,
+            bytes: Vec::new(),
+            rows: 0,
+        }
     }
 
     /// Read strip `s` of every image into `buffer` as `[image][pixel][channel]`; returns
@@ -91,6 +100,45 @@ impl Spill {
             );
         }
         Ok((r0 * self.width, count))
+    }
+}
+
+/// See [`Spill::image_rows`].
+pub struct ImageRows<'a> {
+    spill: &'a Spill,
+    image: usize,
+    bytes: Vec<u8>,
+    rows: usize,
+}
+
+impl ImageRows<'_> {
+    /// The next row (`3·width` values).
+    pub fn push(&mut self, row: &[f32]) -> Result<()> {
+        let spill = self.spill;
+        if row.len() != 3 * spill.width || self.rows == spill.height {
+            return Err(Error::invalid(
+                "a row that does not belong to the spill file",
+            ));
+        }
+        self.bytes.extend(row.iter().flat_map(|v| v.to_le_bytes()));
+        self.rows += 1;
+        let strip = (self.rows - 1) / spill.rows_per_strip;
+        if self.rows == spill.strip_rows(strip).1 {
+            write_at(&spill.file, &self.bytes, spill.offset(strip, self.image))?;
+            self.bytes.clear();
+        }
+        Ok(())
+    }
+
+    /// Every row is in.
+    pub fn finish(self) -> Result<()> {
+        if self.rows != self.spill.height {
+            return Err(Error::invalid(format!(
+                "{} of the spill file's {} rows were written",
+                self.rows, self.spill.height
+            )));
+        }
+        Ok(())
     }
 }
 
