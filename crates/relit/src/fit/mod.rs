@@ -989,13 +989,24 @@ fn fit_into(
     } else {
         rayon::current_num_threads().max(1)
     };
+    // The subsample pixels still to read, by their place in the subsample. A part fitted
+    // with a plan chooses nothing: it reads only those in its band (for its training
+    // residual), so each image is decoded only down to the band's last row.
+    let unread: Vec<usize> = match () {
+        _ if have_sub => Vec::new(),
+        _ if options.plan.is_some() => (0..sub_idx.len())
+            .filter(|&s| band.contains(&sub_idx[s]))
+            .collect(),
+        _ => (0..sub_idx.len()).collect(),
+    };
+    let wanted: Vec<usize> = unread.iter().map(|&s| sub_idx[s]).collect();
     for first in (0..design.n).step_by(batch) {
         let indices: Vec<usize> = (first..(first + batch).min(design.n)).collect();
         // Each image's band of rows, and its subsample pixels where still unread.
         let images: Vec<(Vec<f32>, Vec<f32>)> = indices
             .par_iter()
             .map(|&j| {
-                let wanted: &[usize] = if have_sub { &[] } else { &sub_idx };
+                let wanted = wanted.as_slice();
                 let (img, mut samples) = match (&spill, &accum) {
                     // Only the spill file takes the band: it goes there a row at a
                     // time, as the image is decoded, and is never held whole.
@@ -1023,10 +1034,10 @@ fn fit_into(
                 Ok((img, samples))
             })
             .collect::<Result<_>>()?;
-        for (&j, (_, samples)) in indices.iter().zip(&images).filter(|_| !have_sub) {
-            for s in 0..sub_idx.len() {
+        for (&j, (_, samples)) in indices.iter().zip(&images) {
+            for (t, &s) in unread.iter().enumerate() {
                 let o = (s * design.n + j) * 3;
-                sub[o..o + 3].copy_from_slice(&samples[3 * s..3 * s + 3]);
+                sub[o..o + 3].copy_from_slice(&samples[3 * t..3 * t + 3]);
             }
         }
         if let Some(acc) = accum.as_mut() {
