@@ -11,7 +11,7 @@ use image::{DynamicImage, ImageReader};
 use std::cell::Cell;
 use std::path::Path;
 
-mod jpeg;
+pub(crate) mod jpeg;
 
 /// The most bytes a decoded image may take in its own 8-bit or 16-bit samples: a header
 /// that claims more is refused before anything is allocated.

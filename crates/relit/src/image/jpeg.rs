@@ -1,4 +1,5 @@
-//! JPEG photographs decoded row by row (libjpeg-turbo, through MozJPEG).
+//! JPEG through MozJPEG (libjpeg-turbo with a better encoder): photographs decoded row
+//! by row, and 8-bit planes encoded.
 //!
 //! A capture's photographs are read many times over: once for the subsample the basis is
 //! chosen on, once for the rows a fit (or one part of a sharded fit) solves. Decoding a
@@ -97,6 +98,43 @@ fn decode<R: BufRead>(
     }
     // Rows below `wanted` are never decoded: dropping the decoder aborts it.
     Ok(Streamed::Done { width, height })
+}
+
+/// An 8-bit greyscale image (`width × height` samples, rows from the top) as a JPEG at
+/// `quality` (1–100), with MozJPEG's defaults: its quantisation tables, trellis
+/// quantisation and optimised progressive scans. On the coefficient planes of the
+/// shared RTI items that is about 0.4 dB more held-out PSNR than a baseline encoder
+/// with optimised Huffman tables at equal bits (or about 30 % fewer bits at equal
+/// PSNR): docs/rd.md.
+pub(crate) fn encode_gray(samples: &[u8], width: usize, height: usize, quality: u8) -> Result<Vec<u8>> {
+    if samples.len() != width * height || width == 0 || height == 0 || width > 65_535 || height > 65_535 {
+        return Err(Error::invalid(format!(
+            "{} samples do not make a {width}×{height} JPEG",
+            samples.len()
+        )));
+    }
+    let outcome = catch_unwind(AssertUnwindSafe(|| -> std::io::Result<Vec<u8>> {
+        let mut compress =
+            mozjpeg::Compress::new_err(Box::new(error_manager()), mozjpeg::ColorSpace::JCS_GRAYSCALE);
+        compress.set_size(width, height);
+        compress.set_quality(quality.clamp(1, 100) as f32);
+        let mut started = compress.start_compress(Vec::new())?;
+        started.write_scanlines(samples)?;
+        started.finish()
+    }));
+    match outcome {
+        Ok(Ok(bytes)) => Ok(bytes),
+        Ok(Err(e)) => Err(Error::new(ErrorKind::Image, format!("JPEG: {e}"))),
+        Err(payload) => Err(Error::new(
+            ErrorKind::Image,
+            format!(
+                "JPEG: {}",
+                payload
+                    .downcast_ref::<LibjpegFailure>()
+                    .map_or("the encoder failed", |f| f.0.as_str())
+            ),
+        )),
+    }
 }
 
 /// The payload an unwinding libjpeg error carries: its own message.
