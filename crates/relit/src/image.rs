@@ -622,7 +622,7 @@ mod tests {
         let mut img = ImageRgb::new(width, height);
         for y in 0..height {
             for x in 0..width {
-                let code = |k: usize| ((x * 7 + y * 13 + k * 50 + (x * y) % 31) % 256) as usize;
+                let code = |k: usize| (x * 7 + y * 13 + k * 50 + (x * y) % 31) % 256;
                 for c in 0..3 {
                     img.data[3 * (y * width + x) + c] = color::srgb8_table()[code(c)];
                 }

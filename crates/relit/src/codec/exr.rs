@@ -423,7 +423,6 @@ const MAX_BLOCK_BYTES: usize = 1 << 20;
 
 /// The headers of a scan-line file of coefficient planes (and depth), as [`write`]
 /// makes them.
-
 fn scan_line_headers(
     width: usize,
     height: usize,

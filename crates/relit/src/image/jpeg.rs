@@ -106,16 +106,28 @@ fn decode<R: BufRead>(
 /// shared RTI items that is about 0.4 dB more held-out PSNR than a baseline encoder
 /// with optimised Huffman tables at equal bits (or about 30 % fewer bits at equal
 /// PSNR): docs/rd.md.
-pub(crate) fn encode_gray(samples: &[u8], width: usize, height: usize, quality: u8) -> Result<Vec<u8>> {
-    if samples.len() != width * height || width == 0 || height == 0 || width > 65_535 || height > 65_535 {
+pub(crate) fn encode_gray(
+    samples: &[u8],
+    width: usize,
+    height: usize,
+    quality: u8,
+) -> Result<Vec<u8>> {
+    if samples.len() != width * height
+        || width == 0
+        || height == 0
+        || width > 65_535
+        || height > 65_535
+    {
         return Err(Error::invalid(format!(
             "{} samples do not make a {width}×{height} JPEG",
             samples.len()
         )));
     }
     let outcome = catch_unwind(AssertUnwindSafe(|| -> std::io::Result<Vec<u8>> {
-        let mut compress =
-            mozjpeg::Compress::new_err(Box::new(error_manager()), mozjpeg::ColorSpace::JCS_GRAYSCALE);
+        let mut compress = mozjpeg::Compress::new_err(
+            Box::new(error_manager()),
+            mozjpeg::ColorSpace::JCS_GRAYSCALE,
+        );
         compress.set_size(width, height);
         compress.set_quality(quality.clamp(1, 100) as f32);
         let mut started = compress.start_compress(Vec::new())?;
