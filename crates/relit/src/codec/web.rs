@@ -996,14 +996,7 @@ pub const DEFAULT_RBF_NODES: usize = 64;
 const DEEP_ZOOM_TILE: usize = 256;
 
 fn encode_jpeg(rgb: &[u8], w: usize, h: usize, quality: u8) -> Result<Vec<u8>> {
-    let mut out = Vec::new();
-    let mut encoder = jpeg_encoder::Encoder::new(&mut out, quality);
-    // Each channel is a plane of its own: no chroma subsampling.
-    encoder.set_sampling_factor(jpeg_encoder::SamplingFactor::F_1_1);
-    encoder
-        .encode(rgb, w as u16, h as u16, jpeg_encoder::ColorType::Rgb)
-        .map_err(|e| Error::new(ErrorKind::Io, format!("JPEG: {e}")))?;
-    Ok(out)
+    crate::image::jpeg::encode_rgb(rgb, w, h, quality)
 }
 
 /// The tile side and the levels of a written pyramid: relight's 256-pixel tiles, or the

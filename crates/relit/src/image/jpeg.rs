@@ -112,24 +112,62 @@ pub(crate) fn encode_gray(
     height: usize,
     quality: u8,
 ) -> Result<Vec<u8>> {
-    if samples.len() != width * height
+    encode(
+        samples,
+        width,
+        height,
+        quality,
+        mozjpeg::ColorSpace::JCS_GRAYSCALE,
+    )
+}
+
+/// An 8-bit RGB image (3 samples a pixel) as a JPEG, as [`encode_gray`] does, with no
+/// chroma subsampling: each channel is a plane of coefficients of its own.
+pub(crate) fn encode_rgb(
+    samples: &[u8],
+    width: usize,
+    height: usize,
+    quality: u8,
+) -> Result<Vec<u8>> {
+    encode(
+        samples,
+        width,
+        height,
+        quality,
+        mozjpeg::ColorSpace::JCS_RGB,
+    )
+}
+
+fn encode(
+    samples: &[u8],
+    width: usize,
+    height: usize,
+    quality: u8,
+    space: mozjpeg::ColorSpace,
+) -> Result<Vec<u8>> {
+    let channels = if space == mozjpeg::ColorSpace::JCS_RGB {
+        3
+    } else {
+        1
+    };
+    if samples.len() != channels * width * height
         || width == 0
         || height == 0
         || width > 65_535
         || height > 65_535
     {
         return Err(Error::invalid(format!(
-            "{} samples do not make a {width}×{height} JPEG",
+            "{} samples do not make a {width}×{height} JPEG of {channels} channels",
             samples.len()
         )));
     }
     let outcome = catch_unwind(AssertUnwindSafe(|| -> std::io::Result<Vec<u8>> {
-        let mut compress = mozjpeg::Compress::new_err(
-            Box::new(error_manager()),
-            mozjpeg::ColorSpace::JCS_GRAYSCALE,
-        );
+        let mut compress = mozjpeg::Compress::new_err(Box::new(error_manager()), space);
         compress.set_size(width, height);
         compress.set_quality(quality.clamp(1, 100) as f32);
+        if channels == 3 {
+            compress.set_chroma_sampling_pixel_sizes((1, 1), (1, 1));
+        }
         let mut started = compress.start_compress(Vec::new())?;
         started.write_scanlines(samples)?;
         started.finish()
