@@ -170,6 +170,17 @@ fn predictions(codes: &[u16], w: usize, i: usize) -> i32 {
     }
 }
 
+/// JPEG planes below this quality are encoded by MozJPEG (its tables, trellis
+/// quantisation, progressive scans), from it up by a baseline encoder with the standard
+/// tables and fitted Huffman tables. Measured on the shared RTI items (held-out PSNR of
+/// `relit eval --compressed`, ycc K′ = 12 or 16): MozJPEG is about 0.3–0.7 dB better at
+/// equal bits from quality 60 to 90 (3–10 bits/px; items 1, 2 and 6), but trellis
+/// quantisation gives up PSNR at near-lossless rates, where the budgets of the web sit
+/// (item1 at quality 95: 35.15 dB at 10.6 bits/px against 35.44 at 17.9 for the
+/// baseline, and MozJPEG at quality 98 needs 22.0 bits/px for 35.40; item6: 36.72 at
+/// 12.3 against 36.89 at 20.1).
+const MOZJPEG_BELOW: u8 = 95;
+
 /// Encode a `w × h` tile of codes (`width` bytes each) with `codec`.
 pub fn encode_tile(
     codes: &[u16],
@@ -200,10 +211,19 @@ pub fn encode_tile(
                 return Err(Error::invalid("JPEG planes hold 8-bit codes"));
             }
             let gray: Vec<u8> = codes.iter().map(|&q| q as u8).collect();
-            // MozJPEG: trellis quantisation and Huffman tables fitted to the tile (a
-            // plane of small residual components is mostly zeros, which the standard
-            // tables code poorly).
-            crate::image::jpeg::encode_gray(&gray, w, h, quality)
+            if quality < MOZJPEG_BELOW {
+                return crate::image::jpeg::encode_gray(&gray, w, h, quality);
+            }
+            let mut out = Vec::new();
+            // Huffman tables fitted to the tile: a plane of small residual components
+            // is mostly zeros, which the standard tables code poorly (item1's 27 planes
+            // at equal quality: 1.7 bits/px less).
+            let mut encoder = jpeg_encoder::Encoder::new(&mut out, quality);
+            encoder.set_optimized_huffman_tables(true);
+            encoder
+                .encode(&gray, w as u16, h as u16, jpeg_encoder::ColorType::Luma)
+                .map_err(|e| Error::new(crate::ErrorKind::Io, format!("JPEG: {e}")))?;
+            Ok(out)
         }
         TileCodec::Webp { quality } => {
             if width != 1 {
