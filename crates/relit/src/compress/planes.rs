@@ -212,7 +212,13 @@ pub fn encode_tile(
             }
             let gray: Vec<u8> = codes.iter().map(|&q| q as u8).collect();
             if quality < MOZJPEG_BELOW {
-                return crate::image::jpeg::encode_gray(&gray, w, h, quality);
+                return crate::image::jpeg::encode(
+                    &gray,
+                    w,
+                    h,
+                    crate::image::jpeg::Samples::Gray,
+                    quality,
+                );
             }
             let mut out = Vec::new();
             // Huffman tables fitted to the tile: a plane of small residual components

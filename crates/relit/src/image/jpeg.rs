@@ -100,55 +100,32 @@ fn decode<R: BufRead>(
     Ok(Streamed::Done { width, height })
 }
 
-/// An 8-bit greyscale image (`width × height` samples, rows from the top) as a JPEG at
-/// `quality` (1–100), with MozJPEG's defaults: its quantisation tables, trellis
-/// quantisation and optimised progressive scans. On the coefficient planes of the
-/// shared RTI items that is 0.3–0.7 dB more held-out PSNR than a baseline encoder with
-/// optimised Huffman tables at equal bits from quality 60 to 90, and less near
-/// lossless (see `compress::planes::MOZJPEG_BELOW`).
-pub(crate) fn encode_gray(
-    samples: &[u8],
-    width: usize,
-    height: usize,
-    quality: u8,
-) -> Result<Vec<u8>> {
-    encode(
-        samples,
-        width,
-        height,
-        quality,
-        mozjpeg::ColorSpace::JCS_GRAYSCALE,
-    )
+/// What the samples given to [`encode`] are.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub(crate) enum Samples {
+    /// One 8-bit sample a pixel.
+    Gray,
+    /// Three 8-bit samples a pixel, stored with no chroma subsampling: each channel is a
+    /// plane of coefficients of its own.
+    Rgb,
 }
 
-/// An 8-bit RGB image (3 samples a pixel) as a JPEG, as [`encode_gray`] does, with no
-/// chroma subsampling: each channel is a plane of coefficients of its own.
-pub(crate) fn encode_rgb(
+/// An 8-bit image (`width × height` pixels, rows from the top) as a JPEG at `quality`
+/// (1–100), with MozJPEG's defaults: its quantisation tables, trellis quantisation and
+/// optimised progressive scans. On the coefficient planes of the shared RTI items that
+/// is 0.3–0.7 dB more held-out PSNR than a baseline encoder with optimised Huffman
+/// tables at equal bits from quality 60 to 90, and less near lossless (see
+/// `compress::planes::MOZJPEG_BELOW`).
+pub(crate) fn encode(
     samples: &[u8],
     width: usize,
     height: usize,
+    kind: Samples,
     quality: u8,
 ) -> Result<Vec<u8>> {
-    encode(
-        samples,
-        width,
-        height,
-        quality,
-        mozjpeg::ColorSpace::JCS_RGB,
-    )
-}
-
-fn encode(
-    samples: &[u8],
-    width: usize,
-    height: usize,
-    quality: u8,
-    space: mozjpeg::ColorSpace,
-) -> Result<Vec<u8>> {
-    let channels = if space == mozjpeg::ColorSpace::JCS_RGB {
-        3
-    } else {
-        1
+    let (channels, space) = match kind {
+        Samples::Gray => (1, mozjpeg::ColorSpace::JCS_GRAYSCALE),
+        Samples::Rgb => (3, mozjpeg::ColorSpace::JCS_RGB),
     };
     if samples.len() != channels * width * height
         || width == 0
