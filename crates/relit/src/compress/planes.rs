@@ -170,17 +170,6 @@ fn predictions(codes: &[u16], w: usize, i: usize) -> i32 {
     }
 }
 
-/// JPEG planes below this quality are encoded by MozJPEG (its tables, trellis
-/// quantisation, progressive scans), from it up by a baseline encoder with the standard
-/// tables and fitted Huffman tables. Measured on the shared RTI items (held-out PSNR of
-/// `relit eval --compressed`, ycc K′ = 12 or 16): MozJPEG is about 0.3–0.7 dB better at
-/// equal bits from quality 60 to 90 (3–10 bits/px; items 1, 2 and 6), but trellis
-/// quantisation gives up PSNR at near-lossless rates, where the budgets of the web sit
-/// (item1 at quality 95: 35.15 dB at 10.6 bits/px against 35.44 at 17.9 for the
-/// baseline, and MozJPEG at quality 98 needs 22.0 bits/px for 35.40; item6: 36.72 at
-/// 12.3 against 36.89 at 20.1).
-const MOZJPEG_BELOW: u8 = 95;
-
 /// Encode a `w × h` tile of codes (`width` bytes each) with `codec`.
 pub fn encode_tile(
     codes: &[u16],
@@ -211,15 +200,16 @@ pub fn encode_tile(
                 return Err(Error::invalid("JPEG planes hold 8-bit codes"));
             }
             let gray: Vec<u8> = codes.iter().map(|&q| q as u8).collect();
-            if quality < MOZJPEG_BELOW {
-                return crate::image::jpeg::encode(
-                    &gray,
-                    w,
-                    h,
-                    crate::image::jpeg::Samples::Gray,
-                    quality,
-                );
-            }
+            // JPEG planes stay with a baseline encoder (standard tables, Huffman tables
+            // fitted to each tile). MozJPEG (its tables, trellis quantisation, progressive
+            // scans), which the web export uses, was tried here on 2026-12-05: 0.3–0.7 dB
+            // more held-out PSNR at equal bits from quality 60 to 90 (3–10 bits/px; items
+            // 1, 2 and 6, ycc K′ = 12 or 16), but trellis quantisation gives up PSNR near
+            // lossless (item1 at quality 95: 35.15 dB at 10.6 bits/px against the
+            // baseline's 35.44 at 17.9; MozJPEG needs quality 98 and 22.0 bits/px for
+            // 35.40), and `--budget 24` chose worse files with it, below quality 95 only or
+            // everywhere (item1 35.25 and 35.33 dB against 35.57, item2 36.49 against
+            // 36.56).
             let mut out = Vec::new();
             // Huffman tables fitted to the tile: a plane of small residual components
             // is mostly zeros, which the standard tables code poorly (item1's 27 planes
