@@ -996,7 +996,7 @@ pub const DEFAULT_RBF_NODES: usize = 64;
 const DEEP_ZOOM_TILE: usize = 256;
 
 fn encode_jpeg(rgb: &[u8], w: usize, h: usize, quality: u8) -> Result<Vec<u8>> {
-    crate::image::jpeg::encode(rgb, w, h, crate::image::jpeg::Samples::Rgb, quality)
+    crate::image::jpeg::encode_rgb(rgb, w, h, quality)
 }
 
 /// The tile side and the levels of a written pyramid: relight's 256-pixel tiles, or the

@@ -1,5 +1,5 @@
 //! JPEG through MozJPEG (libjpeg-turbo with a better encoder): photographs decoded row
-//! by row, and 8-bit planes encoded.
+//! by row, and the web export's 8-bit planes encoded.
 //!
 //! A capture's photographs are read many times over: once for the subsample the basis is
 //! chosen on, once for the rows a fit (or one part of a sharded fit) solves. Decoding a
@@ -100,32 +100,20 @@ fn decode<R: BufRead>(
     Ok(Streamed::Done { width, height })
 }
 
-/// What the samples given to [`encode`] are.
-#[derive(Clone, Copy, PartialEq, Eq, Debug)]
-pub(crate) enum Samples {
-    /// One 8-bit sample a pixel.
-    Gray,
-    /// Three 8-bit samples a pixel, stored with no chroma subsampling: each channel is a
-    /// plane of coefficients of its own.
-    Rgb,
-}
-
-/// An 8-bit image (`width × height` pixels, rows from the top) as a JPEG at `quality`
-/// (1–100), with MozJPEG's defaults: its quantisation tables, trellis quantisation and
-/// optimised progressive scans. The web export's planes are written so (item1's fit at
-/// quality 95: 6.6 % fewer bytes and +0.41 dB against a baseline encoder; at 80, 4.8 %
-/// and +0.91 dB); the compressed file's stay baseline (`compress::planes` says why).
-pub(crate) fn encode(
+/// An 8-bit RGB image (`width × height` pixels of 3 samples, rows from the top) as a
+/// JPEG at `quality` (1–100), with MozJPEG's defaults: its quantisation tables, trellis
+/// quantisation and optimised progressive scans, and no chroma subsampling (each
+/// channel is a plane of coefficients of its own). The web export's planes are written
+/// so (item1's fit at quality 95: 6.6 % fewer bytes and +0.41 dB against a baseline
+/// encoder; at 80, 4.8 % and +0.91 dB); the compressed file's stay baseline
+/// (`compress::planes` says why).
+pub(crate) fn encode_rgb(
     samples: &[u8],
     width: usize,
     height: usize,
-    kind: Samples,
     quality: u8,
 ) -> Result<Vec<u8>> {
-    let (channels, space) = match kind {
-        Samples::Gray => (1, mozjpeg::ColorSpace::JCS_GRAYSCALE),
-        Samples::Rgb => (3, mozjpeg::ColorSpace::JCS_RGB),
-    };
+    let channels = 3;
     if samples.len() != channels * width * height
         || width == 0
         || height == 0
@@ -138,12 +126,11 @@ pub(crate) fn encode(
         )));
     }
     let outcome = catch_unwind(AssertUnwindSafe(|| -> std::io::Result<Vec<u8>> {
-        let mut compress = mozjpeg::Compress::new_err(Box::new(error_manager()), space);
+        let mut compress =
+            mozjpeg::Compress::new_err(Box::new(error_manager()), mozjpeg::ColorSpace::JCS_RGB);
         compress.set_size(width, height);
         compress.set_quality(quality.clamp(1, 100) as f32);
-        if channels == 3 {
-            compress.set_chroma_sampling_pixel_sizes((1, 1), (1, 1));
-        }
+        compress.set_chroma_sampling_pixel_sizes((1, 1), (1, 1));
         let mut started = compress.start_compress(Vec::new())?;
         started.write_scanlines(samples)?;
         started.finish()
