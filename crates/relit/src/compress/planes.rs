@@ -207,9 +207,10 @@ pub fn encode_tile(
             // 1, 2 and 6, ycc K′ = 12 or 16), but trellis quantisation gives up PSNR near
             // lossless (item1 at quality 95: 35.15 dB at 10.6 bits/px against the
             // baseline's 35.44 at 17.9; MozJPEG needs quality 98 and 22.0 bits/px for
-            // 35.40), and `--budget 24` chose worse files with it, below quality 95 only or
-            // everywhere (item1 35.25 and 35.33 dB against 35.57, item2 36.49 against
-            // 36.56).
+            // 35.40), and `--budget 24`, whose files sit there, gained nothing with it
+            // (same decoder: item1 35.33 dB with MozJPEG everywhere, 35.25 below quality 95
+            // only, 35.29 baseline; item2 36.49, 36.49, 36.56). Worth keeping for budgets
+            // under about 12 bits/px, once measured on every item.
             let mut out = Vec::new();
             // Huffman tables fitted to the tile: a plane of small residual components
             // is mostly zeros, which the standard tables code poorly (item1's 27 planes
