@@ -101,31 +101,15 @@ fn open_reader(path: &Path) -> Result<ImageReader<std::io::BufReader<std::fs::Fi
 /// samples are sRGB and float samples linear (see the [conventions](crate)).
 pub fn load_linear(path: &Path, encoding: Option<Encoding>) -> Result<ImageRgb> {
     if jpeg::is_jpeg(path) {
-        let table = eight_bit_table(encoding);
-        let size = Cell::new((0, 0));
-        let mut data = Vec::new();
-        let streamed = jpeg::stream_rows(
-            path,
-            |w, h| {
-                refuse_oversized(path, w, h)?;
-                size.set((w, h));
-                Ok(h)
-            },
-            |y, row| {
-                if y == 0 {
-                    let (w, h) = size.get();
-                    data.reserve_exact(3 * w * h);
-                }
-                data.extend(row.iter().map(|&b| table[b as usize]));
-            },
-        )?;
-        if let jpeg::Streamed::Done { width, height } = streamed {
-            return Ok(ImageRgb {
-                width,
-                height,
-                data,
-            });
-        }
+        // Row by row, as a fit reads it, so that both see the same decoder's pixels.
+        let (width, height) = dimensions(path)?;
+        refuse_oversized(path, width, height)?;
+        let (width, height, data, _) = load_linear_parts(path, encoding, 0..height, &[])?;
+        return Ok(ImageRgb {
+            width,
+            height,
+            data,
+        });
     }
     let decoded = decode(path)?;
     let (width, height) = (decoded.width() as usize, decoded.height() as usize);

@@ -992,12 +992,12 @@ fn fit_into(
     // The subsample pixels still to read, by their place in the subsample. A part fitted
     // with a plan chooses nothing: it reads only those in its band (for its training
     // residual), so each image is decoded only down to the band's last row.
-    let unread: Vec<usize> = match () {
-        _ if have_sub => Vec::new(),
-        _ if options.plan.is_some() => (0..sub_idx.len())
-            .filter(|&s| band.contains(&sub_idx[s]))
-            .collect(),
-        _ => (0..sub_idx.len()).collect(),
+    let unread: Vec<usize> = if have_sub {
+        Vec::new()
+    } else {
+        (0..sub_idx.len())
+            .filter(|&s| options.plan.is_none() || band.contains(&sub_idx[s]))
+            .collect()
     };
     let wanted: Vec<usize> = unread.iter().map(|&s| sub_idx[s]).collect();
     for first in (0..design.n).step_by(batch) {
