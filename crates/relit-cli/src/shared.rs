@@ -55,6 +55,11 @@ pub fn parse_basis(s: &str) -> Result<BasisRequest, String> {
     BasisRequest::parse(s).map_err(|e| e.to_string())
 }
 
+/// A `--candidate` value, checked while parsing the command line.
+pub fn parse_choice(s: &str) -> Result<relit::basis::BasisChoice, String> {
+    relit::basis::BasisChoice::parse(s).map_err(|e| e.to_string())
+}
+
 /// Flags that shape a fit.
 #[derive(Args, Debug, Clone)]
 pub struct FitArgs {
@@ -66,6 +71,11 @@ pub struct FitArgs {
     #[arg(long, default_value_t = relit::fit::DEFAULT_MAX_COEFFICIENTS as u16,
           value_parser = clap::value_parser!(u16).range(4..=64))]
     pub max_coefficients: u16,
+    /// A basis `--basis auto` chooses among, `family:K` (repeat the flag for more);
+    /// default every family at the sizes 4, 6, 9, 16, 25, 36, 49, 64 within
+    /// `--max-coefficients`.
+    #[arg(long = "candidate", value_parser = parse_choice)]
+    pub candidates: Vec<relit::basis::BasisChoice>,
     /// Fit objective.
     #[arg(long, value_enum, default_value_t = ObjectiveArg::Auto)]
     pub objective: ObjectiveArg,
@@ -105,6 +115,7 @@ impl FitArgs {
         Ok(FitOptions {
             basis: self.basis.clone(),
             max_coefficients: self.max_coefficients as usize,
+            candidates: self.candidates.clone(),
             objective: match self.objective {
                 ObjectiveArg::Auto => Objective::Auto,
                 ObjectiveArg::Perceptual => Objective::Perceptual,

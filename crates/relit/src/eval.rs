@@ -141,6 +141,11 @@ pub struct HoldoutResult {
     pub psnr_linear: f64,
     pub fit_seconds: f64,
     pub lambda: f64,
+    /// The basis this hold-out's fit used.
+    pub basis: String,
+    /// The candidates this hold-out's fit validated (`--basis auto`), best first.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub candidates: Vec<crate::fit::CandidateScore>,
 }
 
 /// The evaluation of a capture.
@@ -152,7 +157,8 @@ pub struct EvalReport {
     pub height: usize,
     pub basis: String,
     pub coefficients: usize,
-    /// The candidate bases the first fit validated (`--basis auto`), best first.
+    /// The candidate bases the first fit validated (`--basis auto`), best first
+    /// (each hold-out lists its own fit's).
     pub candidates: Vec<crate::fit::CandidateScore>,
     pub objective: String,
     pub color_space: String,
@@ -242,6 +248,8 @@ pub fn evaluate_with(
                 psnr_linear,
                 fit_seconds: fitted.report.seconds,
                 lambda: fitted.report.lambda,
+                basis: fitted.report.basis.clone(),
+                candidates: fitted.report.candidates.clone(),
             };
             if let Some(sink) = sink.as_mut() {
                 sink(&result, &reference, &relit)?;

@@ -196,6 +196,9 @@ pub struct FitOptions {
     pub basis: BasisRequest,
     /// The most coefficients per channel `auto` may choose.
     pub max_coefficients: usize,
+    /// The candidates `auto` chooses among; empty: every family at the sizes of the
+    /// ladder up to `max_coefficients` ([`select::candidates`]).
+    pub candidates: Vec<BasisChoice>,
     pub objective: Objective,
     pub color_space: MapSpace,
     pub regularizer: Regularizer,
@@ -319,6 +322,7 @@ impl Default for FitOptions {
         Self {
             basis: BasisRequest::default(),
             max_coefficients: DEFAULT_MAX_COEFFICIENTS,
+            candidates: Vec::new(),
             objective: Objective::default(),
             color_space: MapSpace::Linear,
             regularizer: Regularizer::default(),
@@ -590,9 +594,27 @@ fn choose_basis(
     };
     let q = quadrature(dirs);
     let choices = match request {
-        BasisRequest::Auto => candidates(options.max_coefficients, n),
+        BasisRequest::Auto if options.candidates.is_empty() => {
+            candidates(options.max_coefficients, n)
+        }
+        BasisRequest::Auto => {
+            let train = n - n.div_ceil(select::folds(n));
+            options
+                .candidates
+                .iter()
+                .filter(|c| c.k < train)
+                .cloned()
+                .collect()
+        }
         BasisRequest::Fixed(choice) => vec![choice.clone()],
     };
+    if choices.is_empty() && !options.candidates.is_empty() {
+        let train = n - n.div_ceil(select::folds(n));
+        return Err(Error::invalid(format!(
+            "no candidate can be validated on {n} lights: a candidate needs fewer \
+             coefficients than the {train} lights a validation fold trains on"
+        )));
+    }
     if choices.is_empty() {
         return Err(Error::invalid(format!(
             "no basis of 4 to {} coefficients can be validated on {n} lights",

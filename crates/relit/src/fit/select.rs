@@ -98,6 +98,11 @@ pub struct CandidateScore {
     /// candidates aside.
     #[serde(default)]
     pub pixels: usize,
+    /// Each captured light's PSNR when held out (at the chosen λ, by `criterion`,
+    /// capped at 100 dB) and its weight in `psnr` (quadrature × whether the light
+    /// reaches the scene): how much of a lead over another candidate is noise.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub lights: Vec<(f64, f64)>,
 }
 
 impl CandidateScore {
@@ -321,6 +326,14 @@ fn score_lights(
         .filter(|(_, (_, _, b))| !any_unbiased || unbiased(*b))
         .max_by(|a, b| a.1 .0.total_cmp(&b.1 .0))
         .unwrap_or((0, (f64::NEG_INFINITY, f64::INFINITY, f64::INFINITY)));
+    let lights = per_light
+        .iter()
+        .zip(&weights)
+        .map(|(e, &w)| {
+            let p = crate::metrics::psnr(e[judged + best] / series as f64, 1.0);
+            (w, if p.is_nan() { 0.0 } else { p.min(100.0) })
+        })
+        .collect();
     Ok(CandidateScore {
         basis: choice.name(),
         lambda: VALIDATION_LADDER[best],
@@ -329,6 +342,7 @@ fn score_lights(
         psnr,
         mean_bias: bias,
         pixels: series / 3,
+        lights,
     })
 }
 

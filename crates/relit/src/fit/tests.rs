@@ -531,3 +531,44 @@ fn the_basis_choice_judges_radiance_captures_in_linear_and_photographs_on_screen
         .iter()
         .all(|c| c.criterion == Criterion::Display));
 }
+
+#[test]
+fn auto_chooses_among_the_candidates_it_is_given_and_scores_every_light() {
+    let plane = crate::synth::BumpyPlane {
+        width: 16,
+        height: 12,
+    };
+    let dirs = hemisphere_fibonacci(40);
+    let capture = plane.capture(&dirs);
+    let given = ["ptm:6", "sh:9"];
+    let options = FitOptions {
+        candidates: given
+            .iter()
+            .map(|s| BasisChoice::parse(s).unwrap())
+            .collect(),
+        ..FitOptions::default()
+    };
+    let out = fit(&capture, &options, &Silent).unwrap();
+    let mut judged: Vec<&str> = out
+        .report
+        .candidates
+        .iter()
+        .map(|c| c.basis.as_str())
+        .collect();
+    judged.sort_unstable();
+    assert_eq!(judged, given);
+    assert_eq!(out.report.basis, out.report.candidates[0].basis);
+    for c in &out.report.candidates {
+        assert_eq!(c.lights.len(), dirs.len());
+        // The score is the weighted mean of the per-light PSNRs.
+        let total: f64 = c.lights.iter().map(|l| l.0).sum();
+        let mean = c.lights.iter().map(|l| l.0 * l.1).sum::<f64>() / total;
+        assert!((mean - c.psnr).abs() < 1e-6 * c.psnr.abs(), "{c:?}");
+    }
+    // A candidate with as many coefficients as the folds leave lights is refused.
+    let too_big = FitOptions {
+        candidates: vec![BasisChoice::parse("sh:64").unwrap()],
+        ..FitOptions::default()
+    };
+    assert!(fit(&capture, &too_big, &Silent).is_err());
+}
