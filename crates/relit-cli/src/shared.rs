@@ -55,9 +55,14 @@ pub fn parse_basis(s: &str) -> Result<BasisRequest, String> {
     BasisRequest::parse(s).map_err(|e| e.to_string())
 }
 
-/// A `--candidate` value, checked while parsing the command line.
-pub fn parse_choice(s: &str) -> Result<relit::basis::BasisChoice, String> {
-    relit::basis::BasisChoice::parse(s).map_err(|e| e.to_string())
+/// A `--candidate` value, `family:K` or a family, checked while parsing the command line.
+pub fn parse_candidate(s: &str) -> Result<String, String> {
+    if s.contains(':') {
+        relit::basis::BasisChoice::parse(s).map_err(|e| e.to_string())?;
+    } else {
+        relit::basis::family(s.trim()).map_err(|e| e.to_string())?;
+    }
+    Ok(s.trim().to_string())
 }
 
 /// Flags that shape a fit.
@@ -71,11 +76,12 @@ pub struct FitArgs {
     #[arg(long, default_value_t = relit::fit::DEFAULT_MAX_COEFFICIENTS as u16,
           value_parser = clap::value_parser!(u16).range(4..=64))]
     pub max_coefficients: u16,
-    /// A basis `--basis auto` chooses among, `family:K` (repeat the flag for more);
-    /// default every family at the sizes 4, 6, 9, 16, 25, 36, 49, 64 within
-    /// `--max-coefficients`.
-    #[arg(long = "candidate", value_parser = parse_choice)]
-    pub candidates: Vec<relit::basis::BasisChoice>,
+    /// A basis `--basis auto` chooses among: `family:K`, or a family alone for its
+    /// sizes of the ladder 4, 6, 9, 16, 25, 36, 49, 64 within `--max-coefficients`
+    /// (`--candidate hsh --candidate ptm`: what the RTI formats can hold). Repeat the
+    /// flag for more; default every family.
+    #[arg(long = "candidate", value_parser = parse_candidate)]
+    pub candidates: Vec<String>,
     /// Fit objective.
     #[arg(long, value_enum, default_value_t = ObjectiveArg::Auto)]
     pub objective: ObjectiveArg,
@@ -98,6 +104,24 @@ pub struct FitArgs {
 }
 
 impl FitArgs {
+    /// The bases of `--candidate`, families expanded to their sizes, each once.
+    fn candidate_bases(&self) -> anyhow::Result<Vec<relit::basis::BasisChoice>> {
+        let mut out: Vec<relit::basis::BasisChoice> = Vec::new();
+        for s in &self.candidates {
+            let bases = if s.contains(':') {
+                vec![relit::basis::BasisChoice::parse(s)?]
+            } else {
+                relit::fit::family_candidates(s, self.max_coefficients as usize)?
+            };
+            for b in bases {
+                if !out.contains(&b) {
+                    out.push(b);
+                }
+            }
+        }
+        Ok(out)
+    }
+
     pub fn to_options(&self) -> anyhow::Result<FitOptions> {
         let lambda = if self.lambda.eq_ignore_ascii_case("auto") {
             Lambda::Auto
@@ -115,7 +139,7 @@ impl FitArgs {
         Ok(FitOptions {
             basis: self.basis.clone(),
             max_coefficients: self.max_coefficients as usize,
-            candidates: self.candidates.clone(),
+            candidates: self.candidate_bases()?,
             objective: match self.objective {
                 ObjectiveArg::Auto => Objective::Auto,
                 ObjectiveArg::Perceptual => Objective::Perceptual,

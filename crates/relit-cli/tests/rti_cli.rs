@@ -106,3 +106,71 @@ fn ptm_and_rti_files_round_trip_through_the_commands() {
         ],
     );
 }
+
+#[test]
+fn auto_chooses_among_the_rti_families_when_told() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    relit(
+        d,
+        &[
+            "capture",
+            "box",
+            "--lights",
+            "hemisphere:40",
+            "--size",
+            "32x24",
+            "--format",
+            "png16",
+            "--out",
+            "cap",
+            "-q",
+        ],
+    );
+    let json: serde_json::Value = serde_json::from_str(&relit(
+        d,
+        &[
+            "fit",
+            "cap/capture.json",
+            "--candidate",
+            "hsh",
+            "--candidate",
+            "ptm",
+            "-o",
+            "auto.exr",
+            "--json",
+            "-q",
+        ],
+    ))
+    .unwrap();
+    let judged: Vec<&str> = json["candidates"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["basis"].as_str().unwrap())
+        .collect();
+    let mut sorted = judged.clone();
+    sorted.sort_unstable();
+    // hsh at the ladder's sizes within 25 coefficients, and ptm's one size.
+    assert_eq!(sorted, ["hsh:16", "hsh:25", "hsh:4", "hsh:9", "ptm:6"]);
+    let chosen = json["basis"].as_str().unwrap();
+    assert_eq!(chosen, judged[0]);
+    // The file holds the chosen basis (which `.ptm` or `.rti` then store as they are).
+    let info = relit(d, &["info", "auto.exr"]);
+    assert!(info.contains(chosen), "{chosen} not in:\n{info}");
+    // An unknown family is a usage error naming the known ones.
+    let out = common::relit(
+        d,
+        &[
+            "fit",
+            "cap/capture.json",
+            "--candidate",
+            "pca",
+            "-o",
+            "x.exr",
+        ],
+    );
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("known: sh, hsh, ptm"));
+    assert!(!d.join("x.exr").exists());
+}

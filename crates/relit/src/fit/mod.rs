@@ -56,7 +56,7 @@
 mod select;
 mod spill;
 
-pub use select::{candidates, CandidateScore, Criterion, VALIDATION_LADDER};
+pub use select::{candidates, family_candidates, CandidateScore, Criterion, VALIDATION_LADDER};
 
 use crate::basis::{Basis, BasisChoice, BasisSpec, Samples};
 use crate::capture::Capture;

@@ -17,7 +17,7 @@
 use super::{
     brightness_kept, light_relevance, perceptual_weight, srgb_on_screen, Objective, Regularizer,
 };
-use crate::basis::{Basis, BasisChoice, Samples, FAMILIES};
+use crate::basis::{Basis, BasisChoice, Family, Samples, FAMILIES};
 use crate::linalg::{self, Lanes, LANES};
 use crate::sphere::Vec3;
 use crate::Result;
@@ -133,12 +133,32 @@ pub fn candidates(max_coefficients: usize, lights: usize) -> Vec<BasisChoice> {
     let train = lights - lights.div_ceil(folds(lights));
     FAMILIES
         .iter()
-        .flat_map(|f| {
-            f.sizes(max_coefficients)
-                .into_iter()
-                .filter(move |&k| AUTO_SIZES.contains(&k) && k < train)
-                .map(|k| BasisChoice::parse(&format!("{}:{k}", f.name())).expect("a listed size"))
-        })
+        .flat_map(|f| family_sizes(*f, max_coefficients))
+        .filter(|c| c.k < train)
+        .collect()
+}
+
+/// One family's candidates within `max_coefficients`: its sizes of [`AUTO_SIZES`]
+/// (`--candidate hsh`: `auto` among the hemispherical harmonics only).
+pub fn family_candidates(name: &str, max_coefficients: usize) -> Result<Vec<BasisChoice>> {
+    let family = crate::basis::family(name)?;
+    let sizes = family_sizes(family, max_coefficients);
+    if sizes.is_empty() {
+        return Err(crate::Error::invalid(format!(
+            "basis `{name}` has no size on auto's ladder {AUTO_SIZES:?} within \
+             {max_coefficients} coefficients: its sizes are {:?}",
+            family.sizes(64)
+        )));
+    }
+    Ok(sizes)
+}
+
+fn family_sizes(family: &dyn Family, max_coefficients: usize) -> Vec<BasisChoice> {
+    family
+        .sizes(max_coefficients)
+        .into_iter()
+        .filter(|k| AUTO_SIZES.contains(k))
+        .map(|k| BasisChoice::parse(&format!("{}:{k}", family.name())).expect("a listed size"))
         .collect()
 }
 
