@@ -169,26 +169,54 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());
     }
+    // Each fit's basis where `auto` chose differently for different hold-outs.
+    let bases_differ = report
+        .holdouts
+        .iter()
+        .any(|h| h.basis != report.holdouts[0].basis);
     println!(
-        "{}: {} images of {}×{}, {} ({} coefficients), {} objective, {} maps, {}",
+        "{}: {} images of {}×{}, {} ({}), {} objective, {} maps, {}",
         report.capture,
         report.images,
         report.width,
         report.height,
         report.basis,
-        report.coefficients,
+        if bases_differ {
+            "each hold-out's below".to_string()
+        } else {
+            format!("{} coefficients", report.coefficients)
+        },
         report.objective,
         report.storage,
         report.protocol
     );
+    let basis_column = |b: &str| {
+        if bases_differ {
+            format!(" {b:>12}")
+        } else {
+            String::new()
+        }
+    };
     println!(
-        "{:>6}  {:<24} {:>12} {:>12} {:>8} {:>8}",
-        "index", "image", "sRGB8 dB", "linear dB", "λ", "fit s"
+        "{:>6}  {:<24} {:>12} {:>12} {:>8} {:>8}{}",
+        "index",
+        "image",
+        "sRGB8 dB",
+        "linear dB",
+        "λ",
+        "fit s",
+        basis_column("basis")
     );
     for h in &report.holdouts {
         println!(
-            "{:>6}  {:<24} {:>12.2} {:>12.2} {:>8.0e} {:>8.2}",
-            h.index, h.image, h.psnr_srgb8, h.psnr_linear, h.lambda, h.fit_seconds
+            "{:>6}  {:<24} {:>12.2} {:>12.2} {:>8.0e} {:>8.2}{}",
+            h.index,
+            h.image,
+            h.psnr_srgb8,
+            h.psnr_linear,
+            h.lambda,
+            h.fit_seconds,
+            basis_column(&h.basis)
         );
     }
     println!(
