@@ -123,6 +123,11 @@ impl FitArgs {
     }
 
     pub fn to_options(&self) -> anyhow::Result<FitOptions> {
+        anyhow::ensure!(
+            self.candidates.is_empty() || matches!(self.basis, BasisRequest::Auto),
+            "--candidate chooses among bases for --basis auto; --basis {} is one basis already",
+            self.basis.name()
+        );
         let lambda = if self.lambda.eq_ignore_ascii_case("auto") {
             Lambda::Auto
         } else {

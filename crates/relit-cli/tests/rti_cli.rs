@@ -173,4 +173,21 @@ fn auto_chooses_among_the_rti_families_when_told() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("known: sh, hsh, ptm"));
     assert!(!d.join("x.exr").exists());
+    // So is a candidate beside a fixed basis, which would ignore it.
+    let out = common::relit(
+        d,
+        &[
+            "fit",
+            "cap/capture.json",
+            "--basis",
+            "sh:9",
+            "--candidate",
+            "hsh",
+            "-o",
+            "x.exr",
+        ],
+    );
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--candidate chooses among bases"));
+    assert!(!d.join("x.exr").exists());
 }
