@@ -78,8 +78,8 @@ pub struct FitArgs {
     pub max_coefficients: u16,
     /// A basis `--basis auto` chooses among: `family:K`, or a family alone for its
     /// sizes of the ladder 4, 6, 9, 16, 25, 36, 49, 64 within `--max-coefficients`
-    /// (`--candidate hsh --candidate ptm`: what the RTI formats can hold). Repeat the
-    /// flag for more; default every family.
+    /// (`--candidate hsh --candidate ptm --max-coefficients 16`: what the RTI formats
+    /// hold). Repeat the flag for more; default every family.
     #[arg(long = "candidate", value_parser = parse_candidate)]
     pub candidates: Vec<String>,
     /// Fit objective.
