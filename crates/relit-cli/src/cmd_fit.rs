@@ -102,6 +102,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             capture.height,
             args.capture.display(),
             match &options.basis {
+                relit::fit::BasisRequest::Auto if !options.candidates.is_empty() => format!(
+                    "auto among {}",
+                    options
+                        .candidates
+                        .iter()
+                        .map(|c| c.name())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
                 relit::fit::BasisRequest::Auto =>
                     format!("auto (up to {} coefficients)", options.max_coefficients),
                 relit::fit::BasisRequest::Fixed(choice) => choice.name(),
@@ -143,6 +152,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             relit::memory::mib(bytes),
             bytes as f64 / (r.width * r.height) as f64
         );
+        if let (Some(best), false) = (r.candidates.first(), r.candidates.len() < 2) {
+            // Where the choice was close, say so: the runner-up's score beside it.
+            println!(
+                "basis: {} (chosen by validation among {} candidates: {:.2} dB on its own \
+                 lights held out; next {} {:.2} dB)",
+                r.basis,
+                r.candidates.len(),
+                best.psnr,
+                r.candidates[1].basis,
+                r.candidates[1].psnr
+            );
+        } else {
+            println!("basis: {}", r.basis);
+        }
         println!(
             "fit: {:.2} s, {:.1} images/s, peak memory {}, {} objective{}, λ = {:.0e}{}",
             r.seconds,

@@ -572,3 +572,20 @@ fn jpeg_ptm_predictions_and_corrections_decode_to_the_raw_codes() {
         "not the header's",
     );
 }
+
+#[test]
+fn other_bases_go_into_sixteen_hsh_terms_and_hsh_keeps_its_own() {
+    let header_terms = |basis: &str| {
+        let bytes = rti::encode(&image(basis, 4, 3, |x, y, i, c| {
+            0.2 + 0.01 * (i + x + y + c) as f32
+        }))
+        .unwrap();
+        let text = String::from_utf8_lossy(&bytes[..data_offset(&bytes, 4)]).to_string();
+        text.lines().nth(3).unwrap().to_string()
+    };
+    assert_eq!(header_terms("sh:25"), "16 2 1");
+    assert_eq!(header_terms("ptm:6"), "16 2 1");
+    assert_eq!(header_terms("hsh:25"), "16 2 1");
+    assert_eq!(header_terms("hsh:9"), "9 2 1");
+    assert_eq!(header_terms("hsh:4"), "4 2 1");
+}
