@@ -5,26 +5,22 @@ mod common;
 
 use common::relit_ok as relit;
 
+/// A small studio capture of the box in `d/cap`, as 16-bit photographs.
+fn capture_box(d: &std::path::Path, lights: &str, size: &str) {
+    relit(
+        d,
+        &[
+            "capture", "box", "--lights", lights, "--size", size, "--format", "png16", "--out",
+            "cap", "-q",
+        ],
+    );
+}
+
 #[test]
 fn ptm_and_rti_files_round_trip_through_the_commands() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    relit(
-        d,
-        &[
-            "capture",
-            "box",
-            "--lights",
-            "hemisphere:24",
-            "--size",
-            "40x30",
-            "--format",
-            "png16",
-            "--out",
-            "cap",
-            "-q",
-        ],
-    );
+    capture_box(d, "hemisphere:24", "40x30");
     relit(
         d,
         &[
@@ -111,22 +107,7 @@ fn ptm_and_rti_files_round_trip_through_the_commands() {
 fn auto_chooses_among_the_rti_families_when_told() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    relit(
-        d,
-        &[
-            "capture",
-            "box",
-            "--lights",
-            "hemisphere:40",
-            "--size",
-            "32x24",
-            "--format",
-            "png16",
-            "--out",
-            "cap",
-            "-q",
-        ],
-    );
+    capture_box(d, "hemisphere:40", "32x24");
     let json: serde_json::Value = serde_json::from_str(&relit(
         d,
         &[
