@@ -432,24 +432,33 @@ pub fn principal_directions(x: &[f64], rows: usize, n: usize, k: usize) -> Vec<f
     let gram_times = |q: &[f64], cols: usize| -> Vec<f64> {
         // (Xᵀ X) Q for Q n×cols stored column-major (column j at q[j·n..]), i.e. the
         // row-major cols×n matrix Qᵀ; the result likewise: Qᵀ XᵀX = (X Q)ᵀ X, summed
-        // over blocks of rows (two GEMMs each).
+        // over blocks of rows (two GEMMs each). The blocks are summed in a fixed order
+        // (in at most GROUPS groups of consecutive blocks, then the groups in order):
+        // a parallel reduction's order follows the work stealing, and a fit's basis
+        // tables, a sharded fit's parts and a compressed file's bytes must not.
         const BLOCK: usize = 256;
-        x.par_chunks(n * BLOCK)
-            .map(|block| {
-                let r = block.len() / n;
-                let mut xq = vec![0.0; r * cols];
-                matmul_bt(r, n, cols, block, q, &mut xq);
+        const GROUPS: usize = 32;
+        let per_group = rows.div_ceil(BLOCK).div_ceil(GROUPS).max(1);
+        let add = |mut a: Vec<f64>, b: &[f64]| {
+            a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
+            a
+        };
+        x.par_chunks(n * BLOCK * per_group)
+            .map(|group| {
                 let mut acc = vec![0.0; cols * n];
-                matmul_at(cols, r, n, &xq, block, &mut acc);
+                let mut part = vec![0.0; cols * n];
+                for block in group.chunks(n * BLOCK) {
+                    let r = block.len() / n;
+                    let mut xq = vec![0.0; r * cols];
+                    matmul_bt(r, n, cols, block, q, &mut xq);
+                    matmul_at(cols, r, n, &xq, block, &mut part);
+                    acc = add(acc, &part);
+                }
                 acc
             })
-            .reduce(
-                || vec![0.0; n * cols],
-                |mut a, b| {
-                    a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
-                    a
-                },
-            )
+            .collect::<Vec<_>>()
+            .iter()
+            .fold(vec![0.0; n * cols], |a, b| add(a, b))
     };
     if n <= 400 {
         let mut identity = vec![0.0; n * n];
@@ -524,6 +533,30 @@ fn orthonormalize(q: &mut [f64], n: usize, cols: usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn principal_directions_are_the_same_bits_on_any_number_of_threads() {
+        // Enough rows for many blocks, exact (n ≤ 400) and randomised (n > 400) paths.
+        for (rows, n) in [(20_000, 12), (3_000, 420)] {
+            let x: Vec<f64> = (0..rows * n)
+                .map(|i| ((i * 7919) % 1009) as f64 / 1009.0 - 0.5)
+                .collect();
+            let on = |threads: usize| {
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap()
+                    .install(|| principal_directions(&x, rows, n, 4))
+            };
+            let one = on(1);
+            for threads in [2, 3, 7] {
+                assert!(
+                    on(threads) == one,
+                    "{threads} threads, {rows}×{n}: other directions than on one"
+                );
+            }
+        }
+    }
 
     #[test]
     fn principal_directions_are_the_leading_eigenvectors() {

@@ -15,6 +15,7 @@ use crate::light::{Light, LightRig};
 use crate::maps::RelightableImage;
 use crate::progress::Progress;
 use crate::{Error, Result};
+use rayon::prelude::*;
 
 /// Captured lights a candidate is scored at.
 pub const SCORING_LIGHTS: usize = 8;
@@ -115,6 +116,18 @@ pub fn choose(
     bits_per_pixel: f64,
     progress: &dyn Progress,
 ) -> Result<Choice> {
+    let side_by_side = (image.width() * image.height()) as f64 <= PARALLEL_PIXELS;
+    choose_judging(image, capture, bits_per_pixel, progress, side_by_side)
+}
+
+/// [`choose`], judging the candidates side by side or one at a time.
+pub(crate) fn choose_judging(
+    image: &RelightableImage,
+    capture: &Capture,
+    bits_per_pixel: f64,
+    progress: &dyn Progress,
+    side_by_side: bool,
+) -> Result<Choice> {
     if !(bits_per_pixel.is_finite() && bits_per_pixel > 0.0) {
         return Err(Error::invalid(
             "the budget must be a positive number of bits per pixel",
@@ -141,9 +154,10 @@ pub fn choose(
         Some(&directions),
     );
     progress.begin("choosing compression", candidates.len() as u64);
-    let mut best: Option<Choice> = None;
-    let mut within = 0;
-    for candidate in candidates {
+    // Each candidate packed, measured and scored on its own, the best kept: candidates
+    // side by side on small images (a small image's pack keeps few threads busy), one
+    // at a time on large ones (each holds its decoded maps and frames).
+    let judge = |(index, candidate): (usize, Settings)| -> Result<Option<Judged>> {
         let settings = Settings {
             directions: Some(directions.clone()),
             ..candidate
@@ -153,9 +167,8 @@ pub fn choose(
         let bpp = 8.0 * bytes as f64 / pixels;
         progress.advance(1);
         if bpp > bits_per_pixel {
-            continue;
+            return Ok(None);
         }
-        within += 1;
         let decoded = unpack(&packed)?;
         let relighter = engine::Relighter::new(&decoded)?;
         let mut score = 0.0;
@@ -167,22 +180,69 @@ pub fn choose(
             score += crate::metrics::psnr_srgb8(&relit.data, &photo.data);
         }
         score /= lights.len() as f64;
-        if best.as_ref().is_none_or(|b| score > b.score) {
-            best = Some(Choice {
+        Ok(Some(Judged {
+            index,
+            within: 1,
+            choice: Choice {
                 settings,
                 packed,
                 bits_per_pixel: bpp,
                 score,
                 within: 0,
-            });
-        }
-    }
+            },
+        }))
+    };
+    let numbered = candidates.into_iter().enumerate();
+    let best = if side_by_side {
+        numbered
+            .collect::<Vec<_>>()
+            .into_par_iter()
+            .map(judge)
+            .try_reduce_with(|a, b| Ok(Judged::better(a, b)))
+            .transpose()?
+            .flatten()
+    } else {
+        numbered
+            .map(judge)
+            .try_fold(None, |a, b| b.map(|b| Judged::better(a, b)))?
+    };
     progress.end();
-    let mut best = best.ok_or_else(|| {
+    let best = best.ok_or_else(|| {
         Error::invalid(format!(
             "no compression fits in {bits_per_pixel} bits/pixel (the smallest candidate is larger)"
         ))
     })?;
-    best.within = within;
-    Ok(best)
+    Ok(Choice {
+        within: best.within,
+        ..best.choice
+    })
+}
+
+/// Images of at most this many pixels have their candidates judged side by side.
+const PARALLEL_PIXELS: f64 = (1 << 22) as f64;
+
+/// A candidate within the budget, its place in the grid, and how many candidates within
+/// the budget it stands for once merged with others.
+struct Judged {
+    index: usize,
+    within: usize,
+    choice: Choice,
+}
+
+impl Judged {
+    /// The better of two results (the higher score, the earlier in the grid on a tie),
+    /// counting both: the same choice whatever order the candidates were judged in.
+    fn better(a: Option<Judged>, b: Option<Judged>) -> Option<Judged> {
+        match (a, b) {
+            (None, x) | (x, None) => x,
+            (Some(a), Some(b)) => {
+                let within = a.within + b.within;
+                let a_wins = a.choice.score > b.choice.score
+                    || (a.choice.score == b.choice.score && a.index < b.index);
+                let mut kept = if a_wins { a } else { b };
+                kept.within = within;
+                Some(kept)
+            }
+        }
+    }
 }

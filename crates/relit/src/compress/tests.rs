@@ -427,6 +427,20 @@ fn the_budget_keeps_the_best_candidate_that_fits_and_more_bits_never_score_less(
         assert_eq!(choice.bits_per_pixel, 8.0 * bytes as f64 / pixels);
         assert!(choice.bits_per_pixel <= budget, "{budget}: {choice:?}");
         assert!(choice.within > 0 && choice.score.is_finite());
+        // Judged one at a time, the candidates give the same choice and count.
+        let alone = budget::choose_judging(
+            &fitted.image,
+            &capture,
+            budget,
+            &crate::progress::Silent,
+            false,
+        )
+        .unwrap();
+        assert_eq!(alone.settings, choice.settings);
+        assert_eq!(
+            (alone.score, alone.within, alone.bits_per_pixel),
+            (choice.score, choice.within, choice.bits_per_pixel)
+        );
         assert!(
             choice.score >= last,
             "{budget} bits/px scored {} < {last}",
