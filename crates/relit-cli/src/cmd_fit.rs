@@ -152,19 +152,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             relit::memory::mib(bytes),
             bytes as f64 / (r.width * r.height) as f64
         );
-        if let (Some(best), false) = (r.candidates.first(), r.candidates.len() < 2) {
+        match r.candidates.as_slice() {
             // Where the choice was close, say so: the runner-up's score beside it.
-            println!(
+            [best, next, ..] => println!(
                 "basis: {} (chosen by validation among {} candidates: {:.2} dB on its own \
                  lights held out; next {} {:.2} dB)",
                 r.basis,
                 r.candidates.len(),
                 best.psnr,
-                r.candidates[1].basis,
-                r.candidates[1].psnr
-            );
-        } else {
-            println!("basis: {}", r.basis);
+                next.basis,
+                next.psnr
+            ),
+            _ => println!("basis: {}", r.basis),
         }
         println!(
             "fit: {:.2} s, {:.1} images/s, peak memory {}, {} objective{}, λ = {:.0e}{}",

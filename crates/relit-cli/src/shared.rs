@@ -55,14 +55,15 @@ pub fn parse_basis(s: &str) -> Result<BasisRequest, String> {
     BasisRequest::parse(s).map_err(|e| e.to_string())
 }
 
-/// A `--candidate` value, `family:K` or a family, checked while parsing the command line.
+/// The largest `--max-coefficients`.
+const MOST_COEFFICIENTS: i64 = 64;
+
+/// A `--candidate` value, `family:K` or a family, checked while parsing the command line
+/// (a family is expanded once `--max-coefficients` is known).
 pub fn parse_candidate(s: &str) -> Result<String, String> {
-    if s.contains(':') {
-        relit::basis::BasisChoice::parse(s).map_err(|e| e.to_string())?;
-    } else {
-        relit::basis::family(s.trim()).map_err(|e| e.to_string())?;
-    }
-    Ok(s.trim().to_string())
+    relit::fit::parse_candidates(s, MOST_COEFFICIENTS as usize)
+        .map(|_| s.trim().to_string())
+        .map_err(|e| e.to_string())
 }
 
 /// Flags that shape a fit.
@@ -74,7 +75,7 @@ pub struct FitArgs {
     pub basis: BasisRequest,
     /// The most coefficients per colour channel `--basis auto` may choose.
     #[arg(long, default_value_t = relit::fit::DEFAULT_MAX_COEFFICIENTS as u16,
-          value_parser = clap::value_parser!(u16).range(4..=64))]
+          value_parser = clap::value_parser!(u16).range(4..=MOST_COEFFICIENTS))]
     pub max_coefficients: u16,
     /// A basis `--basis auto` chooses among: `family:K`, or a family alone for its
     /// sizes of the ladder 4, 6, 9, 16, 25, 36, 49, 64 within `--max-coefficients`
@@ -108,12 +109,7 @@ impl FitArgs {
     fn candidate_bases(&self) -> anyhow::Result<Vec<relit::basis::BasisChoice>> {
         let mut out: Vec<relit::basis::BasisChoice> = Vec::new();
         for s in &self.candidates {
-            let bases = if s.contains(':') {
-                vec![relit::basis::BasisChoice::parse(s)?]
-            } else {
-                relit::fit::family_candidates(s, self.max_coefficients as usize)?
-            };
-            for b in bases {
+            for b in relit::fit::parse_candidates(s, self.max_coefficients as usize)? {
                 if !out.contains(&b) {
                     out.push(b);
                 }

@@ -182,27 +182,27 @@ pub(crate) fn choose_judging(
         score /= lights.len() as f64;
         Ok(Some(Judged {
             index,
-            within: 1,
             choice: Choice {
                 settings,
                 packed,
                 bits_per_pixel: bpp,
                 score,
-                within: 0,
+                within: 1,
             },
         }))
     };
-    let numbered = candidates.into_iter().enumerate();
     let best = if side_by_side {
-        numbered
-            .collect::<Vec<_>>()
+        candidates
             .into_par_iter()
+            .enumerate()
             .map(judge)
             .try_reduce_with(|a, b| Ok(Judged::better(a, b)))
             .transpose()?
             .flatten()
     } else {
-        numbered
+        candidates
+            .into_iter()
+            .enumerate()
             .map(judge)
             .try_fold(None, |a, b| b.map(|b| Judged::better(a, b)))?
     };
@@ -212,20 +212,16 @@ pub(crate) fn choose_judging(
             "no compression fits in {bits_per_pixel} bits/pixel (the smallest candidate is larger)"
         ))
     })?;
-    Ok(Choice {
-        within: best.within,
-        ..best.choice
-    })
+    Ok(best.choice)
 }
 
 /// Images of at most this many pixels have their candidates judged side by side.
 const PARALLEL_PIXELS: f64 = (1 << 22) as f64;
 
-/// A candidate within the budget, its place in the grid, and how many candidates within
-/// the budget it stands for once merged with others.
+/// A candidate within the budget and its place in the grid; its `within` counts the
+/// candidates within the budget it stands for once merged with others.
 struct Judged {
     index: usize,
-    within: usize,
     choice: Choice,
 }
 
@@ -236,11 +232,11 @@ impl Judged {
         match (a, b) {
             (None, x) | (x, None) => x,
             (Some(a), Some(b)) => {
-                let within = a.within + b.within;
+                let within = a.choice.within + b.choice.within;
                 let a_wins = a.choice.score > b.choice.score
                     || (a.choice.score == b.choice.score && a.index < b.index);
                 let mut kept = if a_wins { a } else { b };
-                kept.within = within;
+                kept.choice.within = within;
                 Some(kept)
             }
         }

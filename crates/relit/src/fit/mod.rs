@@ -56,7 +56,7 @@
 mod select;
 mod spill;
 
-pub use select::{candidates, family_candidates, CandidateScore, Criterion, VALIDATION_LADDER};
+pub use select::{candidates, parse_candidates, CandidateScore, Criterion, VALIDATION_LADDER};
 
 use crate::basis::{Basis, BasisChoice, BasisSpec, Samples};
 use crate::capture::Capture;
@@ -593,23 +593,20 @@ fn choose_basis(
         n,
     };
     let q = quadrature(dirs);
+    let train = select::training_lights(n);
     let choices = match request {
         BasisRequest::Auto if options.candidates.is_empty() => {
             candidates(options.max_coefficients, n)
         }
-        BasisRequest::Auto => {
-            let train = n - n.div_ceil(select::folds(n));
-            options
-                .candidates
-                .iter()
-                .filter(|c| c.k < train)
-                .cloned()
-                .collect()
-        }
+        BasisRequest::Auto => options
+            .candidates
+            .iter()
+            .filter(|c| c.k < train)
+            .cloned()
+            .collect(),
         BasisRequest::Fixed(choice) => vec![choice.clone()],
     };
     if choices.is_empty() && !options.candidates.is_empty() {
-        let train = n - n.div_ceil(select::folds(n));
         return Err(Error::invalid(format!(
             "no candidate can be validated on {n} lights: a candidate needs fewer \
              coefficients than the {train} lights a validation fold trains on"

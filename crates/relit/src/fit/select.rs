@@ -130,7 +130,7 @@ const AUTO_SIZES: [usize; 8] = [4, 6, 9, 16, 25, 36, 49, 64];
 /// of [`AUTO_SIZES`] it offers, from 4 coefficients up (fewer cannot follow a light at
 /// all), none with more coefficients than the folds leave lights to fit.
 pub fn candidates(max_coefficients: usize, lights: usize) -> Vec<BasisChoice> {
-    let train = lights - lights.div_ceil(folds(lights));
+    let train = training_lights(lights);
     FAMILIES
         .iter()
         .flat_map(|f| family_sizes(*f, max_coefficients))
@@ -138,9 +138,20 @@ pub fn candidates(max_coefficients: usize, lights: usize) -> Vec<BasisChoice> {
         .collect()
 }
 
-/// One family's candidates within `max_coefficients`: its sizes of [`AUTO_SIZES`]
-/// (`--candidate hsh`: `auto` among the hemispherical harmonics only).
-pub fn family_candidates(name: &str, max_coefficients: usize) -> Result<Vec<BasisChoice>> {
+/// The lights each validation fold of a capture of `n` lights trains on: a candidate
+/// needs fewer coefficients than these.
+pub(super) fn training_lights(n: usize) -> usize {
+    n - n.div_ceil(folds(n))
+}
+
+/// The bases a `--candidate` value names: `family:K` itself, or a family alone for its
+/// sizes of [`AUTO_SIZES`] within `max_coefficients` (`hsh`: `auto` among the
+/// hemispherical harmonics only).
+pub fn parse_candidates(spec: &str, max_coefficients: usize) -> Result<Vec<BasisChoice>> {
+    let name = spec.trim();
+    if name.contains(':') {
+        return Ok(vec![BasisChoice::parse(name)?]);
+    }
     let family = crate::basis::family(name)?;
     let sizes = family_sizes(family, max_coefficients);
     if sizes.is_empty() {
@@ -319,11 +330,14 @@ fn score_lights(
         Criterion::Display => 0,
         Criterion::Linear => LINEAR,
     };
+    // A light's PSNR when held out, at ladder step `li`.
+    let light_psnr =
+        |e: &[f64; SLOTS], li: usize| crate::metrics::psnr(e[judged + li] / series as f64, 1.0);
     let score = |li: usize| -> (f64, f64, f64) {
         let (mut psnr, mut pooled, mut pred, mut obs) = (0.0, 0.0, 0.0, 0.0);
         for (e, &w) in per_light.iter().zip(&weights) {
             let mse = e[li] / series as f64;
-            psnr += w * crate::metrics::psnr(e[judged + li] / series as f64, 1.0);
+            psnr += w * light_psnr(e, li);
             pooled += w * mse;
             pred += w * e[LADDER + li];
             obs += w * e[2 * LADDER];
@@ -350,7 +364,7 @@ fn score_lights(
         .iter()
         .zip(&weights)
         .map(|(e, &w)| {
-            let p = crate::metrics::psnr(e[judged + best] / series as f64, 1.0);
+            let p = light_psnr(e, best);
             (w, if p.is_nan() { 0.0 } else { p.min(100.0) })
         })
         .collect();
