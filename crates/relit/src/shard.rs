@@ -299,7 +299,7 @@ mod tests {
                 FitOptions {
                     basis: BasisRequest::parse("rbf:9").unwrap(),
                     objective: Objective::Perceptual,
-                    strip_bytes: 40 * 37 * 3 * 4 * 2, // two rows of all images per strip
+                    piece_bytes: 40 * 37 * 3 * 4 * 2, // two rows of all images per piece
                     ..Default::default()
                 },
                 &[4],

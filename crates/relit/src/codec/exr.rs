@@ -5,6 +5,7 @@
 //! attributes, structured values as ASCII JSON so any EXR tool can show them.
 
 use crate::basis::BasisSpec;
+use crate::fit::Piece;
 use crate::fsutil::write_atomically;
 use crate::maps::{
     BakeInfo, CoefficientMaps, FitInfo, MapSpace, Metadata, RelightableImage, FORMAT_VERSION,
@@ -60,7 +61,7 @@ pub fn write(path: &Path, image: &RelightableImage, precision: Precision) -> Res
     // The header is inferred from channels without samples; each block's bytes are made
     // from the maps as it goes to the compressor, so the writer never holds a second copy
     // of the maps (item1's fit peaked 20 MiB lower, item11's 45).
-    let headers = scan_line_headers(
+    let headers = native_headers(
         w,
         h,
         maps.k,
@@ -106,15 +107,17 @@ pub fn write(path: &Path, image: &RelightableImage, precision: Precision) -> Res
 }
 
 /// The `relit.*` attributes of a file of `meta` stored in `precision`.
-/// A file written from rows as they are made (a fit's strips), so that the maps are
-/// never held whole: each block (16 scan lines, as [`write`] makes them) is compressed
-/// as soon as its rows have arrived and its bytes go to a temporary file until
-/// [`ExrStream::finish`] writes the file with the final metadata (the header, which
-/// holds the fit's results, comes first in the file). It reads back as [`write`]'s
-/// file of the same maps and metadata does, bit for bit, and has its size.
+/// A file written from pieces as they are made (a fit's strips of rows, or parts of
+/// tiles), so that the maps are never held whole: each block (16 scan lines, or a tile,
+/// as [`write`] makes them) is compressed as soon as its pixels have arrived and its
+/// bytes go to a temporary file until [`ExrStream::finish`] writes the file with the
+/// final metadata (the header, which holds the fit's results, comes first in the file).
+/// It reads back as [`write`]'s file of the same maps and metadata does, bit for bit,
+/// and has its size.
 ///
-/// Memory: the rows of a block a thread and fewer than 16 more, beside what the caller
-/// passes.
+/// Memory: the pieces of a block a thread and of the blocks still incomplete, beside
+/// what the caller passes; pieces must come in the order of the blocks
+/// ([`ExrStream::tiles`]).
 pub struct ExrStream {
     width: usize,
     height: usize,
@@ -127,13 +130,13 @@ pub struct ExrStream {
     /// The channels in the header's order: `Some((i, c))` a coefficient plane, `None`
     /// depth.
     order: Vec<Option<(usize, usize)>>,
-    /// Rows `pending_from..` not yet in a compressed block, planar (plane `3i + c`).
-    pending: Vec<Vec<f32>>,
-    pending_from: usize,
-    /// Rows received so far.
-    received: usize,
-    /// Every block of the file, in the order it is written.
+    /// Pieces whose pixels are in a block not yet compressed, each with the last block
+    /// it touches.
+    pending: Vec<(Piece, CoefficientMaps, usize)>,
+    /// Every block of the file, in the order it is written, and its rows arrived so far
+    /// (pieces fill a block from its top).
     blocks: Vec<exr::block::BlockIndex>,
+    filled: Vec<usize>,
     /// The blocks compressed so far, in order, each with the length of its bytes, which
     /// are moved to `spill` one after another.
     chunks: Vec<(exr::block::chunk::Chunk, usize)>,
@@ -154,7 +157,7 @@ impl ExrStream {
         if depth.as_ref().is_some_and(|d| d.len() != width * height) {
             return Err(Error::invalid("the depth map does not match the image"));
         }
-        let headers = scan_line_headers(
+        let headers = native_headers(
             width,
             height,
             k,
@@ -168,13 +171,15 @@ impl ExrStream {
             .iter()
             .map(|ch| parse_channel_name(&ch.name.to_string()))
             .collect();
-        let blocks = exr::block::enumerate_ordered_header_block_indices(&headers)
-            .enumerate()
-            .map(|(at, (index, block))| {
-                debug_assert_eq!(at, index);
-                block
-            })
-            .collect();
+        let blocks: Vec<exr::block::BlockIndex> =
+            exr::block::enumerate_ordered_header_block_indices(&headers)
+                .enumerate()
+                .map(|(at, (index, block))| {
+                    debug_assert_eq!(at, index);
+                    block
+                })
+                .collect();
+        let filled = vec![0; blocks.len()];
         Ok(ExrStream {
             width,
             height,
@@ -183,10 +188,9 @@ impl ExrStream {
             depth,
             headers,
             order,
-            pending: vec![Vec::new(); 3 * k],
-            pending_from: 0,
-            received: 0,
+            pending: Vec::new(),
             blocks,
+            filled,
             chunks: Vec::new(),
             spill: tempfile::tempfile().map_err(|e| {
                 Error::new(
@@ -198,35 +202,83 @@ impl ExrStream {
         })
     }
 
-    /// The next rows, `strip.height` of them, in order from the first.
-    pub fn rows(&mut self, strip: &CoefficientMaps) -> Result<()> {
+    /// The tiles of the file of an image of `width × height` pixels with `k`
+    /// coefficients per channel, in `precision` (with a depth channel when `depth`), or
+    /// `None` when it is stored in scan lines: pieces for [`ExrStream::piece`] must stay
+    /// inside its tiles.
+    pub fn tiles(
+        width: usize,
+        k: usize,
+        precision: Precision,
+        depth: bool,
+    ) -> Option<(usize, usize)> {
+        match native_blocks(width, k, precision, depth).1 {
+            Blocks::ScanLines => None,
+            Blocks::Tiles(size) => Some((size.0, size.1)),
+        }
+    }
+
+    /// The coefficients `maps` of `piece` of the image. Pieces come in the order of the
+    /// file's blocks: strips of rows from the top, or, in a tiled file, tile by tile
+    /// (rows of tiles from the top, each from the left), each tile's pieces from its top.
+    pub fn piece(&mut self, piece: Piece, maps: CoefficientMaps) -> Result<()> {
         use rayon::prelude::*;
-        if strip.width != self.width
-            || strip.k != self.k
-            || self.received + strip.height > self.height
+        if maps.width != piece.width
+            || maps.height != piece.height
+            || maps.k != self.k
+            || piece.pixels() == 0
+            || piece.x0 + piece.width > self.width
+            || piece.y0 + piece.height > self.height
         {
-            return Err(Error::invalid("rows that do not belong to this image"));
+            return Err(Error::invalid("a piece that does not belong to this image"));
         }
-        for (plane, pending) in self.pending.iter_mut().enumerate() {
-            pending.extend_from_slice(
-                &strip.data[plane * strip.pixels()..(plane + 1) * strip.pixels()],
-            );
+        // The blocks the piece falls in (blocks go down the image, a row of tiles or
+        // one block of lines at a time): each must be the piece's across its width and
+        // continue it from its next row down.
+        let first = self
+            .blocks
+            .partition_point(|b| b.pixel_position.1 + b.pixel_size.1 <= piece.y0);
+        let mut touched = Vec::new();
+        for (b, block) in self.blocks.iter().enumerate().skip(first) {
+            let (Vec2(bx, by), Vec2(bw, bh)) = (block.pixel_position, block.pixel_size);
+            if by >= piece.y0 + piece.height {
+                break;
+            }
+            if bx + bw <= piece.x0 || bx >= piece.x0 + piece.width {
+                continue;
+            }
+            if bx < piece.x0 || bx + bw > piece.x0 + piece.width {
+                return Err(Error::invalid("a piece that cuts the file's tiles"));
+            }
+            if piece.y0.max(by) != by + self.filled[b] {
+                return Err(Error::invalid(
+                    "pixels out of the order of the file's blocks, or twice",
+                ));
+            }
+            touched.push((b, (by + bh).min(piece.y0 + piece.height) - by));
         }
-        self.received += strip.height;
-        // The blocks whose rows have all arrived (blocks go down the image), compressed
-        // in parallel.
-        let first = self.chunks.len();
-        let ready = self.blocks[first..]
+        let Some(&(last, _)) = touched.last() else {
+            return Err(Error::invalid("a piece that does not belong to this image"));
+        };
+        for (b, filled) in touched {
+            self.filled[b] = filled;
+        }
+        self.pending.push((piece, maps, last));
+        // The blocks whose pixels have all arrived, compressed in parallel, in order.
+        let done = self.chunks.len();
+        let ready = self.blocks[done..]
             .iter()
-            .take_while(|b| b.pixel_position.1 + b.pixel_size.1 <= self.received)
+            .zip(&self.filled[done..])
+            .take_while(|(b, &filled)| filled == b.pixel_size.1)
             .count();
+        let complete = done + ready == self.blocks.len();
         // A block a thread at least, so that compressing is never one thread's work
         // while the others wait (a strip of a small image completes about one block).
-        if ready < rayon::current_num_threads() && self.received < self.height {
+        if ready == 0 || (ready < rayon::current_num_threads() && !complete) {
             return Ok(());
         }
         let this = &*self;
-        let chunks: Vec<exr::block::chunk::Chunk> = self.blocks[first..first + ready]
+        let chunks: Vec<exr::block::chunk::Chunk> = self.blocks[done..done + ready]
             .par_iter()
             .map(|b| this.block(b))
             .collect::<Result<_>>()?;
@@ -238,22 +290,13 @@ impl ExrStream {
             })?;
             self.chunks.push((chunk, bytes.len()));
         }
-        // Rows above every block still to come are no longer needed.
-        let keep_from = self
-            .blocks
-            .get(self.chunks.len())
-            .map_or(self.received, |b| b.pixel_position.1);
-        if keep_from > self.pending_from {
-            let drop = (keep_from - self.pending_from) * self.width;
-            for pending in &mut self.pending {
-                pending.drain(..drop);
-            }
-            self.pending_from = keep_from;
-        }
+        // Pieces whose every block is compressed are no longer needed.
+        let compressed = self.chunks.len();
+        self.pending.retain(|&(_, _, last)| last >= compressed);
         Ok(())
     }
 
-    /// One block (all its rows pending), compressed.
+    /// One block (all its pixels pending), compressed.
     fn block(&self, block: &exr::block::BlockIndex) -> Result<exr::block::chunk::Chunk> {
         let w = self.width;
         let (x0, y0) = (block.pixel_position.0, block.pixel_position.1);
@@ -262,11 +305,16 @@ impl ExrStream {
         let mut data = Vec::with_capacity(bw * bh * 4 * self.order.len());
         let mut bits = vec![0u16; bw];
         for y in y0..y0 + bh {
-            let at = (y - self.pending_from) * w + x0;
+            let (piece, maps, _) = self
+                .pending
+                .iter()
+                .find(|(p, _, _)| p.local(x0, y).is_some())
+                .expect("a complete block's pixels are pending");
+            let at = piece.local(x0, y).expect("the row is in the piece");
             for source in &self.order {
                 match *source {
                     Some((i, c)) => {
-                        let row = &self.pending[3 * i + c][at..at + bw];
+                        let row = &maps.plane(i, c)[at..at + bw];
                         push_samples(&mut data, row, half, &mut bits);
                     }
                     None => {
@@ -289,17 +337,23 @@ impl ExrStream {
         .map_err(|e| Error::new(ErrorKind::Io, format!("cannot compress a block: {e}")))
     }
 
-    /// Write the file with its metadata, once every row has arrived; the file appears
+    /// Write the file with its metadata, once every pixel has arrived; the file appears
     /// whole or not at all.
     pub fn finish(self, path: &Path, meta: &Metadata) -> Result<()> {
         use exr::block::writer::ChunksWriter;
-        if self.received != self.height {
+        if self.chunks.len() != self.blocks.len() {
+            let made: usize = self
+                .blocks
+                .iter()
+                .zip(&self.filled)
+                .map(|(b, rows)| b.pixel_size.0 * rows)
+                .sum();
             return Err(Error::invalid(format!(
-                "{} of {} rows were made: the file is not written",
-                self.received, self.height
+                "{made} of {} pixels were made: the file is not written",
+                self.width * self.height
             )));
         }
-        let headers = scan_line_headers(
+        let headers = native_headers(
             self.width,
             self.height,
             self.k,
@@ -339,7 +393,7 @@ fn chunk_bytes(chunk: &mut exr::block::chunk::Chunk) -> &mut Vec<u8> {
     }
 }
 
-/// A fit written to the OpenEXR file `path` (f16 or f32) as its strips are solved
+/// A fit written to the OpenEXR file `path` (f16 or f32) as its pieces are solved
 /// ([`crate::fit::fit_streamed`] into an [`ExrStream`]): the maps are never held whole.
 /// The file reads back as [`crate::fit::fit`]'s image written with [`write`] does, bit
 /// for bit (the fit's time in its metadata aside). Returns the metadata and the fit's
@@ -353,12 +407,13 @@ pub fn fit_to_exr(
 ) -> Result<(Metadata, crate::fit::FitReport)> {
     let mut sink = StreamSink {
         precision,
+        depth: capture.depth.is_some(),
         stream: None,
     };
     let (meta, mut report) = crate::fit::fit_streamed(capture, options, progress, &mut sink)?;
     let started = std::time::Instant::now();
     sink.stream
-        .ok_or_else(|| Error::invalid("the fit produced no rows"))?
+        .ok_or_else(|| Error::invalid("the fit produced no pixels"))?
         .finish(path, &meta)?;
     // The report's time covers the writing (its stages sum to at most its time); the
     // metadata's, written in the file, ends where the maps were made.
@@ -376,10 +431,16 @@ pub fn fit_to_exr(
 /// An [`ExrStream`] made when the fit knows its size.
 struct StreamSink {
     precision: Precision,
+    /// Whether the file has a depth channel (the capture has a depth map).
+    depth: bool,
     stream: Option<ExrStream>,
 }
 
-impl crate::fit::RowSink for StreamSink {
+impl crate::fit::PieceSink for StreamSink {
+    fn tiles(&self, width: usize, _height: usize, k: usize) -> Option<(usize, usize)> {
+        ExrStream::tiles(width, k, self.precision, self.depth)
+    }
+
     fn begin(
         &mut self,
         width: usize,
@@ -387,15 +448,18 @@ impl crate::fit::RowSink for StreamSink {
         k: usize,
         depth: Option<Vec<f32>>,
     ) -> Result<()> {
+        if depth.is_some() != self.depth {
+            return Err(Error::invalid("the depth map came or went during the fit"));
+        }
         self.stream = Some(ExrStream::new(width, height, k, self.precision, depth)?);
         Ok(())
     }
 
-    fn rows(&mut self, strip: &CoefficientMaps) -> Result<()> {
+    fn piece(&mut self, piece: Piece, maps: CoefficientMaps) -> Result<()> {
         self.stream
             .as_mut()
-            .ok_or_else(|| Error::invalid("rows before the stream began"))?
-            .rows(strip)
+            .ok_or_else(|| Error::invalid("pixels before the stream began"))?
+            .piece(piece, maps)
     }
 }
 
@@ -413,17 +477,46 @@ fn push_samples(data: &mut Vec<u8>, row: &[f32], half: bool, bits: &mut [u16]) {
     }
 }
 
-/// The most bytes a block of 16 scan lines may take, as stored, before the native EXR
-/// stores one line a block instead (at K = 25 in half floats, 16 lines up to 436 pixels
-/// wide). A streamed fit holds at least a block a thread of rows waiting, in f32: with
-/// one-line blocks that is a few rows, however wide the image (a row of an 8192-pixel
-/// panorama at K = 25 is 2.4 MB). One-line blocks compress about 2 % less (item1 at
-/// sh:25: 26.56 against 26.04 MB).
+/// The most bytes a block may take, as stored: 16 scan lines up to this, else tiles of
+/// 16 lines within it (at K = 25 in half floats, 16 lines up to 436 pixels wide, then
+/// tiles 256 pixels wide). A streamed fit holds a block a thread waiting, in f32, so a
+/// block's size bounds its memory however wide the image: with scan lines, a row of an
+/// 8192-pixel panorama at K = 25 is 2.4 MB in f32.
 const MAX_BLOCK_BYTES: usize = 1 << 20;
 
-/// The headers of a scan-line file of coefficient planes (and depth), as [`write`]
-/// makes them.
-fn scan_line_headers(
+/// Lines of a block: a block of scan lines, or a tile's height.
+const BLOCK_LINES: usize = 16;
+
+/// The compression and blocks of the native file of an image `width` pixels wide with
+/// `k` coefficients per channel in `precision` (and a depth channel when `depth`):
+/// ZIP in blocks of 16 scan lines, or in tiles 16 lines high and a power of two from 16
+/// to 256 pixels wide, the widest within [`MAX_BLOCK_BYTES`].
+fn native_blocks(
+    width: usize,
+    k: usize,
+    precision: Precision,
+    depth: bool,
+) -> (Compression, Blocks) {
+    let half = precision == Precision::F16;
+    let pixel_bytes = 3 * k * if half { 2 } else { 4 } + if depth { 4 } else { 0 };
+    if BLOCK_LINES * width * pixel_bytes <= MAX_BLOCK_BYTES {
+        return (Compression::ZIP16, Blocks::ScanLines);
+    }
+    let most = MAX_BLOCK_BYTES / (BLOCK_LINES * pixel_bytes);
+    let tile_width = (16..=256)
+        .rev()
+        .filter(|w: &usize| w.is_power_of_two())
+        .find(|&w| w <= most)
+        .unwrap_or(16);
+    (
+        Compression::ZIP16,
+        Blocks::Tiles(Vec2(tile_width, BLOCK_LINES)),
+    )
+}
+
+/// The headers of the native file of coefficient planes (and depth), as [`write`] and
+/// [`ExrStream`] make them.
+fn native_headers(
     width: usize,
     height: usize,
     k: usize,
@@ -446,17 +539,10 @@ fn scan_line_headers(
     if depth {
         channels.push(AnyChannel::new("Z", FlatSamples::F32(Vec::new())));
     }
-    // Scan lines (the exr crate's default would be 64×64 tiles): a file streamed from
-    // strips holds a block's rows beside the strip, so a block is 16 rows where they are
-    // few bytes and one row where 16 would be many (a wide panorama).
-    let line_bytes = width * (3 * k * if half { 2 } else { 4 } + if depth { 4 } else { 0 });
+    let (compression, blocks) = native_blocks(width, k, precision, depth);
     let encoding = Encoding {
-        compression: if 16 * line_bytes <= MAX_BLOCK_BYTES {
-            Compression::ZIP16
-        } else {
-            Compression::ZIP1
-        },
-        blocks: Blocks::ScanLines,
+        compression,
+        blocks,
         line_order: LineOrder::Increasing,
     };
     let layer = Layer::new(
@@ -1176,101 +1262,159 @@ mod tests {
     use crate::storage::{f16_bits, f16_value};
 
     #[test]
-    fn a_file_written_from_strips_equals_the_file_written_whole() {
-        // 37 rows: blocks of 16 across strips of 1, 5, 16 and 20 rows, and a short last block.
-        let (w, h, k) = (9, 37, 4);
-        let mut image = sample_image(k);
-        let mut maps = CoefficientMaps::zeros(w, h, k);
-        for (i, v) in maps.data.iter_mut().enumerate() {
-            *v = ((i * 7919) % 1000) as f32 / 137.0 - 3.0;
-        }
-        image.maps = maps;
+    fn a_file_written_from_pieces_equals_the_file_written_whole() {
+        // 37 rows: blocks of 16 across strips of 1, 5, 16 and 20 rows, and a short last
+        // block; 600 pixels at K = 25 are tiles (256 or 128 wide, 16 high), cut into
+        // pieces of 1, 5 and 16 rows, and a narrower last column.
         let dir = tempfile::tempdir().unwrap();
-        for depth in [
-            None,
-            Some((0..w * h).map(|p| 1.0 + p as f32).collect::<Vec<f32>>()),
-        ] {
-            image.depth = depth.clone();
-            for precision in [Precision::F16, Precision::F32] {
-                let whole = dir.path().join("whole.exr");
-                write(&whole, &image, precision).unwrap();
-                for strip_rows in [1, 5, 16, 20] {
-                    let mut stream = ExrStream::new(w, h, k, precision, depth.clone()).unwrap();
-                    for y0 in (0..h).step_by(strip_rows) {
-                        let rows = strip_rows.min(h - y0);
-                        let mut strip = CoefficientMaps::zeros(w, rows, k);
-                        for plane in 0..3 * k {
-                            strip.data[plane * w * rows..(plane + 1) * w * rows].copy_from_slice(
-                                &image.maps.data[plane * w * h + y0 * w..][..w * rows],
-                            );
+        for (w, h, k) in [(9, 37, 4), (600, 37, 25)] {
+            let mut image = sample_image(k);
+            let mut maps = CoefficientMaps::zeros(w, h, k);
+            for (i, v) in maps.data.iter_mut().enumerate() {
+                *v = ((i * 7919) % 1000) as f32 / 137.0 - 3.0;
+            }
+            image.maps = maps;
+            for depth in [
+                None,
+                Some((0..w * h).map(|p| 1.0 + p as f32).collect::<Vec<f32>>()),
+            ] {
+                image.depth = depth.clone();
+                for precision in [Precision::F16, Precision::F32] {
+                    let tiles = ExrStream::tiles(w, k, precision, depth.is_some());
+                    assert_eq!(tiles.is_some(), w == 600, "{w} {precision:?}");
+                    let whole = dir.path().join("whole.exr");
+                    write(&whole, &image, precision).unwrap();
+                    for rows in [1, 5, 16, 20] {
+                        let mut stream = ExrStream::new(w, h, k, precision, depth.clone()).unwrap();
+                        for piece in pieces(w, h, tiles, rows) {
+                            let mut part = CoefficientMaps::zeros(piece.width, piece.height, k);
+                            for plane in 0..3 * k {
+                                let source = &image.maps.data[plane * w * h..][..w * h];
+                                let values = &mut part.data[plane * piece.pixels()..];
+                                for p in 0..piece.pixels() {
+                                    values[p] = source[piece.band_pixel(p, w)];
+                                }
+                            }
+                            stream.piece(piece, part).unwrap();
                         }
-                        stream.rows(&strip).unwrap();
+                        let streamed = dir.path().join("streamed.exr");
+                        stream.finish(&streamed, &image.meta).unwrap();
+                        // Blocks compressed in parallel may reach the file in another
+                        // order (its line order is unspecified), so compare what a
+                        // reader gets.
+                        let (a, b) = (read(&whole).unwrap(), read(&streamed).unwrap());
+                        let bits = |m: &CoefficientMaps| {
+                            m.data.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+                        };
+                        let what = format!(
+                            "{w}×{h}, {precision:?}, depth {}, pieces of {rows} rows",
+                            depth.is_some()
+                        );
+                        assert!(
+                            bits(&a.maps) == bits(&image_rounded(&image, precision)),
+                            "{what}"
+                        );
+                        assert!(bits(&a.maps) == bits(&b.maps), "{what}");
+                        assert_eq!(a.depth, b.depth, "{what}");
+                        assert_eq!(a.meta, b.meta, "{what}");
+                        assert_eq!(
+                            std::fs::metadata(&whole).unwrap().len(),
+                            std::fs::metadata(&streamed).unwrap().len(),
+                            "{what}"
+                        );
                     }
-                    let streamed = dir.path().join("streamed.exr");
-                    stream.finish(&streamed, &image.meta).unwrap();
-                    // Blocks compressed in parallel may reach the file in another order
-                    // (its line order is unspecified), so compare what a reader gets.
-                    let (a, b) = (read(&whole).unwrap(), read(&streamed).unwrap());
-                    let bits = |m: &CoefficientMaps| {
-                        m.data.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
-                    };
-                    let what = format!(
-                        "{precision:?}, depth {}, strips of {strip_rows}",
-                        depth.is_some()
-                    );
-                    assert!(bits(&a.maps) == bits(&b.maps), "{what}");
-                    assert_eq!(a.depth, b.depth, "{what}");
-                    assert_eq!(a.meta, b.meta, "{what}");
-                    assert_eq!(
-                        std::fs::metadata(&whole).unwrap().len(),
-                        std::fs::metadata(&streamed).unwrap().len(),
-                        "{what}"
-                    );
                 }
             }
         }
     }
 
+    /// The maps of `image` as `precision` stores them.
+    fn image_rounded(image: &RelightableImage, precision: Precision) -> CoefficientMaps {
+        let mut maps = image.maps.clone();
+        if precision == Precision::F16 {
+            for v in &mut maps.data {
+                *v = half::f16::from_f32(*v).to_f32();
+            }
+        }
+        maps
+    }
+
+    /// Pieces of a `w × h` image as a streamed fit makes them: strips of `rows` rows, or
+    /// each of `tiles` cut into pieces of at most `rows` rows.
+    fn pieces(w: usize, h: usize, tiles: Option<(usize, usize)>, rows: usize) -> Vec<Piece> {
+        let (tw, th) = tiles.unwrap_or((w, rows));
+        let mut out = Vec::new();
+        for ty in (0..h).step_by(th) {
+            for x0 in (0..w).step_by(tw) {
+                let bottom = (ty + th).min(h);
+                for y0 in (ty..bottom).step_by(rows) {
+                    out.push(Piece {
+                        x0,
+                        y0,
+                        width: tw.min(w - x0),
+                        height: rows.min(bottom - y0),
+                    });
+                }
+            }
+        }
+        out
+    }
+
     #[test]
     fn a_fit_streamed_to_a_file_equals_the_fit_held_whole() {
         // Strips of one row (16-pixel tiles span several), both objectives, a shard, both
-        // precisions: the file streamed as the strips are solved reads back as the whole
-        // maps written at once, with the same metadata but the fit's time.
-        let plane = crate::synth::BumpyPlane {
+        // precisions, and a capture wide enough for a tiled file (pieces of one row of a
+        // tile): the file streamed as the pieces are solved reads back as the whole maps
+        // written at once, with the same metadata but the fit's time.
+        let narrow = crate::synth::BumpyPlane {
             width: 70,
             height: 37,
-        };
-        let capture = plane.capture(&crate::sphere::hemisphere_fibonacci(30));
+        }
+        .capture(&crate::sphere::hemisphere_fibonacci(30));
+        let wide = crate::synth::BumpyPlane {
+            width: 600,
+            height: 20,
+        }
+        .capture(&crate::sphere::hemisphere_fibonacci(30));
         let dir = tempfile::tempdir().unwrap();
         let bits = |m: &CoefficientMaps| m.data.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
-        for (objective, shard, precision) in [
-            (crate::fit::Objective::Perceptual, None, Precision::F16),
-            (crate::fit::Objective::Linear, None, Precision::F32),
-            (
-                crate::fit::Objective::Perceptual,
-                Some((1, 3)),
-                Precision::F32,
-            ),
+        use crate::fit::Objective::{Linear, Perceptual};
+        for (capture, basis, objective, shard, precision) in [
+            (&narrow, "sh:9", Perceptual, None, Precision::F16),
+            (&narrow, "sh:9", Linear, None, Precision::F32),
+            (&narrow, "sh:9", Perceptual, Some((1, 3)), Precision::F32),
+            (&wide, "sh:25", Perceptual, None, Precision::F16),
+            (&wide, "sh:25", Linear, Some((0, 2)), Precision::F32),
         ] {
+            let k = crate::basis::BasisSpec::named(basis)
+                .unwrap()
+                .build()
+                .unwrap()
+                .len();
+            let tiled = ExrStream::tiles(capture.width, k, precision, false).is_some();
+            assert_eq!(tiled, capture.width == 600);
             let mut opts = crate::fit::FitOptions {
-                basis: crate::fit::BasisRequest::parse("sh:9").unwrap(),
+                basis: crate::fit::BasisRequest::parse(basis).unwrap(),
                 objective,
                 lambda: crate::fit::Lambda::Fixed(1e-4),
                 ..crate::fit::FitOptions::default()
             };
-            opts.strip_bytes = 1;
+            opts.piece_bytes = 1;
             opts.shard = shard;
-            let whole = crate::fit::fit(&capture, &opts, &crate::progress::Silent).unwrap();
+            let whole = crate::fit::fit(capture, &opts, &crate::progress::Silent).unwrap();
             let path = dir.path().join("streamed.exr");
             let (meta, report) =
-                fit_to_exr(&capture, &opts, &crate::progress::Silent, &path, precision).unwrap();
+                fit_to_exr(capture, &opts, &crate::progress::Silent, &path, precision).unwrap();
             let back = crate::codec::exr::read(&path).unwrap();
             let mut expected = whole.image.clone();
             expected.meta.fit.as_mut().unwrap().seconds = meta.fit.as_ref().unwrap().seconds;
             let reference = dir.path().join("whole.exr");
             crate::codec::exr::write(&reference, &expected, precision).unwrap();
             let want = crate::codec::exr::read(&reference).unwrap();
-            let what = format!("{objective:?} {shard:?} {precision:?}");
+            let what = format!(
+                "{} {basis} {objective:?} {shard:?} {precision:?}",
+                capture.width
+            );
             assert!(bits(&back.maps) == bits(&want.maps), "{what}");
             assert_eq!(back.depth, want.depth, "{what}");
             assert_eq!(back.meta, want.meta, "{what}");
@@ -1281,26 +1425,58 @@ mod tests {
     }
 
     #[test]
-    fn a_stream_missing_rows_writes_nothing() {
+    fn a_stream_missing_pixels_writes_nothing() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("short.exr");
         let mut stream = ExrStream::new(4, 20, 1, Precision::F16, None).unwrap();
-        stream.rows(&CoefficientMaps::zeros(4, 17, 1)).unwrap();
+        let strip = |y0, height| Piece {
+            x0: 0,
+            y0,
+            width: 4,
+            height,
+        };
+        stream
+            .piece(strip(0, 17), CoefficientMaps::zeros(4, 17, 1))
+            .unwrap();
         assert!(
-            stream.rows(&CoefficientMaps::zeros(4, 4, 1)).is_err(),
+            stream
+                .piece(strip(17, 4), CoefficientMaps::zeros(4, 4, 1))
+                .is_err(),
             "past the last row"
         );
         assert!(
-            stream.rows(&CoefficientMaps::zeros(5, 1, 1)).is_err(),
-            "another width"
+            stream
+                .piece(strip(16, 1), CoefficientMaps::zeros(4, 1, 1))
+                .is_err(),
+            "a row twice"
+        );
+        assert!(
+            stream
+                .piece(strip(17, 1), CoefficientMaps::zeros(5, 1, 1))
+                .is_err(),
+            "maps of another size"
         );
         let err = stream.finish(&path, &sample_image(1).meta).unwrap_err();
-        assert!(err.to_string().contains("17 of 20 rows"), "{err}");
+        assert!(err.to_string().contains("68 of 80 pixels"), "{err}");
         assert!(!path.exists());
         assert!(
             std::fs::read_dir(dir.path()).unwrap().next().is_none(),
             "no partial file"
         );
+        // A tiled file takes no piece across its tiles.
+        let (w, k) = (600, 25);
+        let (tw, th) = ExrStream::tiles(w, k, Precision::F16, false).unwrap();
+        assert_eq!((tw, th), (256, 16));
+        let mut tiled = ExrStream::new(w, 20, k, Precision::F16, None).unwrap();
+        let across = Piece {
+            x0: 0,
+            y0: 0,
+            width: tw + 1,
+            height: 1,
+        };
+        assert!(tiled
+            .piece(across, CoefficientMaps::zeros(tw + 1, 1, k))
+            .is_err());
         assert!(ExrStream::new(4, 20, 1, Precision::U8, None).is_err());
         assert!(ExrStream::new(4, 20, 1, Precision::F16, Some(vec![0.0; 3])).is_err());
     }
@@ -1310,8 +1486,12 @@ mod tests {
         for (i, v) in maps.data.iter_mut().enumerate() {
             *v = ((i * 7919) % 1000) as f32 / 137.0 - 3.0 + 1e-7 * i as f32;
         }
+        // SH of k coefficients where k is a square (sh:4 otherwise: a meta only).
+        let basis = BasisSpec::named(&format!("sh:{k}"))
+            .or_else(|_| BasisSpec::named("sh:4"))
+            .unwrap();
         let mut meta = Metadata::new(
-            BasisSpec::named("sh:4").unwrap(),
+            basis,
             MapSpace::Linear,
             Projection::Cylindrical {
                 fov_y_deg: Some(60.0),

@@ -23,8 +23,8 @@
 //!   the prediction (iteratively reweighted, [`FitOptions::reweights`] times), which keeps
 //!   a highlight the basis cannot follow from dominating the fit. Weights differ per
 //!   pixel, so every pixel gets its own normal equations. The images are first
-//!   rebinned into a strip-major spill file on disk (the seed's rebinning); each strip
-//!   of rows of all images is then read in one piece and solved pixel by pixel with
+//!   rebinned into a piece-major spill file on disk (the seed's rebinning); each piece
+//!   (a strip of rows, or part of a tile) of all images is then read at once and solved pixel by pixel with
 //!   matrix products (`W · vec(B_j B_jᵀ)`) and a Cholesky factorisation per pixel.
 //!
 //! * [`Objective::Auto`] (default): one of the two, whichever has the smaller
@@ -55,6 +55,8 @@
 
 mod select;
 mod spill;
+
+pub use spill::Piece;
 
 pub use select::{candidates, parse_candidates, CandidateScore, Criterion, VALIDATION_LADDER};
 
@@ -205,13 +207,15 @@ pub struct FitOptions {
     pub lambda: Lambda,
     /// Reweighting passes of the perceptual objective after the first solve.
     pub reweights: usize,
-    /// Bytes of one strip of all images held in memory by the perceptual fit (and by a
-    /// linear one streamed to a file). The default, 3 MiB, still holds thousands of
-    /// pixels (enough parallel work): RealRTI item1's fit peaked at 174 MiB with 64 MiB
+    /// Bytes of one piece (strip of rows, or part of a tile) of all images held in
+    /// memory by the perceptual fit (and by a linear one streamed to a file), or those
+    /// of one task's pixels a thread if more (a piece is the solve's parallel work).
+    /// The default, 3 MiB, still holds thousands of pixels at 60 images (enough
+    /// parallel work on a few cores): RealRTI item1's fit peaked at 174 MiB with 64 MiB
     /// strips, 82 MiB with 8 MiB ones, in the same time; once the file was streamed
     /// (maps no longer held), item9's peaked at 35.6 MiB with 4 MiB strips and 31.1 with
     /// 3 MiB ones, again in the same time (1.7 s).
-    pub strip_bytes: usize,
+    pub piece_bytes: usize,
     /// Pixels in the subsample used to choose λ and estimate the training residual.
     pub subsample: usize,
     /// What `auto`'s validation error is measured in; `None`: from the capture
@@ -328,7 +332,7 @@ impl Default for FitOptions {
             regularizer: Regularizer::default(),
             lambda: Lambda::Auto,
             reweights: 1,
-            strip_bytes: 3 << 20,
+            piece_bytes: 3 << 20,
             subsample: 1024,
             criterion: None,
             shard: None,
@@ -782,10 +786,15 @@ pub fn fit(capture: &Capture, options: &FitOptions, progress: &dyn Progress) -> 
     })
 }
 
-/// Where a streamed fit's coefficients go as the strips are solved (a file being
+/// Where a streamed fit's coefficients go as its pieces are solved (a file being
 /// written: `codec::exr::fit_to_exr`).
-pub trait RowSink {
-    /// Called once, before any rows, when the fitted image's size and coefficients per
+pub trait PieceSink {
+    /// The tiles the sink takes its pixels in, `(width, height)`, for an image of
+    /// `width × height` pixels with `k` coefficients per channel, or `None` for strips
+    /// of whole rows. Asked before the images are read; the fit's pieces then stay
+    /// inside these tiles and come tile by tile.
+    fn tiles(&self, width: usize, height: usize, k: usize) -> Option<(usize, usize)>;
+    /// Called once, before any pieces, when the fitted image's size and coefficients per
     /// channel are known; `depth` is its depth map, when the capture has one.
     fn begin(
         &mut self,
@@ -794,26 +803,27 @@ pub trait RowSink {
         k: usize,
         depth: Option<Vec<f32>>,
     ) -> Result<()>;
-    /// The next rows, in order from the first.
-    fn rows(&mut self, strip: &CoefficientMaps) -> Result<()>;
+    /// The next piece's coefficients (`maps` is the piece's size), in the order of the
+    /// tiles (rows of tiles from the top, each from the left), each tile from its top.
+    fn piece(&mut self, piece: Piece, maps: CoefficientMaps) -> Result<()>;
 }
 
-/// [`fit`], handing the maps to `sink` as the strips are solved instead of holding
-/// them: the fit's memory is then the strip's, not the maps'. The rows are bit for bit
-/// [`fit`]'s maps. The linear objective's sums are taken strip by strip from the spill
+/// [`fit`], handing the maps to `sink` as the pieces are solved instead of holding
+/// them: the fit's memory is then the piece's, not the maps'. The rows are bit for bit
+/// [`fit`]'s maps. The linear objective's sums are taken piece by piece from the spill
 /// file too. Returns the metadata and the report ([`fit`]'s, its image aside).
 pub fn fit_streamed(
     capture: &Capture,
     options: &FitOptions,
     progress: &dyn Progress,
-    sink: &mut dyn RowSink,
+    sink: &mut dyn PieceSink,
 ) -> Result<(Metadata, FitReport)> {
     let (meta, _, _, report) = fit_into(capture, options, progress, Some(sink))?;
     Ok((meta, report))
 }
 
 /// The coefficients of the subsample pixels inside the fitted band, gathered from the
-/// maps or from each strip as it is solved (the training residual needs no more).
+/// maps or from each piece as it is solved (the training residual needs no more).
 struct SubCoefficients {
     k: usize,
     values: Vec<f32>,
@@ -829,20 +839,22 @@ impl SubCoefficients {
         }
     }
 
-    /// Record the subsample pixels in `maps`, whose first pixel is pixel `first` of the
-    /// band starting at image pixel `band_start`.
+    /// Record the subsample pixels in `maps`, the coefficients of `piece` of the band
+    /// whose first pixel is image pixel `band_start`, in an image `width` pixels wide.
     fn record(
         &mut self,
         maps: &CoefficientMaps,
-        first: usize,
+        piece: Piece,
         sub_idx: &[usize],
         band_start: usize,
+        width: usize,
     ) {
         let k = self.k;
-        let range = band_start + first..band_start + first + maps.pixels();
         for (s, &p) in sub_idx.iter().enumerate() {
-            if range.contains(&p) {
-                let local = p - range.start;
+            let Some(p) = p.checked_sub(band_start) else {
+                continue;
+            };
+            if let Some(local) = piece.local(p % width, p / width) {
                 for i in 0..k {
                     for c in 0..3 {
                         self.values[s * 3 * k + 3 * i + c] = maps.plane(i, c)[local];
@@ -873,7 +885,7 @@ fn fit_into(
     capture: &Capture,
     options: &FitOptions,
     progress: &dyn Progress,
-    mut stream: Option<&mut dyn RowSink>,
+    mut stream: Option<&mut dyn PieceSink>,
 ) -> Result<Fitted> {
     let start = Instant::now();
     let mut stages = Stages::new();
@@ -984,7 +996,7 @@ fn fit_into(
     let mut accum = None;
     let mut spill = None;
     // A fit streamed to a sink always keeps the spill file, and takes the linear
-    // objective's sums strip by strip from it too, so that no state the size of the maps
+    // objective's sums piece by piece from it too, so that no state the size of the maps
     // is held.
     let streaming = stream.is_some();
     if objective != Objective::Linear || streaming {
@@ -992,7 +1004,12 @@ fn fit_into(
             w,
             rows.len(),
             design.n,
-            options.strip_bytes,
+            options
+                .piece_bytes
+                .max(rayon::current_num_threads() * CHUNK * 3 * 4 * design.n),
+            stream
+                .as_ref()
+                .and_then(|sink| sink.tiles(w, rows.len(), design.k)),
         )?);
     }
     if objective != Objective::Perceptual && !streaming {
@@ -1093,22 +1110,28 @@ fn fit_into(
         sink.begin(w, rows.len(), design.k, depth.clone())?;
     }
     let mut sub_coefs = SubCoefficients::new(sub_idx.len(), design.k);
+    let whole = Piece {
+        x0: 0,
+        y0: 0,
+        width: w,
+        height: rows.len(),
+    };
     let maps = if streaming && objective == Objective::Linear {
         let (spill, stream) = (
-            spill.as_ref().expect("a spill file for the strips"),
+            spill.as_ref().expect("a spill file for the pieces"),
             stream.as_mut().expect("a sink to stream to"),
         );
         let indices: Vec<usize> = (0..design.n).collect();
         let mut buffer = Vec::new();
-        progress.begin("fitting strips", spill.strips() as u64);
-        for s in 0..spill.strips() {
-            let (p0, count) = spill.read_strip(s, &mut buffer)?;
-            let images: Vec<&[f32]> = buffer.chunks_exact(3 * count).collect();
-            let mut strip = CoefficientMaps::zeros(w, count / w, design.k);
-            accumulate(&mut strip, &design, &indices, &images);
-            solve_shared(&mut strip, &design, lambda)?;
-            sub_coefs.record(&strip, p0, &sub_idx, band.start);
-            stream.rows(&strip)?;
+        progress.begin("fitting pieces", spill.pieces() as u64);
+        for s in 0..spill.pieces() {
+            let piece = spill.read_piece(s, &mut buffer)?;
+            let images: Vec<&[f32]> = buffer.chunks_exact(3 * piece.pixels()).collect();
+            let mut maps = CoefficientMaps::zeros(piece.width, piece.height, design.k);
+            accumulate(&mut maps, &design, &indices, &images);
+            solve_shared(&mut maps, &design, lambda)?;
+            sub_coefs.record(&maps, piece, &sub_idx, band.start, w);
+            stream.piece(piece, maps)?;
             progress.advance(1);
         }
         progress.end();
@@ -1116,7 +1139,7 @@ fn fit_into(
     } else if let Some(mut sums) = accum.take() {
         // Only a fit held whole has the sums in memory.
         solve_shared(&mut sums, &design, lambda)?;
-        sub_coefs.record(&sums, 0, &sub_idx, band.start);
+        sub_coefs.record(&sums, whole, &sub_idx, band.start, w);
         Some(sums)
     } else {
         let mut maps = stream
@@ -1129,16 +1152,23 @@ fn fit_into(
                 lambda,
                 options.reweights,
                 progress,
-                &mut |p0, runs| {
+                &mut |piece, runs| {
                     match (maps.as_mut(), stream.as_mut()) {
-                        (Some(maps), _) => scatter_planar(runs, p0, maps),
+                        (Some(maps), _) => scatter_planar(runs, piece, maps),
                         (None, Some(stream)) => {
-                            let count: usize =
-                                runs.iter().map(|r| r.len()).sum::<usize>() / (3 * design.k);
-                            let mut strip = CoefficientMaps::zeros(w, count / w, design.k);
-                            scatter_planar(runs, 0, &mut strip);
-                            sub_coefs.record(&strip, p0, &sub_idx, band.start);
-                            stream.rows(&strip)?;
+                            let mut solved =
+                                CoefficientMaps::zeros(piece.width, piece.height, design.k);
+                            scatter_planar(
+                                runs,
+                                Piece {
+                                    x0: 0,
+                                    y0: 0,
+                                    ..piece
+                                },
+                                &mut solved,
+                            );
+                            sub_coefs.record(&solved, piece, &sub_idx, band.start, w);
+                            stream.piece(piece, solved)?;
                         }
                         (None, None) => unreachable!("the maps or a file"),
                     }
@@ -1147,7 +1177,7 @@ fn fit_into(
             )?;
         }
         if let Some(maps) = &maps {
-            sub_coefs.record(maps, 0, &sub_idx, band.start);
+            sub_coefs.record(maps, whole, &sub_idx, band.start, w);
         }
         maps
     };
@@ -1416,24 +1446,22 @@ fn image_batch(budget: usize, image_bytes: usize) -> usize {
     (budget / image_bytes.max(1)).clamp(threads, 32.max(threads))
 }
 
-/// Copy runs of pixel-major coefficients (pixel, i, c), one run after another from
-/// pixel `p0`, into the planar maps (the runs are the parallel tasks' results, copied
-/// without first joining them).
-fn scatter_planar<R: AsRef<[f32]> + Sync>(runs: &[R], p0: usize, maps: &mut CoefficientMaps) {
+/// Copy runs of pixel-major coefficients (pixel, i, c), one run after another over the
+/// pixels of `piece` row by row, into the planar maps (the runs are the parallel tasks'
+/// results, copied without first joining them).
+fn scatter_planar<R: AsRef<[f32]> + Sync>(runs: &[R], piece: Piece, maps: &mut CoefficientMaps) {
     let k = maps.k;
-    let npix = maps.pixels();
+    let (npix, width) = (maps.pixels(), maps.width);
     maps.data
         .par_chunks_mut(npix)
         .enumerate()
         .for_each(|(plane, values)| {
-            let mut start = p0;
+            let mut p = 0;
             for run in runs {
-                let run = run.as_ref();
-                let count = run.len() / (3 * k);
-                for (p, dst) in values[start..start + count].iter_mut().enumerate() {
-                    *dst = run[p * 3 * k + plane];
+                for pixel in run.as_ref().chunks_exact(3 * k) {
+                    values[piece.band_pixel(p, width)] = pixel[plane];
+                    p += 1;
                 }
-                start += count;
             }
         });
 }
@@ -1457,18 +1485,18 @@ pub(super) fn packed_pairs(k: usize) -> Vec<(usize, usize)> {
     (0..k).flat_map(|r| (r..k).map(move |c| (r, c))).collect()
 }
 
-/// Where a solved strip goes: its first pixel, then runs of pixel-major coefficients.
-type StripSink<'a> = dyn FnMut(usize, &[Vec<f32>]) -> Result<()> + 'a;
+/// Where a solved piece goes: the piece, then runs of pixel-major coefficients.
+type SolvedSink<'a> = dyn FnMut(Piece, &[Vec<f32>]) -> Result<()> + 'a;
 
-/// Per-pixel weighted fit of every strip in the spill file; each strip's coefficients
-/// go to `emit` (its first pixel, then runs of pixel-major coefficients).
+/// Per-pixel weighted fit of every piece in the spill file; each piece's coefficients
+/// go to `emit` (the piece, then runs of pixel-major coefficients).
 fn solve_per_pixel(
     spill: &spill::Spill,
     design: &Design,
     lambda: f64,
     reweights: usize,
     progress: &dyn Progress,
-    emit: &mut StripSink,
+    emit: &mut SolvedSink,
 ) -> Result<()> {
     let (k, n) = (design.k, design.n);
     let pairs = packed_pairs(k);
@@ -1485,11 +1513,12 @@ fn solve_per_pixel(
         }
     }
     let a32: Vec<f32> = design.a.iter().map(|&v| v as f32).collect();
-    progress.begin("fitting strips", spill.strips() as u64);
+    progress.begin("fitting pieces", spill.pieces() as u64);
     let mut buffer = Vec::new();
-    for s in 0..spill.strips() {
-        let (p0, count) = spill.read_strip(s, &mut buffer)?;
-        let strip = &buffer;
+    for s in 0..spill.pieces() {
+        let piece = spill.read_piece(s, &mut buffer)?;
+        let count = piece.pixels();
+        let samples = &buffer;
         let results: Vec<Vec<f32>> = (0..count.div_ceil(CHUNK))
             .into_par_iter()
             .map_init(
@@ -1510,10 +1539,10 @@ fn solve_per_pixel(
                     let len = CHUNK.min(count - a);
                     let mut out = vec![0f32; len * 3 * k];
                     for c in 0..3 {
-                        // Along each image's row of the strip (contiguous), into the
+                        // Along each image's part of the piece (contiguous), into the
                         // chunk's small pixel-major buffer.
                         for j in 0..n {
-                            let row = &strip[(j * count + a) * 3..(j * count + a + len) * 3];
+                            let row = &samples[(j * count + a) * 3..(j * count + a + len) * 3];
                             for (p, rgb) in row.chunks_exact(3).enumerate() {
                                 scratch.obs[p * n + j] = rgb[c] as f64;
                             }
@@ -1531,7 +1560,7 @@ fn solve_per_pixel(
                 },
             )
             .collect();
-        emit(p0, &results)?;
+        emit(piece, &results)?;
         progress.advance(1);
     }
     progress.end();

@@ -1,29 +1,84 @@
-//! The strip-major spill file of the perceptual fit.
+//! The piece-major spill file of the streamed fit.
 //!
 //! The reference images arrive one at a time, but per-pixel normal equations need all
 //! samples of a pixel at once. Like the seed's rebinning (seed 000, figure 2), each image
-//! is cut into strips of rows and each strip written where it belongs in an unlinked
-//! temporary file: strip `s` holds that strip of image 0, then of image 1, and so on. A
-//! strip of every image is then one contiguous read. Memory stays one image per decoder
-//! thread while writing and one strip of all images while solving.
+//! is cut into pieces and each piece written where it belongs in an unlinked temporary
+//! file: piece `s` holds that piece of image 0, then of image 1, and so on. A piece of
+//! every image is then one contiguous read.
+//!
+//! A piece is a rectangle: the band is cut into tiles (`tile_w × tile_h`, the last
+//! column and row of tiles smaller), each tile into pieces of at most `piece_h` rows,
+//! ordered tile row by tile row, tile by tile, piece by piece. With tiles as wide as the
+//! image, a piece is a strip of whole rows. Tiles narrower than the image keep a piece's
+//! size independent of the image's width, so that a fit of a wide panorama holds no
+//! more than a narrow one: the output file's tiles ([`crate::fit::RowSink::tiles`]) set
+//! the tile size. Memory stays a few rows of one image per decoder thread while
+//! writing and one piece of all images while solving.
 
 use crate::{Error, ErrorKind, Result};
 use std::fs::File;
+
+/// A rectangle of the band's pixels: columns `x0..x0 + width`, rows `y0..y0 + height`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Piece {
+    pub x0: usize,
+    pub y0: usize,
+    pub width: usize,
+    pub height: usize,
+}
+
+impl Piece {
+    pub fn pixels(&self) -> usize {
+        self.width * self.height
+    }
+
+    /// The band's pixel index of the piece's pixel `p` (row-major within the piece), in
+    /// a band `band_width` pixels wide.
+    pub fn band_pixel(&self, p: usize, band_width: usize) -> usize {
+        (self.y0 + p / self.width) * band_width + self.x0 + p % self.width
+    }
+
+    /// The piece's pixel index of the band's pixel `(x, y)`, when it is in the piece.
+    pub fn local(&self, x: usize, y: usize) -> Option<usize> {
+        (x >= self.x0 && x < self.x0 + self.width && y >= self.y0 && y < self.y0 + self.height)
+            .then(|| (y - self.y0) * self.width + x - self.x0)
+    }
+}
 
 pub struct Spill {
     file: File,
     width: usize,
     height: usize,
     images: usize,
-    rows_per_strip: usize,
+    tile_w: usize,
+    tile_h: usize,
+    piece_h: usize,
 }
 
+/// Bytes of one pixel's sample of one image (linear RGB in f32).
+const SAMPLE_BYTES: usize = 3 * 4;
+
 impl Spill {
-    /// A spill file for `images` images of `width×height`, with strips of at most
-    /// `strip_bytes` bytes (at least one row).
-    pub fn create(width: usize, height: usize, images: usize, strip_bytes: usize) -> Result<Spill> {
-        let row_bytes = width * 3 * 4 * images;
-        let rows_per_strip = (strip_bytes / row_bytes.max(1)).clamp(1, height.max(1));
+    /// A spill file for `images` images of `width×height`, in pieces of at most
+    /// `piece_bytes` bytes of all images (at least one row of a tile). `tiles`: the tile
+    /// size pieces must stay inside (the output's tiles), or `None` for strips of whole
+    /// rows.
+    pub fn create(
+        width: usize,
+        height: usize,
+        images: usize,
+        piece_bytes: usize,
+        tiles: Option<(usize, usize)>,
+    ) -> Result<Spill> {
+        let (tile_w, tile_h) = match tiles {
+            Some((tw, th)) if tw > 0 && th > 0 => (tw.min(width.max(1)), th),
+            Some(_) => return Err(Error::invalid("a spill file of empty tiles")),
+            None => (width.max(1), height.max(1)),
+        };
+        let row_bytes = tile_w * SAMPLE_BYTES * images;
+        let piece_h = (piece_bytes / row_bytes.max(1)).clamp(1, tile_h.min(height.max(1)));
+        // Strips of whole rows are tiles of one piece each.
+        let tile_h = if tiles.is_none() { piece_h } else { tile_h };
         let file = tempfile::tempfile().map_err(|e| {
             Error::new(
                 ErrorKind::Io,
@@ -36,29 +91,81 @@ impl Spill {
             width,
             height,
             images,
-            rows_per_strip,
+            tile_w,
+            tile_h,
+            piece_h,
         })
     }
 
-    pub fn strips(&self) -> usize {
-        self.height.div_ceil(self.rows_per_strip)
+    fn tile_columns(&self) -> usize {
+        self.width.div_ceil(self.tile_w)
+    }
+
+    /// Rows of tile row `ty`.
+    fn tile_row_height(&self, ty: usize) -> usize {
+        self.tile_h.min(self.height - ty * self.tile_h)
+    }
+
+    /// Pieces of a tile `rows` high.
+    fn pieces_per_tile(&self, rows: usize) -> usize {
+        rows.div_ceil(self.piece_h)
+    }
+
+    pub fn pieces(&self) -> usize {
+        if self.width == 0 || self.height == 0 {
+            return 0;
+        }
+        let full_rows = self.height / self.tile_h;
+        let rest = self.height % self.tile_h;
+        self.tile_columns()
+            * (full_rows * self.pieces_per_tile(self.tile_h) + self.pieces_per_tile(rest))
     }
 
     pub fn bytes(&self) -> u64 {
-        (self.width * self.height * 3 * 4 * self.images) as u64
+        (self.width * self.height * SAMPLE_BYTES * self.images) as u64
     }
 
-    fn strip_rows(&self, s: usize) -> (usize, usize) {
-        let r0 = s * self.rows_per_strip;
-        (r0, (r0 + self.rows_per_strip).min(self.height))
+    /// Piece `s` and the band pixels of the pieces before it.
+    fn piece(&self, s: usize) -> (Piece, usize) {
+        let columns = self.tile_columns();
+        let per_full_row = columns * self.pieces_per_tile(self.tile_h);
+        let ty = s / per_full_row;
+        let rows = self.tile_row_height(ty);
+        let in_row = s - ty * per_full_row;
+        let per_tile = self.pieces_per_tile(rows);
+        let (tx, py) = (in_row / per_tile, in_row % per_tile);
+        let x0 = tx * self.tile_w;
+        let width = self.tile_w.min(self.width - x0);
+        let y0 = ty * self.tile_h + py * self.piece_h;
+        let height = self.piece_h.min(ty * self.tile_h + rows - y0);
+        let before = ty * self.tile_h * self.width + x0 * rows + py * self.piece_h * width;
+        (
+            Piece {
+                x0,
+                y0,
+                width,
+                height,
+            },
+            before,
+        )
     }
 
-    /// Byte offset of strip `s` of image `j`.
+    /// The piece holding row `y`'s pixels of tile column `tx`, and that row's place in it.
+    fn piece_at(&self, tx: usize, y: usize) -> (usize, usize) {
+        let columns = self.tile_columns();
+        let ty = y / self.tile_h;
+        let per_tile = self.pieces_per_tile(self.tile_row_height(ty));
+        let within = y - ty * self.tile_h;
+        let s = ty * columns * self.pieces_per_tile(self.tile_h)
+            + tx * per_tile
+            + within / self.piece_h;
+        (s, within % self.piece_h)
+    }
+
+    /// Byte offset of piece `s` of image `j`.
     fn offset(&self, s: usize, j: usize) -> u64 {
-        let (r0, r1) = self.strip_rows(s);
-        let before = r0 * self.width * 3 * 4 * self.images;
-        let strip_len = (r1 - r0) * self.width * 3 * 4;
-        (before + j * strip_len) as u64
+        let (piece, before) = self.piece(s);
+        ((before * self.images + j * piece.pixels()) * SAMPLE_BYTES) as u64
     }
 
     /// Store image `j` (interleaved linear RGB of the full frame).
@@ -70,25 +177,26 @@ impl Spill {
         rows.finish()
     }
 
-    /// A writer of image `j`'s rows, from the first down: each strip goes to the file
-    /// once its rows are in, so an image read row by row is held one strip at a time.
+    /// A writer of image `j`'s rows, from the first down: each row's part of a piece
+    /// goes to its place in the file, consecutive parts in one write.
     pub fn image_rows(&self, j: usize) -> ImageRows<'_> {
         ImageRows {
             spill: self,
             image: j,
             bytes: Vec::new(),
+            at: 0,
             rows: 0,
         }
     }
 
-    /// Read strip `s` of every image into `buffer` as `[image][pixel][channel]`; returns
-    /// the strip's first pixel index and pixel count.
-    pub fn read_strip(&self, s: usize, buffer: &mut Vec<f32>) -> Result<(usize, usize)> {
-        let (r0, r1) = self.strip_rows(s);
-        let count = (r1 - r0) * self.width;
-        // One image's part at a time, so that the bytes read add one image's strip to
-        // the floats, not a second strip.
-        let mut bytes = vec![0u8; count * 3 * 4];
+    /// Read piece `s` of every image into `buffer` as `[image][pixel][channel]`, the
+    /// piece's pixels row by row; returns the piece.
+    pub fn read_piece(&self, s: usize, buffer: &mut Vec<f32>) -> Result<Piece> {
+        let (piece, _) = self.piece(s);
+        let count = piece.pixels();
+        // One image's part at a time, so that the bytes read add one image's piece to
+        // the floats, not a second piece.
+        let mut bytes = vec![0u8; count * SAMPLE_BYTES];
         buffer.clear();
         buffer.reserve_exact(count * 3 * self.images);
         for j in 0..self.images {
@@ -99,7 +207,7 @@ impl Spill {
                     .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
             );
         }
-        Ok((r0 * self.width, count))
+        Ok(piece)
     }
 }
 
@@ -107,7 +215,9 @@ impl Spill {
 pub struct ImageRows<'a> {
     spill: &'a Spill,
     image: usize,
+    /// Bytes not yet written, which go to the file at `at`.
     bytes: Vec<u8>,
+    at: u64,
     rows: usize,
 }
 
@@ -120,28 +230,51 @@ impl ImageRows<'_> {
                 "a row that does not belong to the spill file",
             ));
         }
-        self.bytes.extend(row.iter().flat_map(|v| v.to_le_bytes()));
+        let y = self.rows;
+        for tx in 0..spill.tile_columns() {
+            let (s, r) = spill.piece_at(tx, y);
+            let x0 = tx * spill.tile_w;
+            let width = spill.tile_w.min(spill.width - x0);
+            let at = spill.offset(s, self.image) + (r * width * SAMPLE_BYTES) as u64;
+            if at != self.at + self.bytes.len() as u64 {
+                self.flush()?;
+                self.at = at;
+            }
+            self.bytes.extend(
+                row[3 * x0..3 * (x0 + width)]
+                    .iter()
+                    .flat_map(|v| v.to_le_bytes()),
+            );
+        }
         self.rows += 1;
-        let strip = (self.rows - 1) / spill.rows_per_strip;
-        if self.rows == spill.strip_rows(strip).1 {
-            write_at(&spill.file, &self.bytes, spill.offset(strip, self.image))?;
+        // A piece's rows of one image are consecutive in the file; the next image's
+        // part follows, so a run ends with the piece at the latest.
+        let (s, r) = spill.piece_at(spill.tile_columns() - 1, y);
+        if r + 1 == spill.piece(s).0.height {
+            self.flush()?;
+        }
+        Ok(())
+    }
+
+    fn flush(&mut self) -> Result<()> {
+        if !self.bytes.is_empty() {
+            write_at(&self.spill.file, &self.bytes, self.at)?;
             self.bytes.clear();
         }
         Ok(())
     }
 
     /// Every row is in.
-    pub fn finish(self) -> Result<()> {
+    pub fn finish(mut self) -> Result<()> {
         if self.rows != self.spill.height {
             return Err(Error::invalid(format!(
                 "{} of the spill file's {} rows were written",
                 self.rows, self.spill.height
             )));
         }
-        Ok(())
+        self.flush()
     }
 }
-
 fn spill_error(e: std::io::Error) -> Error {
     Error::new(
         ErrorKind::Io,
@@ -188,4 +321,71 @@ fn read_at(file: &File, mut bytes: &mut [u8], mut offset: u64) -> Result<()> {
         offset += n as u64;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_piece_reads_back_its_pixels_of_every_image() {
+        let (w, h, n) = (37, 23, 3);
+        let images: Vec<Vec<f32>> = (0..n)
+            .map(|j| (0..w * h * 3).map(|v| (v * 7 + j * 1000) as f32).collect())
+            .collect();
+        // Strips of whole rows (one, several, all), and tiles with narrower last
+        // columns, shorter last rows and pieces of one, some or all of a tile's rows.
+        for (tiles, rows) in [
+            (None, 1),
+            (None, 5),
+            (None, h),
+            (Some((16, 8)), 1),
+            (Some((16, 8)), 3),
+            (Some((16, 8)), 8),
+            (Some((64, 16)), 16),
+        ] {
+            let spill = Spill::create(
+                w,
+                h,
+                n,
+                rows * w.min(tiles.map_or(w, |t| t.0)) * 12 * n,
+                tiles,
+            )
+            .unwrap();
+            for (j, image) in images.iter().enumerate() {
+                spill.write_image(j, image).unwrap();
+            }
+            let mut seen = vec![0; w * h];
+            let mut buffer = Vec::new();
+            for s in 0..spill.pieces() {
+                let piece = spill.read_piece(s, &mut buffer).unwrap();
+                let (tw, th) = tiles.unwrap_or((w, rows));
+                assert!(piece.height <= rows, "{tiles:?} {rows}");
+                assert_eq!(
+                    piece.x0 / tw,
+                    (piece.x0 + piece.width - 1) / tw,
+                    "inside a tile"
+                );
+                assert_eq!(
+                    piece.y0 / th,
+                    (piece.y0 + piece.height - 1) / th,
+                    "inside a tile"
+                );
+                assert_eq!(buffer.len(), piece.pixels() * 3 * n);
+                for (j, image) in images.iter().enumerate() {
+                    for p in 0..piece.pixels() {
+                        let q = piece.band_pixel(p, w);
+                        let got = &buffer[(j * piece.pixels() + p) * 3..][..3];
+                        assert_eq!(got, &image[3 * q..3 * q + 3], "{tiles:?} {rows} piece {s}");
+                        seen[q] += 1;
+                    }
+                }
+            }
+            assert!(
+                seen.iter().all(|&c| c == n),
+                "every pixel once, {tiles:?} {rows}"
+            );
+            assert_eq!(spill.bytes(), (w * h * 12 * n) as u64);
+        }
+    }
 }

@@ -120,7 +120,7 @@ fn strips_do_not_change_the_perceptual_fit() {
     let capture = plane.capture(&hemisphere_fibonacci(40));
     let mut opts = options(3, Objective::Perceptual, 1e-4);
     let whole = fit(&capture, &opts, &Silent).unwrap();
-    opts.strip_bytes = 1; // one row per strip
+    opts.piece_bytes = 1; // one row per piece
     let strips = fit(&capture, &opts, &Silent).unwrap();
     assert!(strips.report.spill_bytes > 0);
     assert_eq!(whole.image.maps, strips.image.maps);
