@@ -177,15 +177,16 @@ impl Spill {
         rows.finish()
     }
 
-    /// A writer of image `j`'s rows, from the first down: each row's part of a piece
-    /// goes to its place in the file, consecutive parts in one write.
+    /// A writer of image `j`'s rows, from the first down: a few rows are held (at most
+    /// 1 MiB, within a piece) and each tile column's part of them written at once.
     pub fn image_rows(&self, j: usize) -> ImageRows<'_> {
         ImageRows {
             spill: self,
             image: j,
-            bytes: Vec::new(),
-            at: 0,
+            held: Vec::new(),
+            held_from: 0,
             rows: 0,
+            most: (HELD_BYTES / (self.width * SAMPLE_BYTES).max(1)).clamp(1, self.piece_h),
         }
     }
 
@@ -211,14 +212,22 @@ impl Spill {
     }
 }
 
+/// Bytes of rows an [`ImageRows`] holds at most before writing them (at least a row):
+/// each row's part of a tile is one write when a piece is a row of the tile, and those
+/// small writes made the images stage twice as slow (4096×1024: 2.6 → 5.4 s).
+const HELD_BYTES: usize = 1 << 20;
+
 /// See [`Spill::image_rows`].
 pub struct ImageRows<'a> {
     spill: &'a Spill,
     image: usize,
-    /// Bytes not yet written, which go to the file at `at`.
-    bytes: Vec<u8>,
-    at: u64,
+    /// Rows `held_from..rows`, not yet written, as the file stores them; all in the
+    /// same pieces.
+    held: Vec<u8>,
+    held_from: usize,
     rows: usize,
+    /// The most rows held.
+    most: usize,
 }
 
 impl ImageRows<'_> {
@@ -230,37 +239,45 @@ impl ImageRows<'_> {
                 "a row that does not belong to the spill file",
             ));
         }
+        self.held.extend(row.iter().flat_map(|v| v.to_le_bytes()));
         let y = self.rows;
-        for tx in 0..spill.tile_columns() {
-            let (s, r) = spill.piece_at(tx, y);
-            let x0 = tx * spill.tile_w;
-            let width = spill.tile_w.min(spill.width - x0);
-            let at = spill.offset(s, self.image) + (r * width * SAMPLE_BYTES) as u64;
-            if at != self.at + self.bytes.len() as u64 {
-                self.flush()?;
-                self.at = at;
-            }
-            self.bytes.extend(
-                row[3 * x0..3 * (x0 + width)]
-                    .iter()
-                    .flat_map(|v| v.to_le_bytes()),
-            );
-        }
         self.rows += 1;
-        // A piece's rows of one image are consecutive in the file; the next image's
-        // part follows, so a run ends with the piece at the latest.
-        let (s, r) = spill.piece_at(spill.tile_columns() - 1, y);
-        if r + 1 == spill.piece(s).0.height {
+        // Held rows stay in one piece of each tile column: the rows of a piece of one
+        // image are consecutive in the file, and the next image's part follows.
+        let (s, r) = spill.piece_at(0, y);
+        if self.rows - self.held_from == self.most || r + 1 == spill.piece(s).0.height {
             self.flush()?;
         }
         Ok(())
     }
 
     fn flush(&mut self) -> Result<()> {
-        if !self.bytes.is_empty() {
-            write_at(&self.spill.file, &self.bytes, self.at)?;
-            self.bytes.clear();
+        let spill = self.spill;
+        let rows = self.rows - self.held_from;
+        if rows == 0 {
+            return Ok(());
         }
+        let row_bytes = spill.width * SAMPLE_BYTES;
+        let mut part = Vec::new();
+        for tx in 0..spill.tile_columns() {
+            let (s, r) = spill.piece_at(tx, self.held_from);
+            let x0 = tx * spill.tile_w;
+            let width = spill.tile_w.min(spill.width - x0);
+            let at = spill.offset(s, self.image) + (r * width * SAMPLE_BYTES) as u64;
+            if width == spill.width {
+                write_at(&spill.file, &self.held, at)?;
+            } else {
+                part.clear();
+                for held_row in self.held.chunks_exact(row_bytes) {
+                    part.extend_from_slice(
+                        &held_row[x0 * SAMPLE_BYTES..(x0 + width) * SAMPLE_BYTES],
+                    );
+                }
+                write_at(&spill.file, &part, at)?;
+            }
+        }
+        self.held.clear();
+        self.held_from = self.rows;
         Ok(())
     }
 
