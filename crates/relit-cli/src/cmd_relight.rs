@@ -361,8 +361,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return Ok(result);
     }
     let requested = args.roi.as_deref().map(Roi::parse).transpose()?;
+    // A relit EXR reads a region of its blocks: of any mip level of a tiled file with
+    // levels, of level 0 of any other.
     let tiled = match relit::codec::FileForm::of(&args.file)? {
-        relit::codec::FileForm::Exr => relit::codec::exr::tiled_levels(&args.file)?,
+        relit::codec::FileForm::Exr => Some(relit::codec::exr::levels(&args.file)?),
         _ => None,
     };
     // One frame of lights that are the same at every pixel: what region reads serve.
@@ -370,7 +372,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .is_some_and(|rig| !rig.lights.is_empty() && LookupRelighter::draws(&rig));
     if args.level.is_some() {
         anyhow::ensure!(
-            tiled.is_some(),
+            tiled.as_ref().is_some_and(|sizes| sizes.len() > 1),
             "--level needs a tiled EXR with mip levels (relit convert X -o Y.exr --mip-tiles)"
         );
         anyhow::ensure!(

@@ -7,14 +7,18 @@ use relit::maps::{CoefficientMaps, MapSpace, Metadata, RelightableImage};
 use relit::storage::Precision;
 
 fn image(w: usize, h: usize) -> RelightableImage {
-    let k = 4;
+    image_of(w, h, 4)
+}
+
+/// An image of SH maps with `k` (a square) coefficients a channel.
+fn image_of(w: usize, h: usize, k: usize) -> RelightableImage {
     let mut maps = CoefficientMaps::zeros(w, h, k);
     for (i, v) in maps.data.iter_mut().enumerate() {
         *v = ((i * 7919) % 1013) as f32 / 1013.0 - 0.3;
     }
     RelightableImage {
         meta: Metadata::new(
-            BasisSpec::named("sh:4").unwrap(),
+            BasisSpec::named(&format!("sh:{k}")).unwrap(),
             MapSpace::Linear,
             Default::default(),
         ),
@@ -75,23 +79,7 @@ fn tiled_files_read_whole_by_region_and_by_level() {
     // A region of level 0: that crop, from fewer bytes than the file.
     let (rx, ry, rw, rh) = (13, 7, 30, 20);
     let region = exr::read_region(&path, 0, (rx, ry, rw, rh)).unwrap();
-    assert!(
-        region.bytes_read < region.file_bytes,
-        "{} of {}",
-        region.bytes_read,
-        region.file_bytes
-    );
-    for j in 0..3 * original.maps.k {
-        let (i, c) = (j / 3, j % 3);
-        let full = original.maps.plane(i, c);
-        let got = region.image.maps.plane(i, c);
-        for y in 0..rh {
-            assert_eq!(
-                &got[y * rw..(y + 1) * rw],
-                &full[(ry + y) * w + rx..(ry + y) * w + rx + rw]
-            );
-        }
-    }
+    assert_crop(&region, &original, (rx, ry, rw, rh));
     // Level 1 whole and level 2 in part: the 2×2 means of the level above.
     let (m1, w1, h1) = mean2(original.maps.plane(2, 1), w, h);
     let level1 = exr::read_region(&path, 1, (0, 0, w1, h1)).unwrap();
@@ -122,10 +110,11 @@ fn tiled_files_read_whole_by_region_and_by_level() {
     let plain = dir.path().join("plain.exr");
     exr::write(&plain, &original, Precision::F32).unwrap();
     assert!(exr::tiled_levels(&plain).unwrap().is_none());
-    assert!(exr::read_region(&plain, 0, (0, 0, 1, 1))
+    assert_eq!(exr::levels(&plain).unwrap(), vec![(w, h)]);
+    assert!(exr::read_region(&plain, 1, (0, 0, 1, 1))
         .unwrap_err()
         .to_string()
-        .contains("not a tiled file"));
+        .contains("level 0 only"));
     assert!(exr::write_tiled(&plain, &original, Precision::F32, 8).is_err());
     // Half floats: level 0 reads back as the f16 rounding of the maps.
     let half = dir.path().join("half.exr");
@@ -133,5 +122,57 @@ fn tiled_files_read_whole_by_region_and_by_level() {
     let back = relit::codec::read(&half).unwrap();
     for (a, b) in back.maps.data.iter().zip(&original.maps.data) {
         assert_eq!(*a, half::f16::from_f32(*b).to_f32());
+    }
+}
+
+/// `region` holds the crop `rect` of `original`'s maps, read from fewer bytes than the
+/// file.
+fn assert_crop(
+    region: &exr::RegionRead,
+    original: &RelightableImage,
+    (rx, ry, rw, rh): (usize, usize, usize, usize),
+) {
+    assert!(
+        region.bytes_read < region.file_bytes,
+        "{} of {}",
+        region.bytes_read,
+        region.file_bytes
+    );
+    let w = original.maps.width;
+    for j in 0..3 * original.maps.k {
+        let (i, c) = (j / 3, j % 3);
+        let full = original.maps.plane(i, c);
+        let got = region.image.maps.plane(i, c);
+        for y in 0..rh {
+            assert_eq!(
+                &got[y * rw..(y + 1) * rw],
+                &full[(ry + y) * w + rx..(ry + y) * w + rx + rw]
+            );
+        }
+    }
+}
+
+#[test]
+fn a_fits_files_read_by_region() {
+    // Scan lines (blocks of 16 lines) and, 600 pixels wide at K = 25, tiles 16 lines
+    // high: level 0 of either reads by region from the blocks it touches.
+    let dir = tempfile::tempdir().unwrap();
+    for (w, h, k, rect) in [
+        (200, 160, 4, (13, 20, 30, 9)),
+        (600, 40, 25, (300, 17, 100, 10)),
+    ] {
+        let original = image_of(w, h, k);
+        let path = dir.path().join("fit.exr");
+        exr::write(&path, &original, Precision::F32).unwrap();
+        assert!(exr::tiled_levels(&path).unwrap().is_none());
+        assert_eq!(exr::levels(&path).unwrap(), vec![(w, h)]);
+        let region = exr::read_region(&path, 0, rect).unwrap();
+        assert_crop(&region, &original, rect);
+        assert!(
+            region.bytes_read * 2 < region.file_bytes,
+            "{w}: {} of {}",
+            region.bytes_read,
+            region.file_bytes
+        );
     }
 }

@@ -734,6 +734,18 @@ pub fn tiled_levels(path: &Path) -> Result<Option<Vec<(usize, usize)>>> {
     Ok(header_levels(header))
 }
 
+/// The level sizes of any relit EXR file: a tiled file's mip levels, or level 0 alone.
+pub fn levels(path: &Path) -> Result<Vec<(usize, usize)>> {
+    let meta =
+        exr::meta::MetaData::read_from_file(path, false).map_err(|e| exr_error(path, "read", e))?;
+    let header = meta
+        .headers
+        .first()
+        .ok_or_else(|| Error::parse(format!("{}: the EXR file has no layer", path.display())))?;
+    Ok(header_levels(header)
+        .unwrap_or_else(|| vec![(header.layer_size.width(), header.layer_size.height())]))
+}
+
 /// The level sizes of a header of tiles with mip levels rounding down, else `None`.
 fn header_levels(header: &exr::meta::header::Header) -> Option<Vec<(usize, usize)>> {
     match header.blocks {
@@ -782,8 +794,9 @@ impl<R: std::io::Seek> std::io::Seek for Counted<R> {
 }
 
 /// Read `rect` (`x, y, width, height` in the level's pixels) of mip level `level` of a
-/// tiled relit file ([`write_tiled`]): only the header (once), the offset tables and the
-/// tiles the region touches are read and decompressed.
+/// tiled relit file ([`write_tiled`]), or of level 0 of any relit file (a fit's scan
+/// lines or tiles): only the header (once), the offset tables and the blocks the region
+/// touches are read and decompressed.
 pub fn read_region(
     path: &Path,
     level: usize,
@@ -801,18 +814,21 @@ pub fn read_region(
         reader.headers().first().cloned().ok_or_else(|| {
             Error::parse(format!("{}: the EXR file has no layer", path.display()))
         })?;
-    let sizes = header_levels(&header).ok_or_else(|| {
-        Error::invalid(format!(
-            "{} is not a tiled file with mip levels (write one with `relit convert --mip-tiles`)",
-            path.display()
-        ))
-    })?;
+    let sizes = header_levels(&header)
+        .unwrap_or_else(|| vec![(header.layer_size.width(), header.layer_size.height())]);
     let &(lw, lh) = sizes.get(level).ok_or_else(|| {
-        Error::invalid(format!(
-            "{} has levels 0 to {}, not {level}",
-            path.display(),
-            sizes.len() - 1
-        ))
+        Error::invalid(if sizes.len() == 1 {
+            format!(
+                "{} has level 0 only, not {level} (write mip levels with `relit convert --mip-tiles`)",
+                path.display()
+            )
+        } else {
+            format!(
+                "{} has levels 0 to {}, not {level}",
+                path.display(),
+                sizes.len() - 1
+            )
+        })
     })?;
     let (rx, ry, rw, rh) = rect;
     if rw == 0 || rh == 0 || rx + rw > lw || ry + rh > lh {
