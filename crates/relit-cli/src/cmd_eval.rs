@@ -79,6 +79,11 @@ pub struct Args {
     /// lights within this many bits per pixel of the whole file.
     #[arg(long, conflicts_with = "compressed")]
     pub budget: Option<f64>,
+    /// With --budget and the basis auto: fit and compress this many of auto's best
+    /// finalists and keep the file whose validation score, with the error its
+    /// compression adds at the training lights, is highest (1: auto's basis alone).
+    #[arg(long = "budget-bases", requires = "budget", default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..=8))]
+    pub budget_bases: u16,
     #[command(flatten)]
     pub compress: CompressArgs,
     /// The rate–distortion curve instead of one evaluation: every --rd-basis fitted once
@@ -143,6 +148,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         mask,
         compress: args.compressed.then(|| args.compress.settings()),
         budget: args.budget,
+        budget_bases: args.budget_bases.into(),
     };
     let bars = Bars::new(args.quiet || args.json);
     let staged = args.save.as_deref().map(StagedFolder::new).transpose()?;

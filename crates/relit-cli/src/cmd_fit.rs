@@ -22,6 +22,11 @@ pub struct Args {
     /// lights best within this many bits per pixel of the whole file.
     #[arg(long)]
     pub budget: Option<f64>,
+    /// With --budget and the basis auto: fit and compress this many of auto's best
+    /// finalists and keep the file whose validation score, with the error its
+    /// compression adds at the training lights, is highest (1: auto's basis alone).
+    #[arg(long = "budget-bases", requires = "budget", default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..=8))]
+    pub budget_bases: u16,
     /// Precision of the stored maps: f16 (alias half) or f32 (alias float).
     #[arg(long, default_value = "f16")]
     pub storage: Precision,
@@ -125,9 +130,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let (meta, report) = if form == relit::codec::FileForm::Exr {
         relit::codec::exr::fit_to_exr(&capture, &options, &bars, &args.output, args.storage)
             .with_context(|| format!("writing {}", args.output.display()))?
+    } else if let (relit::codec::FileForm::Compressed, Some(budget)) = (form, args.budget) {
+        let made = relit::budget_fit::fit_within_budget(
+            &capture,
+            &options,
+            budget,
+            args.budget_bases.into(),
+            &bars,
+        )?;
+        if !args.json && !args.quiet {
+            print_budget(&capture, &made);
+        }
+        relit::codec::packed::write_packed(&args.output, &made.choice.packed)
+            .with_context(|| format!("writing {}", args.output.display()))?;
+        (made.fit.image.meta, made.fit.report)
     } else {
         let output = relit::fit::fit(&capture, &options, &bars)?;
-        write_whole(&args, &capture, &output, &bars)
+        write_whole(&args, &capture, &output)
             .with_context(|| format!("writing {}", args.output.display()))?;
         (output.image.meta, output.report)
     };
@@ -196,44 +215,50 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Write a fit held whole: compressed (by `--budget` or the compression flags), an RTI
-/// tool's file or a web folder.
+/// What `--budget` chose: the file, and each basis tried.
+fn print_budget(capture: &Capture, made: &relit::budget_fit::BudgetFit) {
+    let choice = &made.choice;
+    eprintln!(
+        "compression: {} ({:.1} bits/pixel, {:.2} dB on {} captured lights; {} candidates within the budget)",
+        choice.settings.describe(),
+        choice.bits_per_pixel,
+        choice.score,
+        relit::compress::budget::SCORING_LIGHTS.min(capture.len()),
+        choice.within
+    );
+    for e in &made.estimates {
+        match e.estimate {
+            Some(estimate) => eprintln!(
+                "  {}: validation {:.2} dB, training lights {:.2} lossless, {:.2} in its file: expected {:.2} dB{}",
+                e.basis,
+                e.validation,
+                e.lossless,
+                e.compressed,
+                estimate,
+                if e.basis == made.fit.report.basis { " (kept)" } else { "" }
+            ),
+            None => eprintln!("  {}: no file within the budget", e.basis),
+        }
+    }
+}
+
+/// Write a fit held whole: compressed (by the compression flags), an RTI tool's file or
+/// a web folder.
 fn write_whole(
     args: &Args,
     capture: &Capture,
     output: &relit::fit::FitOutput,
-    bars: &Bars,
 ) -> relit::Result<()> {
-    match relit::codec::FileForm::for_output(&args.output) {
-        relit::codec::FileForm::Compressed if args.budget.is_some() => {
-            let budget = args.budget.unwrap_or_default();
-            relit::compress::budget::choose(&output.image, capture, budget, bars).and_then(
-                |choice| {
-                    if !args.json && !args.quiet {
-                        eprintln!(
-                            "compression: {} ({:.1} bits/pixel, {:.2} dB on {} captured lights; {} candidates within the budget)",
-                            choice.settings.describe(),
-                            choice.bits_per_pixel,
-                            choice.score,
-                            relit::compress::budget::SCORING_LIGHTS.min(capture.len()),
-                            choice.within
-                        );
-                    }
-                    relit::codec::packed::write_packed(&args.output, &choice.packed)
-                },
-            )
-        }
-        _ => relit::codec::write(
-            &args.output,
-            &output.image,
-            &relit::codec::WriteOptions {
-                storage: args.storage,
-                compress: relit::compress::Settings {
-                    directions: Some(capture.directions()),
-                    ..args.compress.settings()
-                },
-                ..Default::default()
+    relit::codec::write(
+        &args.output,
+        &output.image,
+        &relit::codec::WriteOptions {
+            storage: args.storage,
+            compress: relit::compress::Settings {
+                directions: Some(capture.directions()),
+                ..args.compress.settings()
             },
-        ),
-    }
+            ..Default::default()
+        },
+    )
 }

@@ -171,4 +171,41 @@ fn auto_chooses_among_the_rti_families_when_told() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("--candidate chooses among bases"));
     assert!(!d.join("x.exr").exists());
+    // Within a budget, over auto's two best finalists: each judged, one kept.
+    let out = common::relit(
+        d,
+        &[
+            "fit",
+            "cap/capture.json",
+            "--candidate",
+            "hsh",
+            "--candidate",
+            "ptm",
+            "-o",
+            "budget.rlz",
+            // 768 pixels: the principal components' tables are most of a file.
+            "--budget",
+            "400",
+            "--budget-bases",
+            "2",
+        ],
+    );
+    let said = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{said}");
+    assert_eq!(said.matches(": expected ").count(), 2, "{said}");
+    assert_eq!(said.matches("(kept)").count(), 1, "{said}");
+    assert!(relit(d, &["info", "budget.rlz"]).contains("storage       compressed"));
+    let out = common::relit(
+        d,
+        &[
+            "fit",
+            "cap/capture.json",
+            "-o",
+            "y.rlz",
+            "--budget-bases",
+            "2",
+        ],
+    );
+    assert!(!out.status.success(), "--budget-bases needs --budget");
+    assert!(!d.join("y.rlz").exists());
 }

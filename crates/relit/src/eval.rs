@@ -129,6 +129,10 @@ pub struct EvalOptions {
     /// Store each fit compressed with the settings that score best on its own training
     /// lights within this many bits per pixel ([`crate::compress::budget`]).
     pub budget: Option<f64>,
+    /// With `budget` and the basis `auto`: how many of `auto`'s best finalists are each
+    /// fitted and compressed, the file chosen among them ([`crate::budget_fit`]); 1:
+    /// `auto`'s basis alone.
+    pub budget_bases: usize,
 }
 
 /// The result for one held-out image.
@@ -146,6 +150,10 @@ pub struct HoldoutResult {
     /// The candidates this hold-out's fit validated (`--basis auto`), best first.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub candidates: Vec<crate::fit::CandidateScore>,
+    /// With `--budget` over several bases: each basis fitted and how its best file was
+    /// judged, `auto`'s choice first.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub budget_bases: Vec<crate::compress::budget::Estimate>,
 }
 
 /// The evaluation of a capture.
@@ -209,7 +217,23 @@ pub fn evaluate_with(
     let mut chosen_settings: Vec<String> = Vec::new();
     for group in &protocol.groups {
         let train_capture = capture.subset(&protocol.training(group));
-        let mut fitted = fit::fit(&train_capture, &options.fit, progress)?;
+        let (mut fitted, budgeted) = match options.budget {
+            Some(budget) => {
+                let made = crate::budget_fit::fit_within_budget(
+                    &train_capture,
+                    &options.fit,
+                    budget,
+                    options.budget_bases,
+                    progress,
+                )?;
+                (made.fit, Some((made.choice, made.estimates)))
+            }
+            None => (fit::fit(&train_capture, &options.fit, progress)?, None),
+        };
+        let budget_estimates = budgeted
+            .as_ref()
+            .map(|(_, e)| e.clone())
+            .unwrap_or_default();
         fit_seconds.push(fitted.report.seconds);
         coefficients = fitted.report.coefficients;
         if candidates.is_empty() {
@@ -221,9 +245,7 @@ pub fn evaluate_with(
         if !chosen.contains(&fitted.report.objective.name()) {
             chosen.push(fitted.report.objective.name());
         }
-        let (image, bytes) = if let Some(budget) = options.budget {
-            let choice =
-                crate::compress::budget::choose(&fitted.image, &train_capture, budget, progress)?;
+        let (image, bytes) = if let Some((choice, _)) = budgeted {
             if !chosen_settings.contains(&choice.settings.describe()) {
                 chosen_settings.push(choice.settings.describe());
             }
@@ -250,6 +272,7 @@ pub fn evaluate_with(
                 lambda: fitted.report.lambda,
                 basis: fitted.report.basis.clone(),
                 candidates: fitted.report.candidates.clone(),
+                budget_bases: budget_estimates.clone(),
             };
             if let Some(sink) = sink.as_mut() {
                 sink(&result, &reference, &relit)?;

@@ -35,6 +35,7 @@
 #![forbid(unsafe_op_in_unsafe_fn)]
 
 pub mod basis;
+pub mod budget_fit;
 pub mod camera;
 pub mod capture;
 pub mod codec;

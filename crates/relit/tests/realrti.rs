@@ -33,6 +33,7 @@ fn item1_beats_the_best_peer_figure() {
         mask: None,
         compress: None,
         budget: None,
+        budget_bases: 1,
     };
     let report = evaluate(&capture, &options, &relit::progress::Silent).unwrap();
     let indices: Vec<usize> = report.holdouts.iter().map(|h| h.index).collect();
@@ -71,6 +72,7 @@ fn the_default_fit_never_loses_to_a_linear_fit_on_a_real_capture() {
             mask: None,
             compress: None,
             budget: None,
+            budget_bases: 1,
         };
         evaluate(&capture, &options, &relit::progress::Silent).unwrap()
     };

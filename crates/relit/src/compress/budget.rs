@@ -133,18 +133,7 @@ pub(crate) fn choose_judging(
             "the budget must be a positive number of bits per pixel",
         ));
     }
-    let n = capture.len();
-    let lights: Vec<usize> = if n <= SCORING_LIGHTS {
-        (0..n).collect()
-    } else {
-        (0..SCORING_LIGHTS)
-            .map(|i| (i as f64 * (n - 1) as f64 / (SCORING_LIGHTS - 1) as f64).round() as usize)
-            .collect()
-    };
-    let photos: Vec<_> = lights
-        .iter()
-        .map(|&i| capture.load_raw(i))
-        .collect::<Result<_>>()?;
+    let judges = Judges::of(capture)?;
     let pixels = (image.width() * image.height()) as f64;
     let candidates = grid(image.maps.k);
     let directions = capture.directions();
@@ -169,17 +158,7 @@ pub(crate) fn choose_judging(
         if bpp > bits_per_pixel {
             return Ok(None);
         }
-        let decoded = unpack(&packed)?;
-        let relighter = engine::Relighter::new(&decoded)?;
-        let mut score = 0.0;
-        for (&i, photo) in lights.iter().zip(&photos) {
-            let light = &capture.lights[i];
-            let color = light.intensity.map(|v| v as f64);
-            let rig = LightRig::new(vec![Light::directional(light.direction, color)]);
-            let relit = relighter.relight(&rig, &RelightOptions::default())?;
-            score += crate::metrics::psnr_srgb8(&relit.data, &photo.data);
-        }
-        score /= lights.len() as f64;
+        let score = judges.score(&unpack(&packed)?)?;
         Ok(Some(Judged {
             index,
             choice: Choice {
@@ -215,6 +194,139 @@ pub(crate) fn choose_judging(
     Ok(best.choice)
 }
 
+/// The captured lights candidates are scored at ([`SCORING_LIGHTS`] spread over the
+/// capture's order) and their photographs.
+struct Judges<'a> {
+    capture: &'a Capture,
+    lights: Vec<usize>,
+    photos: Vec<crate::image::ImageRgb>,
+}
+
+impl<'a> Judges<'a> {
+    fn of(capture: &'a Capture) -> Result<Judges<'a>> {
+        let n = capture.len();
+        let lights: Vec<usize> = if n <= SCORING_LIGHTS {
+            (0..n).collect()
+        } else {
+            (0..SCORING_LIGHTS)
+                .map(|i| (i as f64 * (n - 1) as f64 / (SCORING_LIGHTS - 1) as f64).round() as usize)
+                .collect()
+        };
+        let photos = lights
+            .iter()
+            .map(|&i| capture.load_raw(i))
+            .collect::<Result<_>>()?;
+        Ok(Judges {
+            capture,
+            lights,
+            photos,
+        })
+    }
+
+    /// The mean 8-bit sRGB PSNR of `image` relit at the lights against their photographs.
+    fn score(&self, image: &RelightableImage) -> Result<f64> {
+        let relighter = engine::Relighter::new(image)?;
+        let mut score = 0.0;
+        for (&i, photo) in self.lights.iter().zip(&self.photos) {
+            let light = &self.capture.lights[i];
+            let color = light.intensity.map(|v| v as f64);
+            let rig = LightRig::new(vec![Light::directional(light.direction, color)]);
+            let relit = relighter.relight(&rig, &RelightOptions::default())?;
+            score += crate::metrics::psnr_srgb8(&relit.data, &photo.data);
+        }
+        Ok(score / self.lights.len() as f64)
+    }
+}
+
+/// A fitted basis offered to [`choose_among`]: its maps, and its validation score (the
+/// mean PSNR of the capture's own lights held out, the basis choice's figure).
+pub struct Offer<'a> {
+    pub image: &'a RelightableImage,
+    pub validation: f64,
+}
+
+/// How [`choose_among`] judged one offer.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Estimate {
+    pub basis: String,
+    /// Its validation score, lossless.
+    pub validation: f64,
+    /// Its training lights' score, lossless and as its best file within the budget.
+    pub lossless: f64,
+    pub compressed: f64,
+    /// The held-out score the file is expected to have: the validation's error plus
+    /// the error its compression adds at the training lights, as mean squared errors
+    /// (`None`: no file of it fits in the budget).
+    pub estimate: Option<f64>,
+}
+
+/// The PSNR of a fit that scores `validation` on lights it has not seen, once stored in
+/// a file that scores `compressed` at its training lights where its maps score
+/// `lossless`: the compression's error adds to the fit's, as mean squared errors (peak 1)
+/// — at its training lights a fit is far closer to the photographs than at others, so
+/// the same added error costs it more decibels there.
+fn expected_psnr(validation: f64, lossless: f64, compressed: f64) -> f64 {
+    let mse = |psnr: f64| 10f64.powf(-psnr / 10.0);
+    let added = (mse(compressed) - mse(lossless)).max(0.0);
+    -10.0 * (mse(validation) + added).log10()
+}
+
+/// The best file within `bits_per_pixel` among several fits of the capture: each fit's
+/// best candidate of [`grid`] ([`choose`]), and of those the one whose validation score,
+/// with the error its compression adds at the training lights, is highest. The training
+/// lights judge the compressions of one fit (its maps are the same whatever the file);
+/// they cannot judge one basis against another, since a fit that follows its training
+/// lights more closely need not predict other lights better: the validation does. Returns
+/// the chosen offer's index, its file, and how every offer was judged.
+pub fn choose_among(
+    offers: &[Offer],
+    capture: &Capture,
+    bits_per_pixel: f64,
+    progress: &dyn Progress,
+) -> Result<(usize, Choice, Vec<Estimate>)> {
+    let judges = Judges::of(capture)?;
+    let mut best: Option<(usize, Choice)> = None;
+    let mut estimates = Vec::new();
+    let mut refusal = None;
+    for (index, offer) in offers.iter().enumerate() {
+        let lossless = judges.score(offer.image)?;
+        let basis = offer.image.meta.basis.build()?.name();
+        match choose(offer.image, capture, bits_per_pixel, progress) {
+            Ok(choice) => {
+                let estimate = expected_psnr(offer.validation, lossless, choice.score);
+                estimates.push(Estimate {
+                    basis,
+                    validation: offer.validation,
+                    lossless,
+                    compressed: choice.score,
+                    estimate: Some(estimate),
+                });
+                let better = best
+                    .as_ref()
+                    .is_none_or(|(b, _)| estimate > estimates[*b].estimate.unwrap_or(f64::MIN));
+                if better {
+                    best = Some((index, choice));
+                }
+            }
+            Err(e) => {
+                estimates.push(Estimate {
+                    basis,
+                    validation: offer.validation,
+                    lossless,
+                    compressed: f64::NAN,
+                    estimate: None,
+                });
+                refusal = Some(e);
+            }
+        }
+    }
+    match (best, refusal) {
+        (Some((index, choice)), _) => Ok((index, choice, estimates)),
+        (None, Some(e)) => Err(e),
+        (None, None) => Err(Error::invalid("no fit was offered to the budget")),
+    }
+}
+
 /// Images of at most this many pixels have their candidates judged side by side.
 const PARALLEL_PIXELS: f64 = (1 << 22) as f64;
 
@@ -240,5 +352,23 @@ impl Judged {
                 Some(kept)
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::expected_psnr;
+
+    #[test]
+    fn the_expected_score_adds_the_compressions_error_to_the_validations() {
+        assert!((expected_psnr(30.0, 40.0, 40.0) - 30.0).abs() < 1e-12);
+        // A file no worse than its maps adds nothing.
+        assert!((expected_psnr(30.0, 40.0, 41.0) - 30.0).abs() < 1e-12);
+        // Errors add as squares: 1e-3 + (1e-3.5 − 1e-4).
+        let want = -10.0 * (1e-3 + 10f64.powf(-3.5) - 1e-4).log10();
+        assert!((expected_psnr(30.0, 40.0, 35.0) - want).abs() < 1e-9);
+        // The same loss at the training lights costs less where the fit is worse.
+        let cost = |validation: f64| validation - expected_psnr(validation, 40.0, 35.0);
+        assert!(cost(25.0) < cost(30.0) && cost(30.0) < 5.0);
     }
 }
