@@ -108,22 +108,20 @@ fn auto_chooses_among_the_rti_families_when_told() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     capture_box(d, "hemisphere:40", "32x24");
-    let json: serde_json::Value = serde_json::from_str(&relit(
-        d,
-        &[
+    let fit_among = |rest: &[&str]| {
+        let head = [
             "fit",
             "cap/capture.json",
             "--candidate",
             "hsh",
             "--candidate",
             "ptm",
-            "-o",
-            "auto.exr",
-            "--json",
-            "-q",
-        ],
-    ))
-    .unwrap();
+        ];
+        common::relit(d, &[&head[..], rest].concat())
+    };
+    let out = fit_among(&["-o", "auto.exr", "--json", "-q"]);
+    assert!(out.status.success());
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let judged: Vec<&str> = json["candidates"]
         .as_array()
         .unwrap()
@@ -172,24 +170,8 @@ fn auto_chooses_among_the_rti_families_when_told() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("--candidate chooses among bases"));
     assert!(!d.join("x.exr").exists());
     // Within a budget, over auto's two best finalists: each judged, one kept.
-    let out = common::relit(
-        d,
-        &[
-            "fit",
-            "cap/capture.json",
-            "--candidate",
-            "hsh",
-            "--candidate",
-            "ptm",
-            "-o",
-            "budget.rlz",
-            // 768 pixels: the principal components' tables are most of a file.
-            "--budget",
-            "400",
-            "--budget-bases",
-            "2",
-        ],
-    );
+    // 768 pixels: the principal components' tables are most of a file.
+    let out = fit_among(&["-o", "budget.rlz", "--budget", "400", "--budget-bases", "2"]);
     let said = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{said}");
     assert_eq!(said.matches(": expected ").count(), 2, "{said}");

@@ -725,25 +725,28 @@ pub fn write_tiled(
 /// The level sizes of a tiled file with mip levels (level 0 first), or `None` for any
 /// other relit file (scan lines, or tiles of one level).
 pub fn tiled_levels(path: &Path) -> Result<Option<Vec<(usize, usize)>>> {
-    let meta =
-        exr::meta::MetaData::read_from_file(path, false).map_err(|e| exr_error(path, "read", e))?;
-    let header = meta
-        .headers
-        .first()
-        .ok_or_else(|| Error::parse(format!("{}: the EXR file has no layer", path.display())))?;
-    Ok(header_levels(header))
+    Ok(header_levels(&first_header(path)?))
 }
 
 /// The level sizes of any relit EXR file: a tiled file's mip levels, or level 0 alone.
 pub fn levels(path: &Path) -> Result<Vec<(usize, usize)>> {
+    Ok(level_sizes(&first_header(path)?))
+}
+
+/// The header of the file's first layer, read alone.
+fn first_header(path: &Path) -> Result<exr::meta::header::Header> {
     let meta =
         exr::meta::MetaData::read_from_file(path, false).map_err(|e| exr_error(path, "read", e))?;
-    let header = meta
-        .headers
-        .first()
-        .ok_or_else(|| Error::parse(format!("{}: the EXR file has no layer", path.display())))?;
-    Ok(header_levels(header)
-        .unwrap_or_else(|| vec![(header.layer_size.width(), header.layer_size.height())]))
+    meta.headers
+        .into_iter()
+        .next()
+        .ok_or_else(|| Error::parse(format!("{}: the EXR file has no layer", path.display())))
+}
+
+/// The level sizes of a header: its mip levels, or level 0 alone.
+fn level_sizes(header: &exr::meta::header::Header) -> Vec<(usize, usize)> {
+    header_levels(header)
+        .unwrap_or_else(|| vec![(header.layer_size.width(), header.layer_size.height())])
 }
 
 /// The level sizes of a header of tiles with mip levels rounding down, else `None`.
@@ -814,8 +817,7 @@ pub fn read_region(
         reader.headers().first().cloned().ok_or_else(|| {
             Error::parse(format!("{}: the EXR file has no layer", path.display()))
         })?;
-    let sizes = header_levels(&header)
-        .unwrap_or_else(|| vec![(header.layer_size.width(), header.layer_size.height())]);
+    let sizes = level_sizes(&header);
     let &(lw, lh) = sizes.get(level).ok_or_else(|| {
         Error::invalid(if sizes.len() == 1 {
             format!(
