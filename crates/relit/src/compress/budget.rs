@@ -116,11 +116,22 @@ pub fn choose(
     bits_per_pixel: f64,
     progress: &dyn Progress,
 ) -> Result<Choice> {
+    choose_with(image, &Judges::of(capture)?, bits_per_pixel, progress)
+}
+
+/// [`choose`] with the scoring lights' photographs already loaded.
+fn choose_with(
+    image: &RelightableImage,
+    judges: &Judges,
+    bits_per_pixel: f64,
+    progress: &dyn Progress,
+) -> Result<Choice> {
     let side_by_side = (image.width() * image.height()) as f64 <= PARALLEL_PIXELS;
-    choose_judging(image, capture, bits_per_pixel, progress, side_by_side)
+    judge_grid(image, judges, bits_per_pixel, progress, side_by_side)
 }
 
 /// [`choose`], judging the candidates side by side or one at a time.
+#[cfg(test)]
 pub(crate) fn choose_judging(
     image: &RelightableImage,
     capture: &Capture,
@@ -128,12 +139,29 @@ pub(crate) fn choose_judging(
     progress: &dyn Progress,
     side_by_side: bool,
 ) -> Result<Choice> {
+    judge_grid(
+        image,
+        &Judges::of(capture)?,
+        bits_per_pixel,
+        progress,
+        side_by_side,
+    )
+}
+
+/// Every candidate of [`grid`] for `image` judged, the best within the budget kept.
+fn judge_grid(
+    image: &RelightableImage,
+    judges: &Judges,
+    bits_per_pixel: f64,
+    progress: &dyn Progress,
+    side_by_side: bool,
+) -> Result<Choice> {
+    let capture = judges.capture;
     if !(bits_per_pixel.is_finite() && bits_per_pixel > 0.0) {
         return Err(Error::invalid(
             "the budget must be a positive number of bits per pixel",
         ));
     }
-    let judges = Judges::of(capture)?;
     let pixels = (image.width() * image.height()) as f64;
     let candidates = grid(image.maps.k);
     let directions = capture.directions();
@@ -285,13 +313,13 @@ pub fn choose_among(
     progress: &dyn Progress,
 ) -> Result<(usize, Choice, Vec<Estimate>)> {
     let judges = Judges::of(capture)?;
-    let mut best: Option<(usize, Choice)> = None;
+    let mut best: Option<(usize, Choice, f64)> = None;
     let mut estimates = Vec::new();
     let mut refusal = None;
     for (index, offer) in offers.iter().enumerate() {
         let lossless = judges.score(offer.image)?;
         let basis = offer.image.meta.basis.build()?.name();
-        match choose(offer.image, capture, bits_per_pixel, progress) {
+        match choose_with(offer.image, &judges, bits_per_pixel, progress) {
             Ok(choice) => {
                 let estimate = expected_psnr(offer.validation, lossless, choice.score);
                 estimates.push(Estimate {
@@ -301,11 +329,8 @@ pub fn choose_among(
                     compressed: choice.score,
                     estimate: Some(estimate),
                 });
-                let better = best
-                    .as_ref()
-                    .is_none_or(|(b, _)| estimate > estimates[*b].estimate.unwrap_or(f64::MIN));
-                if better {
-                    best = Some((index, choice));
+                if best.as_ref().is_none_or(|(_, _, kept)| estimate > *kept) {
+                    best = Some((index, choice, estimate));
                 }
             }
             Err(e) => {
@@ -321,7 +346,7 @@ pub fn choose_among(
         }
     }
     match (best, refusal) {
-        (Some((index, choice)), _) => Ok((index, choice, estimates)),
+        (Some((index, choice, _)), _) => Ok((index, choice, estimates)),
         (None, Some(e)) => Err(e),
         (None, None) => Err(Error::invalid("no fit was offered to the budget")),
     }

@@ -1110,12 +1110,7 @@ fn fit_into(
         sink.begin(w, rows.len(), design.k, depth.clone())?;
     }
     let mut sub_coefs = SubCoefficients::new(sub_idx.len(), design.k);
-    let whole = Piece {
-        x0: 0,
-        y0: 0,
-        width: w,
-        height: rows.len(),
-    };
+    let whole = Piece::sized(w, rows.len());
     let maps = if streaming && objective == Objective::Linear {
         let (spill, stream) = (
             spill.as_ref().expect("a spill file for the pieces"),
@@ -1160,11 +1155,7 @@ fn fit_into(
                                 CoefficientMaps::zeros(piece.width, piece.height, design.k);
                             scatter_planar(
                                 runs,
-                                Piece {
-                                    x0: 0,
-                                    y0: 0,
-                                    ..piece
-                                },
+                                Piece::sized(piece.width, piece.height),
                                 &mut solved,
                             );
                             sub_coefs.record(&solved, piece, &sub_idx, band.start, w);
@@ -1456,11 +1447,15 @@ fn scatter_planar<R: AsRef<[f32]> + Sync>(runs: &[R], piece: Piece, maps: &mut C
         .par_chunks_mut(npix)
         .enumerate()
         .for_each(|(plane, values)| {
-            let mut p = 0;
+            // The piece's pixels row by row: (x, y) walks them without a division.
+            let (mut x, mut y) = (0, 0);
             for run in runs {
                 for pixel in run.as_ref().chunks_exact(3 * k) {
-                    values[piece.band_pixel(p, width)] = pixel[plane];
-                    p += 1;
+                    values[(piece.y0 + y) * width + piece.x0 + x] = pixel[plane];
+                    x += 1;
+                    if x == piece.width {
+                        (x, y) = (0, y + 1);
+                    }
                 }
             }
         });

@@ -28,6 +28,17 @@ pub struct Piece {
 }
 
 impl Piece {
+    /// A piece of `width × height` pixels at the origin (a whole band, or a piece's own
+    /// maps).
+    pub fn sized(width: usize, height: usize) -> Piece {
+        Piece {
+            x0: 0,
+            y0: 0,
+            width,
+            height,
+        }
+    }
+
     pub fn pixels(&self) -> usize {
         self.width * self.height
     }
