@@ -6,7 +6,7 @@ use crate::shared::{refuse_overwriting_inputs, WebArgs};
 use anyhow::{bail, Context};
 use relit::fsutil::Output;
 use relit::storage::Precision;
-use relit_viewer::{export_web, BundleOptions, PRECISIONS};
+use relit_viewer::{export_web, BundleOptions, Tiling, WebBundle, PRECISIONS};
 use std::path::PathBuf;
 
 /// The viewer an export is for.
@@ -30,9 +30,18 @@ pub struct Args {
     #[command(flatten)]
     pub web: WebArgs,
     /// relit's viewer only: precision of the coefficient layers, u8 (8-bit PNG,
-    /// scale/offset per plane) or f16 (half floats). Default u8.
+    /// scale/offset per plane) or f16 (half floats). Default u8 (f16 when tiled).
     #[arg(long)]
     pub storage: Option<Precision>,
+    /// relit's viewer only: whole coefficient layers (`off`), tiles of N pixels with a
+    /// mip pyramid, read at the level and region a view needs (64 to 1024, a relit EXR
+    /// only; half floats), or `auto`: tiles of 256 when whole layers would pass 512 MiB.
+    #[arg(long, default_value = "auto")]
+    pub tiles: Tiling,
+    /// With tiles: the MiB the overview (the coarse level always held, drawn where a
+    /// tile has not arrived) may take; the finest level within them is used.
+    #[arg(long, default_value_t = (relit_viewer::tiles::OVERVIEW_BYTES >> 20) as f64)]
+    pub overview_mib: f64,
     /// relit's viewer only: lat-long environment maps (.hdr/.exr) offered as
     /// environment lights. Repeatable.
     #[arg(long = "env")]
@@ -44,8 +53,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     inputs.extend(args.envs.iter().cloned());
     refuse_overwriting_inputs(&inputs, &[Output::folder(&args.dir)])?;
     if args.viewer == Viewer::Openlime {
-        if args.storage.is_some() || !args.envs.is_empty() {
-            bail!("--storage and --env are for relit's viewer: add --viewer relit");
+        if args.storage.is_some() || !args.envs.is_empty() || args.tiles != Tiling::Auto {
+            bail!("--storage, --tiles and --env are for relit's viewer: add --viewer relit");
         }
         let image = relit::codec::read(&args.file)?;
         let options = args.web.options();
@@ -73,13 +82,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
         return Ok(());
     }
-    let storage = args.storage.unwrap_or(Precision::U8);
-    storage.require(&PRECISIONS, "--storage (the viewer)")?;
-    let options = BundleOptions {
-        precision: storage,
+    let mut options = BundleOptions {
+        precision: args.storage.unwrap_or(Precision::F16),
         environments: args.envs.clone(),
         source_name: String::new(),
+        tiling: args.tiles,
+        overview_bytes: (args.overview_mib.max(0.0) * 1048576.0) as usize,
     };
+    // 8-bit layers unless asked otherwise, but a tiled bundle is half floats.
+    if args.storage.is_none() && WebBundle::tile_side(&args.file, &options)?.is_none() {
+        options.precision = Precision::U8;
+    }
+    options
+        .precision
+        .require(&PRECISIONS, "--storage (the viewer)")?;
     let summary = export_web(&args.file, &args.dir, &options)?;
     println!(
         "wrote {} ({} files, {:.1} MiB); host it with any static web server",

@@ -239,7 +239,8 @@ async function start() {
   try {
     renderer = new Renderer(canvasEl);
     const info = await renderer.load(app.base);
-    $('source').textContent = `${info.source} · ${info.width}×${info.height} · ${info.basis.name} · ${info.projection.type} · ${info.storage}`;
+    renderer.onTile = request; // a tile arrived: draw again
+    $('source').textContent = `${info.source} · ${info.width}×${info.height} · ${info.basis.name} · ${info.projection.type} · ${info.storage}${info.tiles ? ` · ${info.tiles.side}-px tiles` : ''}`;
     panel = new Panel(app, $('lights'));
     app.renderer = renderer;
     app.info = info;
@@ -286,5 +287,17 @@ window.relit = {
     t.sort((a, b) => a - b);
     return { median: t[t.length >> 1], min: t[0], max: t[t.length - 1], frames: n, width: canvasEl.width, height: canvasEl.height };
   },
+  /** Draw until every tile the view needs has arrived (tiled bundles); the tiles
+   *  fetched so far and their bytes. */
+  settle: async (timeoutMs = 60000) => {
+    const t0 = performance.now();
+    for (;;) {
+      renderNow();
+      if (!renderer.tilesPending()) return renderer.tileStats || null;
+      if (performance.now() - t0 > timeoutMs) throw new Error('tiles still pending after ' + timeoutMs + ' ms');
+      await new Promise((r) => setTimeout(r, 20));
+    }
+  },
+  get tileStats() { return renderer.tileStats || null; },
   loadSlide: async (name, url) => { await renderer.loadSlide(name, url); app.changed(false); },
 };

@@ -40,6 +40,20 @@ uniform bool uHasDepth;
 uniform vec2 uImage;            // width, height in pixels
 uniform bool uSmooth;           // bilinear coefficients (and depth where it is continuous)
 uniform float uMaxLod;          // mip levels − 1 when the view shrinks the image, else 0
+uniform vec2 uPlanesSize;       // the planes texture's size: the image's, or a tiled bundle's overview
+uniform float uPlanesLod;       // the level of the image the planes texture holds (0, or the overview's)
+
+#if TILED
+// A tiled bundle (renderer.js setupTiles): tiles of level uLevel held in the atlas's
+// slots, uPages giving each tile of the level its slot + 1 (0: not held, the overview
+// stands in).
+uniform highp sampler2DArray uAtlas;
+uniform highp usampler2D uPages;
+uniform int uLevel;             // the level tiles are read from; −1: the overview alone
+uniform vec2 uLevelSize;
+uniform int uTileSide;
+uniform int uSlotsPerRow;
+#endif
 
 uniform int uViewMode;          // 0 flat pan/zoom, 1 perspective view of a panorama
 uniform vec2 uCanvas;
@@ -221,6 +235,46 @@ float surfaceDepth(vec2 pos, ivec2 t, out vec2 at) {
   return texelFetch(uDepth, t, 0).r;
 }
 
+#if TILED
+// Texel p of level uLevel (columns wrapped on panoramas, edges clamped, as the planes
+// texture's sampler does) in the atlas; x < 0 where its tile is not held.
+ivec2 atlasTexel(ivec2 p) {
+  ivec2 size = ivec2(uLevelSize);
+  p.x = uWrapX ? (p.x % size.x + size.x) % size.x : clamp(p.x, 0, size.x - 1);
+  p.y = clamp(p.y, 0, size.y - 1);
+  ivec2 tile = p / uTileSide;
+  int page = int(texelFetch(uPages, tile, 0).r);
+  if (page == 0) return ivec2(-1);
+  int slot = page - 1;
+  return ivec2(slot % uSlotsPerRow, slot / uSlotsPerRow) * uTileSide + p - tile * uTileSide;
+}
+
+// The coefficients at pos from the tiles of uLevel: bilinear between the four nearest
+// texels (by hand: they may sit in different slots), or the nearest; false where a
+// tile they need is not held.
+bool tiledCoefficients(vec2 pos, out vec4 C[3 * N_LAYERS]) {
+  vec2 at = pos * uLevelSize / uImage;
+  if (uSmooth) {
+    vec2 q = at - 0.5;
+    ivec2 i0 = ivec2(floor(q));
+    vec2 f = q - floor(q);
+    ivec2 a = atlasTexel(i0), b = atlasTexel(i0 + ivec2(1, 0));
+    ivec2 c = atlasTexel(i0 + ivec2(0, 1)), d = atlasTexel(i0 + ivec2(1, 1));
+    if (a.x < 0 || b.x < 0 || c.x < 0 || d.x < 0) return false;
+    for (int l = 0; l < 3 * N_LAYERS; l++) {
+      vec4 top = mix(texelFetch(uAtlas, ivec3(a, l), 0), texelFetch(uAtlas, ivec3(b, l), 0), f.x);
+      vec4 bottom = mix(texelFetch(uAtlas, ivec3(c, l), 0), texelFetch(uAtlas, ivec3(d, l), 0), f.x);
+      C[l] = uOffset[l] + uScale[l] * mix(top, bottom, f.y);
+    }
+  } else {
+    ivec2 a = atlasTexel(ivec2(floor(at)));
+    if (a.x < 0) return false;
+    for (int l = 0; l < 3 * N_LAYERS; l++) C[l] = uOffset[l] + uScale[l] * texelFetch(uAtlas, ivec3(a, l), 0);
+  }
+  return true;
+}
+#endif
+
 void main() {
   vec2 pos;
   bool inside = sourcePosition(pos);
@@ -270,16 +324,22 @@ void main() {
     for (int l = 0; l < 3 * N_LAYERS; l++) C[l] = uOffset[l] + uScale[l] * texelFetch(uPlanes, ivec3(et, l), 0);
   }
 #else
-  if (uSmooth) {
+  bool tiled = false;
+#if TILED
+  if (uLevel >= 0) tiled = tiledCoefficients(pos, C);
+#endif
+  if (!tiled && uSmooth) {
     // Filtered coefficients (relighting is linear in them, so this filters the relit
     // image): bilinear within a level, trilinear between the mip levels of the
     // footprint when the view shrinks the image; level 0 exactly wherever a texel
     // covers a screen pixel or more. The planes texture repeats horizontally on
-    // panoramas and clamps otherwise.
+    // panoramas and clamps otherwise; a tiled bundle's overview is level uPlanesLod.
     vec2 uv = pos / uImage;
-    for (int l = 0; l < 3 * N_LAYERS; l++) C[l] = uOffset[l] + uScale[l] * textureLod(uPlanes, vec3(uv, float(l)), lod);
-  } else {
-    for (int l = 0; l < 3 * N_LAYERS; l++) C[l] = uOffset[l] + uScale[l] * texelFetch(uPlanes, ivec3(t, l), 0);
+    float planesLod = max(lod - uPlanesLod, 0.0);
+    for (int l = 0; l < 3 * N_LAYERS; l++) C[l] = uOffset[l] + uScale[l] * textureLod(uPlanes, vec3(uv, float(l)), planesLod);
+  } else if (!tiled) {
+    ivec2 tp = uPlanesLod > 0.0 ? min(ivec2(floor(pos * uPlanesSize / uImage)), ivec2(uPlanesSize) - 1) : t;
+    for (int l = 0; l < 3 * N_LAYERS; l++) C[l] = uOffset[l] + uScale[l] * texelFetch(uPlanes, ivec3(tp, l), 0);
   }
 #endif
 

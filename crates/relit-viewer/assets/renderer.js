@@ -11,6 +11,12 @@ const MAX_LIGHTS = 8, MAX_SLIDES = 4;
 const TABLE_UNIT = 2 + MAX_SLIDES;
 // A codebook image's indices (one 16-bit entry a pixel).
 const INDEX_UNIT = TABLE_UNIT + 1;
+// A tiled bundle's atlas of resident tiles and the page table of the level drawn.
+const ATLAS_UNIT = INDEX_UNIT + 1, PAGES_UNIT = ATLAS_UNIT + 1;
+/** Tiles fetched at once. */
+const TILE_FETCHES = 6;
+/** Most GPU memory the atlas of tiles takes. */
+const ATLAS_BYTES = 768 * 1024 * 1024;
 /** Samples per area light the shader takes at most (relight.frag MAX_AREA_SAMPLES). */
 export const MAX_AREA_SAMPLES = 64;
 
@@ -79,7 +85,11 @@ export class Renderer {
     // A codebook image: the layers hold the entries (info.codebook), each pixel an index.
     const book = info.codebook || null;
     this.codebook = book;
-    const defines = `#version 300 es\n#define N_LAYERS ${info.layers_per_channel}\n#define CODEBOOK ${book ? 1 : 0}\n`;
+    // A tiled bundle (crates/relit-viewer/src/tiles.rs): the layers hold the overview,
+    // the finer levels arrive as tiles.
+    const tiles = info.tiles || null;
+    this.tiles = tiles;
+    const defines = `#version 300 es\n#define N_LAYERS ${info.layers_per_channel}\n#define CODEBOOK ${book ? 1 : 0}\n#define TILED ${tiles ? 1 : 0}\n`;
     this.program = this.compile(vs, fs.replace('#version 300 es\n', defines));
     this.uniforms = {};
     const n = gl.getProgramParameter(this.program, gl.ACTIVE_UNIFORMS);
@@ -92,8 +102,10 @@ export class Renderer {
     const maxSide = gl.getParameter(gl.MAX_TEXTURE_SIZE);
     if (W > maxSide || H > maxSide) throw new Error(`the image (${W}×${H}) exceeds this GPU's textures (${maxSide})`);
     const layers = info.layers.length;
-    // The layers' own size: the image's, or the codebook's rows of entries.
-    const LW = book ? book.width : W, LH = book ? book.height : H;
+    // The layers' own size: the image's, the codebook's rows of entries, or the
+    // overview's.
+    const [LW, LH] = book ? [book.width, book.height] : tiles ? tiles.levels[tiles.overview] : [W, H];
+    this.planesSize = [LW, LH];
     gl.pixelStorei(gl.UNPACK_FLIP_Y_WEBGL, false);
     gl.pixelStorei(gl.UNPACK_PREMULTIPLY_ALPHA_WEBGL, false);
     gl.pixelStorei(gl.UNPACK_COLORSPACE_CONVERSION_WEBGL, gl.NONE);
@@ -106,7 +118,7 @@ export class Renderer {
     // format: RGBA8 always, RGBA16F with EXT_color_buffer_float; without it, level 0).
     // Entries are fetched by index, never filtered as a texture: no mipmaps for them.
     const mips = !book && (u8 || !!gl.getExtension('EXT_color_buffer_float'));
-    this.mipLevels = mips ? Math.floor(Math.log2(Math.max(W, H))) + 1 : 1;
+    this.mipLevels = mips ? Math.floor(Math.log2(Math.max(LW, LH))) + 1 : 1;
     gl.texStorage3D(gl.TEXTURE_2D_ARRAY, this.mipLevels, u8 ? gl.RGBA8 : gl.RGBA16F, LW, LH, layers);
     // Filtering (RGBA8 and RGBA16F are filterable in WebGL2; the shader picks the level
     // and uses texelFetch instead when smoothing is off). Panorama columns wrap around.
@@ -167,8 +179,161 @@ export class Renderer {
       return [e.map, lights];
     })));
     this.setupCamera();
+    if (tiles) this.setupTiles(base);
     this.vao = gl.createVertexArray();
     return info;
+  }
+
+  /** The atlas that holds the tiles fetched (a texture array of `slots` tile-sized
+   *  slots, one layer per coefficient layer), the page table of the level drawn, and
+   *  the bookkeeping of which tile sits in which slot. */
+  setupTiles(base) {
+    const gl = this.gl, t = this.tiles, T = t.side, layers = this.info.layers.length;
+    const maxSide = Math.floor(gl.getParameter(gl.MAX_TEXTURE_SIZE) / T);
+    // Enough slots for twice the tiles a screen-sized view needs at 1:1, within
+    // ATLAS_BYTES and the GPU's texture size.
+    const dpr = window.devicePixelRatio || 1;
+    const screenTiles = (Math.ceil((screen.width * dpr) / T) + 1) * (Math.ceil((screen.height * dpr) / T) + 1);
+    const fit = Math.max(4, Math.floor(ATLAS_BYTES / (T * T * 8 * layers)));
+    const want = Math.max(4, Math.min(2 * screenTiles, fit, maxSide * maxSide));
+    const perRow = Math.min(maxSide, Math.ceil(Math.sqrt(want)));
+    const rows = Math.ceil(want / perRow);
+    this.atlas = { perRow, slots: perRow * rows, tex: gl.createTexture() };
+    gl.activeTexture(gl.TEXTURE0 + ATLAS_UNIT);
+    gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.atlas.tex);
+    gl.texStorage3D(gl.TEXTURE_2D_ARRAY, 1, gl.RGBA16F, perRow * T, rows * T, layers);
+    this.setNearest(gl.TEXTURE_2D_ARRAY);
+    const [cols, lines] = this.tileGrid(0);
+    this.pages = { data: new Uint16Array(cols * lines), tex: gl.createTexture() };
+    gl.activeTexture(gl.TEXTURE0 + PAGES_UNIT);
+    gl.bindTexture(gl.TEXTURE_2D, this.pages.tex);
+    gl.texStorage2D(gl.TEXTURE_2D, 1, gl.R16UI, cols, lines);
+    this.setNearest(gl.TEXTURE_2D);
+    this.tileBase = base;
+    this.resident = new Map(); // "level/x/y" -> { slot, used: the last frame that needed it }
+    this.freeSlots = Array.from({ length: this.atlas.slots }, (_, i) => this.atlas.slots - 1 - i);
+    this.inflight = new Set();
+    this.wanted = [];
+    this.frame = 0;
+    /** Tiles fetched and their bytes; views that needed more tiles than the atlas holds. */
+    this.tileStats = { tiles: 0, bytes: 0, failed: 0, overflowed: 0 };
+    /** Called when a tile arrives (the app redraws). */
+    this.onTile = null;
+  }
+
+  /** Tiles across and down level `level`. */
+  tileGrid(level) {
+    const [w, h] = this.tiles.levels[level], T = this.tiles.side;
+    return [Math.ceil(w / T), Math.ceil(h / T)];
+  }
+
+  /** The level `view` reads tiles of: the level nearest the largest footprint of a
+   *  screen pixel (GL's nearest mip level), or −1 where that is the overview's or
+   *  coarser (the overview then draws it all, with its own mipmaps). */
+  tileLevel(view) {
+    const level = Math.max(0, Math.round(Math.log2(Math.max(1, this.footprint(view)))));
+    return level >= this.tiles.overview ? -1 : level;
+  }
+
+  /** The tiles of `level` the shader reads for `view`: those under the bilinear
+   *  footprint of canvas points 8 pixels apart and along the edges (a tile spans tens
+   *  of canvas pixels or more at the level chosen, so none falls between them). */
+  visibleTiles(view, level) {
+    const [lw, lh] = this.tiles.levels[level], T = this.tiles.side, W = this.info.width, H = this.info.height;
+    const cw = this.canvas.width, ch = this.canvas.height, wrap = this.isPanorama;
+    const keys = new Set();
+    const axis = (n) => { const a = []; for (let v = 0.5; v < n; v += 8) a.push(v); if (a[a.length - 1] < n - 0.5) a.push(n - 0.5); return a; };
+    const xs = axis(cw), ys = axis(ch);
+    for (const cy of ys) for (const cx of xs) {
+      const p = this.sourcePosition(view, cx, cy);
+      if (!p) continue;
+      const qx = (p[0] * lw) / W - 0.5, qy = (p[1] * lh) / H - 0.5;
+      const x0 = Math.floor(qx), y0 = Math.floor(qy);
+      for (const x of [x0, x0 + 1]) for (const y of [y0, y0 + 1]) {
+        const tx = wrap ? ((x % lw) + lw) % lw : Math.min(lw - 1, Math.max(0, x));
+        const ty = Math.min(lh - 1, Math.max(0, y));
+        keys.add(`${level}/${Math.floor(tx / T)}/${Math.floor(ty / T)}`);
+      }
+    }
+    return keys;
+  }
+
+  /** Mark the tiles `view` needs, start fetching those missing, and fill the page
+   *  table of the level drawn; returns that level (−1: the overview alone). */
+  updateTiles(view) {
+    const gl = this.gl, level = this.tileLevel(view);
+    this.frame++;
+    this.wanted = [];
+    if (level < 0) return level;
+    const needed = this.visibleTiles(view, level);
+    if (needed.size > this.atlas.slots) this.tileStats.overflowed++;
+    const [cols, lines] = this.tileGrid(level);
+    const pages = this.pages.data.subarray(0, cols * lines).fill(0);
+    for (const key of needed) {
+      const r = this.resident.get(key);
+      if (r) {
+        r.used = this.frame;
+        const [, x, y] = key.split('/').map(Number);
+        pages[y * cols + x] = r.slot + 1;
+      } else this.wanted.push(key);
+    }
+    gl.activeTexture(gl.TEXTURE0 + PAGES_UNIT);
+    gl.bindTexture(gl.TEXTURE_2D, this.pages.tex);
+    gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, 0, cols, lines, gl.RED_INTEGER, gl.UNSIGNED_SHORT, pages);
+    this.pumpTiles();
+    return level;
+  }
+
+  /** Whether tiles the last frame needed are still on their way. */
+  tilesPending() {
+    return !!this.tiles && (this.wanted.length > 0 || this.inflight.size > 0);
+  }
+
+  /** Fetch wanted tiles, TILE_FETCHES at a time. */
+  pumpTiles() {
+    for (const key of this.wanted) {
+      if (this.inflight.size >= TILE_FETCHES) break;
+      if (this.inflight.has(key) || this.resident.has(key)) continue;
+      this.inflight.add(key);
+      this.fetchTile(key).catch((err) => {
+        this.tileStats.failed++;
+        this.warnings.push(`tile ${key}: ${err.message}`);
+      }).finally(() => {
+        this.inflight.delete(key);
+        if (this.onTile) this.onTile();
+        this.pumpTiles();
+      });
+    }
+  }
+
+  /** Fetch one tile into a free slot, or the one least recently needed (not by the last
+   *  frame); a tile with no slot to go to is dropped. */
+  async fetchTile(key) {
+    const gl = this.gl, t = this.tiles, T = t.side, layers = this.info.layers.length;
+    const [level, x, y] = key.split('/').map(Number);
+    const [lw, lh] = t.levels[level];
+    const tw = Math.min(T, lw - x * T), th = Math.min(T, lh - y * T);
+    const url = this.tileBase + t.path.replace('{level}', level).replace('{x}', x).replace('{y}', y);
+    const buf = await fetchOk(url, 'buffer');
+    if (buf.byteLength !== tw * th * 8 * layers) throw new Error(`${buf.byteLength} bytes, expected ${tw * th * 8 * layers}`);
+    this.tileStats.tiles++;
+    this.tileStats.bytes += buf.byteLength;
+    let slot = this.freeSlots.pop();
+    if (slot === undefined) {
+      let oldest = null;
+      for (const [k, r] of this.resident) if (r.used < this.frame && (!oldest || r.used < oldest[1].used)) oldest = [k, r];
+      if (!oldest) return;
+      this.resident.delete(oldest[0]);
+      slot = oldest[1].slot;
+    }
+    const halves = new Uint16Array(buf);
+    const sx = (slot % this.atlas.perRow) * T, sy = Math.floor(slot / this.atlas.perRow) * T;
+    gl.activeTexture(gl.TEXTURE0 + ATLAS_UNIT);
+    gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.atlas.tex);
+    for (let l = 0; l < layers; l++) {
+      gl.texSubImage3D(gl.TEXTURE_2D_ARRAY, 0, sx, sy, l, tw, th, 1, gl.RGBA, gl.HALF_FLOAT, halves.subarray(l * tw * th * 4, (l + 1) * tw * th * 4));
+    }
+    this.resident.set(key, { slot, used: 0 });
   }
 
   /** The basis' weight table (half floats): decoded for directional and environment
@@ -450,7 +615,14 @@ export class Renderer {
    *  nearest-mip filter would leave level 0 (the rectilinear view always stretches its
    *  edges a little past 1:1). */
   minifies(view) {
-    if (view.mode === 'flat' || !this.isPanorama) return view.zoom < 1;
+    return this.footprint(view) > ((view.mode === 'flat' || !this.isPanorama) ? 1 : Math.SQRT2);
+  }
+
+  /** The largest footprint of a canvas pixel, in image pixels: 1 / zoom for flat views;
+   *  for perspective views the largest found on a grid of canvas points (one-pixel
+   *  differences, columns unwrapped). */
+  footprint(view) {
+    if (view.mode === 'flat' || !this.isPanorama) return 1 / view.zoom;
     const W = this.info.width, cw = this.canvas.width, ch = this.canvas.height;
     const unwrap = (d) => (d > W / 2 ? d - W : d < -W / 2 ? d + W : d);
     let most = 0;
@@ -463,7 +635,7 @@ export class Renderer {
         if (q) most = Math.max(most, Math.hypot(unwrap(q[0] - p[0]), q[1] - p[1]));
       }
     }
-    return most > Math.SQRT2;
+    return most;
   }
 
   /** Draw one frame of `view` with the rig last prepared; `exposure` in stops. */
@@ -477,11 +649,15 @@ export class Renderer {
     gl.activeTexture(gl.TEXTURE0); gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.planes);
     // Trilinear only where the view shrinks the image (it reads twice the texels);
     // bilinear from level 0 otherwise, whatever level the shader asks for.
+    // A tiled bundle's overview stands in for the finer levels: its mipmaps always on.
     const minify = this.mipLevels > 1 && this.smooth && this.minifies(view);
-    if (minify !== this.minifying) {
-      gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MIN_FILTER, minify ? gl.LINEAR_MIPMAP_LINEAR : gl.LINEAR);
-      this.minifying = minify;
+    const trilinear = minify || (this.tiles && this.mipLevels > 1);
+    if (trilinear !== this.trilinear) {
+      gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MIN_FILTER, trilinear ? gl.LINEAR_MIPMAP_LINEAR : gl.LINEAR);
+      this.trilinear = trilinear;
     }
+    this.minifying = minify;
+    const level = this.tiles ? this.updateTiles(view) : -1;
     gl.activeTexture(gl.TEXTURE1); gl.bindTexture(gl.TEXTURE_2D, this.depthTex);
     set('uPlanes', 'uniform1i', 0);
     set('uDepth', 'uniform1i', 1);
@@ -508,7 +684,21 @@ export class Renderer {
     set('uHasDepth', 'uniform1i', this.depth ? 1 : 0);
     set('uImage', 'uniform2f', info.width, info.height);
     set('uSmooth', 'uniform1i', this.smooth ? 1 : 0);
-    set('uMaxLod', 'uniform1f', this.minifying ? this.mipLevels - 1 : 0);
+    // Levels between the image and the planes texture (a tiled bundle's overview).
+    const planesLod = this.tiles ? this.tiles.overview : 0;
+    set('uMaxLod', 'uniform1f', this.minifying ? planesLod + this.mipLevels - 1 : 0);
+    set('uPlanesSize', 'uniform2f', ...this.planesSize);
+    set('uPlanesLod', 'uniform1f', planesLod);
+    if (this.tiles) {
+      gl.activeTexture(gl.TEXTURE0 + ATLAS_UNIT); gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.atlas.tex);
+      gl.activeTexture(gl.TEXTURE0 + PAGES_UNIT); gl.bindTexture(gl.TEXTURE_2D, this.pages.tex);
+      set('uAtlas', 'uniform1i', ATLAS_UNIT);
+      set('uPages', 'uniform1i', PAGES_UNIT);
+      set('uLevel', 'uniform1i', level);
+      if (level >= 0) set('uLevelSize', 'uniform2f', ...this.tiles.levels[level]);
+      set('uTileSide', 'uniform1i', this.tiles.side);
+      set('uSlotsPerRow', 'uniform1i', this.atlas.perRow);
+    }
     const flat = view.mode === 'flat' || !this.isPanorama;
     set('uViewMode', 'uniform1i', flat ? 0 : 1);
     set('uCanvas', 'uniform2f', this.canvas.width, this.canvas.height);

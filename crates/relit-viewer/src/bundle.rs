@@ -51,6 +51,7 @@
 //! directions and sums `I_t b(R ω_t)` with the weights from the table, for every basis
 //! (SH included: it has no SH rotation).
 
+use crate::tiles::{TileSource, Tiling, DEFAULT_TILE_SIDE, OVERVIEW_BYTES, WHOLE_BYTES};
 use crate::{invalid, Result};
 use relit::basis::{Basis, WeightTable};
 use relit::camera::CameraSpec;
@@ -62,6 +63,7 @@ use serde::Serialize;
 use serde_json::json;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// The format version of `info.json` (2: any basis, its weight table, environments as
 /// quadratures).
@@ -102,6 +104,10 @@ pub struct BundleOptions {
     pub environments: Vec<PathBuf>,
     /// A name for the source shown by the viewer (usually the EXR's file name).
     pub source_name: String,
+    /// Whole layers or tiles ([`crate::tiles`]).
+    pub tiling: Tiling,
+    /// A tiled bundle's overview: the finest level whose layers take at most this.
+    pub overview_bytes: usize,
 }
 
 impl Default for BundleOptions {
@@ -110,6 +116,8 @@ impl Default for BundleOptions {
             precision: Precision::F16,
             environments: Vec::new(),
             source_name: String::new(),
+            tiling: Tiling::Auto,
+            overview_bytes: OVERVIEW_BYTES,
         }
     }
 }
@@ -136,10 +144,12 @@ struct Environment {
     preview: Vec<u8>,
 }
 
-/// The files of a web bundle, by path relative to the site root (`data/...`).
+/// The files of a web bundle, by path relative to the site root (`data/...`), and for a
+/// tiled bundle the source of its tiles, read as they are asked for.
 #[derive(Clone, Debug)]
 pub struct WebBundle {
     pub files: BTreeMap<String, Vec<u8>>,
+    pub tiles: Option<Arc<TileSource>>,
 }
 
 impl WebBundle {
@@ -147,13 +157,50 @@ impl WebBundle {
     /// entries and indices ([`WebBundle::build_indexed`]), anything else as planes.
     pub fn read(path: &Path, options: &BundleOptions) -> Result<WebBundle> {
         use relit::codec::{packed, FileForm};
-        if FileForm::of(path)? == FileForm::Compressed {
+        let form = FileForm::of(path)?;
+        if let Some(side) = tile_side(path, form, options)? {
+            return Self::read_tiled(path, side, options);
+        }
+        if form == FileForm::Compressed {
             let file = packed::read_packed(path)?;
             if file.header.codebook.is_some() {
                 return Self::build_indexed(&relit::compress::indexed(&file)?, options);
             }
         }
         Self::build(&relit::codec::read(path)?, options)
+    }
+
+    /// The tile side a bundle of `path` takes under `options` (its `tiling`), or `None`
+    /// for whole layers.
+    pub fn tile_side(path: &Path, options: &BundleOptions) -> Result<Option<usize>> {
+        tile_side(path, relit::codec::FileForm::of(path)?, options)
+    }
+
+    /// A tiled bundle of the relit EXR at `path` ([`crate::tiles`]): its overview, depth
+    /// and every other file now, its tiles as they are asked for.
+    pub fn read_tiled(path: &Path, side: usize, options: &BundleOptions) -> Result<WebBundle> {
+        options
+            .precision
+            .require(&[Precision::F16], "a tiled bundle")?;
+        let opened = TileSource::open(path, side, options.overview_bytes)?;
+        let image = &opened.overview;
+        let (width, height) = opened.source.sizes()[0];
+        let shape = Shape {
+            width,
+            height,
+            meta: &image.meta,
+            depth: image.depth.as_deref(),
+        };
+        let source = Arc::new(opened.source);
+        let mut bundle = Self::assemble(
+            &shape,
+            &image.maps,
+            Planes::Overview(&source),
+            image.meta.basis.build()?,
+            options,
+        )?;
+        bundle.tiles = Some(source);
+        Ok(bundle)
     }
 
     /// Build every data file of `image`, in the basis its metadata names.
@@ -169,7 +216,7 @@ impl WebBundle {
         options: &BundleOptions,
     ) -> Result<WebBundle> {
         let shape = Shape::of(image);
-        Self::assemble(&shape, &image.maps, None, basis, options)
+        Self::assemble(&shape, &image.maps, Planes::Image, basis, options)
     }
 
     /// Build every data file of a codebook image (module docs): the layers hold the
@@ -211,7 +258,7 @@ impl WebBundle {
         Self::assemble(
             &shape,
             &table,
-            Some((c, indices)),
+            Planes::Codebook(c, indices),
             entries.meta.basis.build()?,
             options,
         )
@@ -220,11 +267,16 @@ impl WebBundle {
     fn assemble(
         shape: &Shape,
         planes: &CoefficientMaps,
-        codebook: Option<(usize, Vec<u8>)>,
+        kind: Planes,
         basis: Box<dyn Basis>,
         options: &BundleOptions,
     ) -> Result<WebBundle> {
-        check_shape(shape, planes, codebook.is_some(), basis.as_ref())?;
+        check_shape(
+            shape,
+            planes,
+            !matches!(kind, Planes::Image),
+            basis.as_ref(),
+        )?;
         options.precision.require(&PRECISIONS, "the viewer")?;
         let environments = options
             .environments
@@ -245,14 +297,26 @@ impl WebBundle {
             options,
             &environments,
         )?;
-        if let Some((entries, indices)) = codebook {
-            info["codebook"] = json!({
-                "entries": entries,
-                "width": planes.width,
-                "height": planes.height,
-                "indices": { "file": INDICES_FILE, "format": "u16le" },
-            });
-            files.insert(format!("data/{INDICES_FILE}"), indices);
+        match kind {
+            Planes::Image => {}
+            Planes::Codebook(entries, indices) => {
+                info["codebook"] = json!({
+                    "entries": entries,
+                    "width": planes.width,
+                    "height": planes.height,
+                    "indices": { "file": INDICES_FILE, "format": "u16le" },
+                });
+                files.insert(format!("data/{INDICES_FILE}"), indices);
+            }
+            Planes::Overview(source) => {
+                info["tiles"] = json!({
+                    "side": source.side(),
+                    "levels": source.sizes(),
+                    "overview": source.overview_level(),
+                    "path": "tiles/{level}/{x}_{y}.f16",
+                    "format": "f16le",
+                });
+            }
         }
         let layers = info["layers"].as_array().cloned().unwrap_or_default();
         let n = layers_per_channel(planes.k);
@@ -285,7 +349,7 @@ impl WebBundle {
         }
         let text = serde_json::to_string_pretty(&info).expect("info serialises");
         files.insert("data/info.json".to_string(), text.into_bytes());
-        Ok(WebBundle { files })
+        Ok(WebBundle { files, tiles: None })
     }
 
     /// The bytes of `data/info.json`.
@@ -296,6 +360,55 @@ impl WebBundle {
     /// Total bytes of the data files.
     pub fn bytes(&self) -> usize {
         self.files.values().map(Vec::len).sum()
+    }
+}
+
+/// What a bundle's layers hold.
+enum Planes<'a> {
+    /// The image's pixels.
+    Image,
+    /// A codebook's entries (their number) and the pixels' indices (little-endian u16).
+    Codebook(usize, Vec<u8>),
+    /// The overview of a tiled bundle, whose finer levels `TileSource` serves.
+    Overview(&'a TileSource),
+}
+
+/// The tile side a bundle of `path` takes under `options`, or `None` for whole layers.
+fn tile_side(
+    path: &Path,
+    form: relit::codec::FileForm,
+    options: &BundleOptions,
+) -> Result<Option<usize>> {
+    let exr = form == relit::codec::FileForm::Exr;
+    match options.tiling {
+        Tiling::Whole => Ok(None),
+        Tiling::Tiles(side) if exr => Ok(Some(side)),
+        Tiling::Tiles(_) => Err(invalid(format!(
+            "{}: tiles are read by region from a relit EXR file; convert it first (`relit convert {} -o X.exr`)",
+            path.display(),
+            path.display()
+        ))),
+        Tiling::Auto if !exr => Ok(None),
+        Tiling::Auto => {
+            let (w, h) = relit::codec::exr::levels(path)?[0];
+            let k = relit::codec::exr::read_region(path, 0, (0, 0, 1, 1))?
+                .image
+                .maps
+                .k;
+            let bytes = w * h * 3 * layers_per_channel(k) * 8;
+            if bytes <= WHOLE_BYTES {
+                return Ok(None);
+            }
+            if options.precision != Precision::F16 {
+                return Err(invalid(format!(
+                    "{}: its whole layers would take {} MiB; tiles (the default for files this big) are half floats, so leave out --storage {} or ask for whole layers with --tiles off",
+                    path.display(),
+                    bytes >> 20,
+                    options.precision.name()
+                )));
+            }
+            Ok(Some(DEFAULT_TILE_SIDE))
+        }
     }
 }
 
@@ -363,7 +476,7 @@ pub fn camera_spec(image: &RelightableImage) -> CameraSpec {
 fn check_shape(
     shape: &Shape,
     planes: &CoefficientMaps,
-    indexed: bool,
+    own_size: bool,
     basis: &dyn Basis,
 ) -> Result<()> {
     let (w, h, k) = (shape.width, shape.height, planes.k);
@@ -385,7 +498,7 @@ fn check_shape(
             basis.name()
         )));
     }
-    let texels = if indexed { planes.pixels() } else { w * h };
+    let texels = if own_size { planes.pixels() } else { w * h };
     if planes.data.len() != 3 * k * texels {
         return Err(invalid("the coefficient maps have the wrong length"));
     }
@@ -498,7 +611,7 @@ fn info_json_with(
 
 /// Layer `j` of channel `c`: planes `4j … 4j+3` (zero past `k`), each encoded by
 /// [`Precision::encode`] with its coding, interleaved per pixel.
-fn encode_layer(
+pub(crate) fn encode_layer(
     planes: &CoefficientMaps,
     c: usize,
     j: usize,

@@ -2,6 +2,7 @@
 
 use crate::assets::ASSETS;
 use crate::bundle::{BundleOptions, WebBundle};
+use crate::tiles::TileSource;
 use crate::{invalid, io_error};
 use relit::fsutil::{check_outputs, Output};
 use relit::{Error, ErrorKind, Result};
@@ -83,6 +84,15 @@ pub fn write_site(bundle: &WebBundle, dir: &Path) -> Result<ExportSummary> {
     }
     for (rel, body) in &bundle.files {
         put(rel, body)?;
+    }
+    // A static host cannot read tiles on demand: every tile of every level goes in.
+    if let Some(source) = &bundle.tiles {
+        for (level, x, y) in source.tiles() {
+            put(
+                &TileSource::tile_path(level, x, y),
+                &source.tile(level, x, y)?,
+            )?;
+        }
     }
     let staged = tmp.keep();
     let old = if dir.exists() {

@@ -18,10 +18,12 @@ pub mod assets;
 pub mod bundle;
 pub mod export;
 pub mod server;
+pub mod tiles;
 
 pub use bundle::{BundleOptions, WebBundle, PRECISIONS};
 pub use export::export_web;
 pub use server::{serve, serve_with, RunningServer, ServerOptions};
+pub use tiles::{TileSource, Tiling};
 
 use relit::{Error, ErrorKind};
 use std::path::Path;

@@ -17,6 +17,7 @@
 use crate::assets;
 use crate::bundle::WebBundle;
 use crate::{invalid, Result};
+use std::borrow::Cow;
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream, ToSocketAddrs};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -203,14 +204,15 @@ impl Drop for ConnectionGuard {
 pub struct Response<'a> {
     pub status: u16,
     pub mime: &'static str,
-    pub body: &'a [u8],
+    /// Borrowed from the assets or the bundle; a tile's, read for the request, owned.
+    pub body: Cow<'a, [u8]>,
 }
 
 fn text(status: u16, body: &'static str) -> Response<'static> {
     Response {
         status,
         mime: "text/plain; charset=utf-8",
-        body: body.as_bytes(),
+        body: Cow::Borrowed(body.as_bytes()),
     }
 }
 
@@ -232,14 +234,39 @@ pub fn respond<'a>(bundle: &'a WebBundle, method: &str, target: &str) -> Respons
         return Response {
             status: 200,
             mime,
-            body,
+            body: Cow::Borrowed(body),
         };
     }
     if let Some(body) = bundle.files.get(&path) {
         return Response {
             status: 200,
             mime: assets::data_mime(&path),
-            body,
+            body: Cow::Borrowed(body),
+        };
+    }
+    if let Some((source, (level, x, y))) = bundle
+        .tiles
+        .as_deref()
+        .and_then(|s| Some((s, s.parse_path(&path)?)))
+    {
+        if method == "HEAD" {
+            // The tile's length without reading it (only the length is sent).
+            return Response {
+                status: 200,
+                mime: "application/octet-stream",
+                body: Cow::Owned(vec![0; source.tile_bytes(level, x, y)]),
+            };
+        }
+        return match source.tile(level, x, y) {
+            Ok(body) => Response {
+                status: 200,
+                mime: "application/octet-stream",
+                body: Cow::Owned(body),
+            },
+            Err(e) => {
+                eprintln!("relit view: tile {path}: {e}");
+                text(500, "the tile could not be read\n")
+            }
         };
     }
     text(404, "not found\n")
@@ -396,7 +423,7 @@ fn handle(mut stream: TcpStream, bundle: &WebBundle, options: &ServerOptions) {
         &mut stream,
         response.status,
         response.mime,
-        response.body,
+        &response.body,
         method == "HEAD",
         options,
     );
@@ -410,6 +437,7 @@ fn reason(status: u16) -> &'static str {
         405 => "Method Not Allowed",
         408 => "Request Timeout",
         431 => "Request Header Fields Too Large",
+        500 => "Internal Server Error",
         503 => "Service Unavailable",
         _ => "Error",
     }

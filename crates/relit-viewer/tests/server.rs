@@ -18,6 +18,7 @@ fn bundle() -> WebBundle {
             precision: Precision::U8,
             environments: vec![],
             source_name: "test.exr".into(),
+            ..Default::default()
         },
     )
     .unwrap()

@@ -921,6 +921,63 @@ try {
       await check(`rlz ${name} point`);
     }
   });
+
+  await section('tiled', async () => {
+    // The same file whole and tiled (64-pixel tiles, the overview level 3 at 128×32):
+    // zoomed in, the tiles the view needs arrive and the frame equals the whole
+    // bundle's; zoomed out, tiles of the level the view needs (or the overview alone)
+    // stand in for the whole texture's mipmaps; only the tiles under the view cross
+    // the wire.
+    const exr = path.join(work, 'pano.exr');
+    const size = [256, 128];
+    const lights = [{ type: 'directional', direction: [-0.4, 0.6, 0.7], color: [1, 0.9, 0.8], intensity: 1.2 }, { type: 'point', position: [0, 1, 1], intensity: 2 }];
+    const views = [
+      // Level 0: the same texels blended with the same weights (by hand in the tiles,
+      // by the sampler in the whole texture): equal within one level of rounding.
+      ['flat ×4 bilinear', { mode: 'flat', center: [521.3, 140.7], zoom: 4 }, true, 'equal'],
+      ['flat ×4 nearest', { mode: 'flat', center: [521.3, 140.7], zoom: 4 }, false, 'equal'],
+      ['flat ×1 across the seam', { mode: 'flat', center: [1010, 100], zoom: 1 }, true, 'equal'],
+      ['perspective 1:1', { mode: 'pano', yaw: 40, pitch: 5, fov: 50 }, true, 'equal'],
+      // Coarser: the server's means of level 0 against the GPU's mipmaps.
+      ['flat ÷4 (level 2 tiles)', { mode: 'flat', center: [512, 128], zoom: 0.25 }, true, 40],
+      ['flat ÷16 (the overview)', { mode: 'flat', center: [512, 128], zoom: 1 / 16 }, true, 40],
+    ];
+    const frames = {};
+    for (const tiled of [false, true]) {
+      await open(exr, tiled ? ['--tiles', '64', '--overview-mib', '0.5'] : ['--tiles', 'off'], size);
+      const t = current.info.tiles;
+      if (tiled) expect('a tiled bundle: 64-pixel tiles, overview level 3', t && t.side === 64 && t.overview === 3, t);
+      else expect('--tiles off: whole layers', !t, t);
+      await setRig({ lights });
+      await page.evaluate(() => window.relit.settle()); // the first view's tiles, counted apart
+      for (const [name, v, smooth] of views) {
+        await page.evaluate((s) => window.relit.setSmooth(s), smooth);
+        await setView(v);
+        const before = await page.evaluate(() => window.relit.tileStats && { ...window.relit.tileStats });
+        const stats = await page.evaluate(() => window.relit.settle());
+        const g = await canvas();
+        frames[`${tiled} ${name}`] = g;
+        if (tiled) {
+          fs.writeFileSync(path.join(out, `tiled ${name}.viewer.png`), encodePng(g.w, g.h, g.rgb));
+          results.comparisons[`tiled ${name} fetched`] = { tiles: stats.tiles - before.tiles, bytes: stats.bytes - before.bytes };
+        }
+      }
+    }
+    const whole = 1024 * 256 * current.info.layers.length * 8;
+    for (const [name, , , want] of views) {
+      const r = compare(frames[`true ${name}`].rgb, frames[`false ${name}`].rgb);
+      results.comparisons[`tiled ${name} vs whole`] = r;
+      if (want === 'equal') expect(`tiled ${name}: the frame equals the whole bundle's (max |diff| ≤ 1)`, r.max_abs <= 1, r);
+      else expect(`tiled ${name}: the frame matches the whole bundle's (≥ ${want} dB)`, r.psnr >= want, r);
+    }
+    const zoomed = results.comparisons['tiled flat ×4 bilinear fetched'];
+    expect('zoomed ×4 into a 256×128 canvas: at most 4 tiles of level 0 fetched, under 8 % of the whole layers',
+      zoomed.tiles <= 4 && zoomed.bytes < 0.08 * whole, { ...zoomed, whole_layers_bytes: whole, fraction: zoomed.bytes / whole });
+    const overview = results.comparisons['tiled flat ÷16 (the overview) fetched'];
+    expect('a view coarser than the overview fetches no tile', overview.tiles === 0, overview);
+    const stats = await page.evaluate(() => window.relit.tileStats);
+    expect('no tile failed or overflowed the atlas', stats.failed === 0 && stats.overflowed === 0, stats);
+  });
 } finally {
   await browser.close();
   for (const p of servers) p.kill();

@@ -767,7 +767,7 @@ fn header_levels(header: &exr::meta::header::Header) -> Option<Vec<(usize, usize
 /// A region of one mip level of a tiled file ([`read_region`]) and what reading it took.
 #[derive(Debug)]
 pub struct RegionRead {
-    /// The region's maps (no depth: lights with a position need the whole image).
+    /// The region's maps, and its depth when asked for ([`read_region_with`]).
     pub image: RelightableImage,
     /// The level's size.
     pub level_size: (usize, usize),
@@ -804,6 +804,18 @@ pub fn read_region(
     path: &Path,
     level: usize,
     rect: (usize, usize, usize, usize),
+) -> Result<RegionRead> {
+    read_region_with(path, level, rect, false)
+}
+
+/// [`read_region`], and with `depth` the region's depth too where the file has one (0
+/// where nothing was hit): what a tiled viewer needs, which holds the depth whole but
+/// the coefficients a tile at a time.
+pub fn read_region_with(
+    path: &Path,
+    level: usize,
+    rect: (usize, usize, usize, usize),
+    depth: bool,
 ) -> Result<RegionRead> {
     use exr::block::reader::ChunksReader;
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, "read", e))?;
@@ -863,6 +875,16 @@ pub fn read_region(
         )));
     }
     let n = rw * rh;
+    let z = header
+        .channels
+        .list
+        .iter()
+        .position(|c| c.name.to_string() == "Z")
+        .filter(|_| depth);
+    let mut depth_values = match z {
+        Some(_) => try_zeroed(Some(n), &format!("{}: the region's depth", path.display()))?,
+        None => Vec::new(),
+    };
     let mut samples: Vec<f32> = Vec::new();
     reader
         .filter_chunks(false, |_, _, block| {
@@ -879,7 +901,11 @@ pub fn read_region(
         .decompress_parallel(false, |meta, block| {
             let channels = &meta.headers[0].channels;
             for line in block.lines(channels) {
-                let Some(j) = targets[line.location.channel].filter(|&j| j < 3 * k) else {
+                let is_depth = Some(line.location.channel) == z;
+                let Some(j) = targets[line.location.channel]
+                    .filter(|&j| j < 3 * k)
+                    .or(is_depth.then_some(0))
+                else {
                     continue;
                 };
                 let (x0, y) = (line.location.position.x(), line.location.position.y());
@@ -895,8 +921,14 @@ pub fn read_region(
                     channels.list[line.location.channel].sample_type,
                     &mut samples,
                 )?;
-                let at = j * n + (y - ry) * rw + (from - rx);
-                maps.data[at..at + (to - from)].copy_from_slice(&samples[from - x0..to - x0]);
+                let (source, at) = (&samples[from - x0..to - x0], (y - ry) * rw + (from - rx));
+                if is_depth {
+                    for (d, &v) in depth_values[at..at + (to - from)].iter_mut().zip(source) {
+                        *d = if v.is_finite() && v > 0.0 { v } else { 0.0 };
+                    }
+                } else {
+                    maps.data[j * n + at..j * n + at + (to - from)].copy_from_slice(source);
+                }
             }
             Ok(())
         })
@@ -906,7 +938,7 @@ pub fn read_region(
         image: RelightableImage {
             meta,
             maps,
-            depth: None,
+            depth: z.map(|_| depth_values),
         },
         level_size: (lw, lh),
         bytes_read,

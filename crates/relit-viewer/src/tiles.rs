@@ -1,0 +1,329 @@
+//! Tiled bundles: a big file reaches the browser a tile at a time, at the level the view
+//! needs.
+//!
+//! A bundle of whole layers holds `width × height × layers × 8` bytes of half floats
+//! (an 8192×2048 file of k = 25: 2.8 GB), more than a browser or a GPU should hold. A
+//! tiled bundle ships instead:
+//!
+//! * an *overview*: the finest level of the file's mip pyramid whose layers take at most
+//!   [`OVERVIEW_BYTES`], as the whole layers of an ordinary bundle (`info.json`
+//!   `layers`, at `tiles.overview_size`); the viewer always holds it and draws from it
+//!   where a tile has not arrived, and for views that shrink the image past it;
+//! * tiles of every finer level, `data/tiles/L/X_Y.f16`: the `side × side` pixels (fewer
+//!   at the right and bottom edges) from column `X·side`, row `Y·side` of level `L`, all
+//!   layers of the bundle one after the other, each row-major RGBA half floats, the
+//!   layout of a whole layer. The server reads each from the file when it is asked for.
+//!
+//! Level `L` is the pyramid of `relit convert --mip-tiles` (OpenEXR's rounding down,
+//! [`exr::mip_sizes`]): each pixel the mean of the `2^L × 2^L` pixels of level 0 it
+//! covers (relighting is linear, so a level relights to the means of level 0's frame).
+//! Levels the file holds are read as they are, by region; others are the means of
+//! level 0's region, read in bands of rows, so a request never holds more than a band.
+//! The depth map stays whole (4 bytes a pixel): lights with a position need it
+//! wherever they fall, and the CPU picks on it.
+
+use crate::bundle::encode_layer;
+use crate::{invalid, Result};
+use relit::codec::exr;
+use relit::maps::{CoefficientMaps, RelightableImage};
+use relit::storage::Precision;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// Side of a tile unless one is named: the tiles of `relit convert --mip-tiles`, so a
+/// tile of a level the file holds is one block of it.
+pub const DEFAULT_TILE_SIDE: usize = exr::DEFAULT_TILE;
+
+/// The tile sides a bundle may have (a power of two, so that tiles of level `L` cover
+/// whole tiles of level `L + 1`).
+pub const TILE_SIDES: [usize; 5] = [64, 128, 256, 512, 1024];
+
+/// Most bytes of the overview's layers unless told otherwise (the finest level within
+/// them is the overview): a k = 25 overview of 1024×256, 8192×2048's level 3.
+pub const OVERVIEW_BYTES: usize = 64 << 20;
+
+/// Whole layers above this many bytes are tiled when the bundle chooses
+/// ([`Tiling::Auto`]).
+pub const WHOLE_BYTES: usize = 512 << 20;
+
+/// Bytes of one texel of every layer: `layers` RGBA half floats.
+fn texel_bytes(k: usize) -> usize {
+    3 * crate::bundle::layers_per_channel(k) * 8
+}
+
+/// How a bundle sends the coefficient layers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Tiling {
+    /// Whole layers while they take at most [`WHOLE_BYTES`] (half floats), tiles of
+    /// [`DEFAULT_TILE_SIDE`] beyond, for files that can be read by region (relit EXR).
+    Auto,
+    /// Whole layers, however big.
+    Whole,
+    /// Tiles of this side (one of [`TILE_SIDES`]).
+    Tiles(usize),
+}
+
+impl std::str::FromStr for Tiling {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "auto" => Ok(Tiling::Auto),
+            "off" | "whole" => Ok(Tiling::Whole),
+            n => match n.parse::<usize>() {
+                Ok(side) if TILE_SIDES.contains(&side) => Ok(Tiling::Tiles(side)),
+                _ => Err(format!(
+                    "`{s}`: auto, off, or a tile side of {TILE_SIDES:?} pixels"
+                )),
+            },
+        }
+    }
+}
+
+/// The tiles of one relit EXR file, read from it as they are asked for.
+#[derive(Debug)]
+pub struct TileSource {
+    path: PathBuf,
+    side: usize,
+    /// Level sizes from 0 to the overview's.
+    sizes: Vec<(usize, usize)>,
+    /// Levels the file holds (1: level 0 alone).
+    file_levels: usize,
+    k: usize,
+    bytes_read: AtomicU64,
+    tiles_read: AtomicU64,
+}
+
+/// What [`TileSource::open`] reads once: the overview's maps with the file's metadata,
+/// and the whole depth map where the file has one.
+pub struct Opened {
+    pub source: TileSource,
+    pub overview: RelightableImage,
+}
+
+impl TileSource {
+    /// Open `path` (a relit EXR) for tiles of `side`, its overview the finest level
+    /// within `overview_bytes`; read the overview and the depth.
+    pub fn open(path: &Path, side: usize, overview_bytes: usize) -> Result<Opened> {
+        if !TILE_SIDES.contains(&side) {
+            return Err(invalid(format!(
+                "tiles are {TILE_SIDES:?} pixels a side, not {side}"
+            )));
+        }
+        let probe = exr::read_region_with(path, 0, (0, 0, 1, 1), true)?;
+        let has_depth = probe.image.depth.is_some();
+        let file_sizes = exr::levels(path)?;
+        let (file_levels, (w, h)) = (file_sizes.len(), file_sizes[0]);
+        let k = probe.image.maps.k;
+        let all = exr::mip_sizes(w, h);
+        // The overview: the finest level within its bytes (the coarsest if none is).
+        let overview = all
+            .iter()
+            .position(|&(lw, lh)| lw * lh * texel_bytes(k) <= overview_bytes)
+            .unwrap_or(all.len() - 1);
+        let source = TileSource {
+            path: path.to_path_buf(),
+            side,
+            sizes: all[..=overview].to_vec(),
+            file_levels,
+            k,
+            bytes_read: AtomicU64::new(0),
+            tiles_read: AtomicU64::new(0),
+        };
+        let (ow, oh) = all[overview];
+        let mut depth = has_depth.then(|| vec![0.0f32; w * h]);
+        // One pass reads the depth and makes the overview when the file lacks its
+        // level and its pixels cover the whole image (sides divisible by 2^level).
+        let (ex, ey) = source.shifts(overview);
+        let one_pass = overview >= file_levels && ow << ex == w && oh << ey == h;
+        let maps = if !one_pass {
+            if let Some(depth) = depth.as_mut() {
+                source.stream(0, (0, 0, w, h), true, |y, read| {
+                    let d = read.image.depth.as_deref().unwrap_or(&[]);
+                    depth[y * w..y * w + d.len()].copy_from_slice(d);
+                })?;
+            }
+            source.read_level(overview, (0, 0, ow, oh), None)?
+        } else {
+            source.read_level(overview, (0, 0, ow, oh), depth.as_deref_mut())?
+        };
+        Ok(Opened {
+            overview: RelightableImage {
+                meta: probe.image.meta,
+                maps,
+                depth,
+            },
+            source,
+        })
+    }
+
+    /// The tile side.
+    pub fn side(&self) -> usize {
+        self.side
+    }
+
+    /// The level sizes from 0 to the overview's (the last).
+    pub fn sizes(&self) -> &[(usize, usize)] {
+        &self.sizes
+    }
+
+    /// The overview's level.
+    pub fn overview_level(&self) -> usize {
+        self.sizes.len() - 1
+    }
+
+    /// Tiles across and down level `level`.
+    pub fn grid(&self, level: usize) -> (usize, usize) {
+        let (w, h) = self.sizes[level];
+        (w.div_ceil(self.side), h.div_ceil(self.side))
+    }
+
+    /// Every tile the bundle serves: `(level, x, y)` of the levels finer than the
+    /// overview.
+    pub fn tiles(&self) -> impl Iterator<Item = (usize, usize, usize)> + '_ {
+        (0..self.overview_level()).flat_map(move |l| {
+            let (c, r) = self.grid(l);
+            (0..r).flat_map(move |y| (0..c).map(move |x| (l, x, y)))
+        })
+    }
+
+    /// Bytes read from the file for tiles so far, and tiles served.
+    pub fn counters(&self) -> (u64, u64) {
+        (
+            self.bytes_read.load(Ordering::Relaxed),
+            self.tiles_read.load(Ordering::Relaxed),
+        )
+    }
+
+    /// The bytes of tile `(level, x, y)` (of this source's, [`Self::parse_path`]).
+    pub fn tile_bytes(&self, level: usize, x: usize, y: usize) -> usize {
+        let (w, h) = self.sizes[level];
+        let s = self.side;
+        s.min(w - x * s) * s.min(h - y * s) * texel_bytes(self.k)
+    }
+
+    /// The bundle path of tile `(level, x, y)`.
+    pub fn tile_path(level: usize, x: usize, y: usize) -> String {
+        format!("data/tiles/{level}/{x}_{y}.f16")
+    }
+
+    /// The tile a bundle path names, if it names one of this source's.
+    pub fn parse_path(&self, path: &str) -> Option<(usize, usize, usize)> {
+        let rest = path.strip_prefix("data/tiles/")?.strip_suffix(".f16")?;
+        let (level, xy) = rest.split_once('/')?;
+        let (x, y) = xy.split_once('_')?;
+        let number = |s: &str| {
+            (!s.is_empty() && s.bytes().all(|b| b.is_ascii_digit()) && s.len() < 10)
+                .then(|| s.parse::<usize>().ok())
+                .flatten()
+        };
+        let (level, x, y) = (number(level)?, number(x)?, number(y)?);
+        let (c, r) = (level < self.overview_level()).then(|| self.grid(level))?;
+        (x < c && y < r).then_some((level, x, y))
+    }
+
+    /// Tile `(level, x, y)`: its layers, each row-major RGBA half floats, one after the
+    /// other (module docs).
+    pub fn tile(&self, level: usize, x: usize, y: usize) -> Result<Vec<u8>> {
+        if level >= self.overview_level() || x >= self.grid(level).0 || y >= self.grid(level).1 {
+            return Err(invalid(format!("no tile {level}/{x}_{y}")));
+        }
+        let (w, h) = self.sizes[level];
+        let (x0, y0) = (x * self.side, y * self.side);
+        let rect = (x0, y0, self.side.min(w - x0), self.side.min(h - y0));
+        let maps = self.read_level(level, rect, None)?;
+        self.tiles_read.fetch_add(1, Ordering::Relaxed);
+        let n = crate::bundle::layers_per_channel(self.k);
+        let mut bytes = Vec::with_capacity(maps.pixels() * texel_bytes(self.k));
+        for c in 0..3 {
+            for j in 0..n {
+                bytes.extend(encode_layer(&maps, c, j, Precision::F16)?);
+            }
+        }
+        Ok(bytes)
+    }
+
+    /// The maps of `rect` of `level`: read from the file where it holds the level,
+    /// otherwise the means of level 0's pixels under each, read in bands of rows (and
+    /// level 0's depth copied into `depth` on the way, when given and the rect is the
+    /// whole level).
+    fn read_level(
+        &self,
+        level: usize,
+        rect: (usize, usize, usize, usize),
+        mut depth: Option<&mut [f32]>,
+    ) -> Result<CoefficientMaps> {
+        if level < self.file_levels && depth.is_none() {
+            let read = exr::read_region(&self.path, level, rect)?;
+            self.bytes_read
+                .fetch_add(read.bytes_read, Ordering::Relaxed);
+            return Ok(read.image.maps);
+        }
+        let w0 = self.sizes[0].0;
+        // A level's pixel covers 2^e level-0 pixels along an axis, e stopping where the
+        // side reached 1 (OpenEXR's rounding down keeps that side at 1).
+        let (ex, ey) = self.shifts(level);
+        let (rx, ry, rw, rh) = rect;
+        let from = (rx << ex, ry << ey, rw << ex, rh << ey);
+        let k = self.k;
+        let n = rw * rh;
+        let mut sums = vec![0.0f64; 3 * k * n];
+        let with_depth = depth.is_some();
+        self.stream(level, from, with_depth, |y, read| {
+            let band = &read.image.maps;
+            let m = band.pixels();
+            for j in 0..3 * k {
+                let plane = &band.data[j * m..(j + 1) * m];
+                let out = &mut sums[j * n..(j + 1) * n];
+                for (row, line) in plane.chunks_exact(band.width).enumerate() {
+                    let oy = ((y + row) >> ey) - ry;
+                    let out = &mut out[oy * rw..(oy + 1) * rw];
+                    for (x, &v) in line.iter().enumerate() {
+                        out[x >> ex] += v as f64;
+                    }
+                }
+            }
+            if let (Some(depth), Some(d)) = (depth.as_deref_mut(), read.image.depth.as_deref()) {
+                depth[y * w0..y * w0 + d.len()].copy_from_slice(d);
+            }
+        })?;
+        let scale = 1.0 / (1u64 << (ex + ey)) as f64;
+        Ok(CoefficientMaps {
+            width: rw,
+            height: rh,
+            k,
+            data: sums.iter().map(|&s| (s * scale) as f32).collect(),
+        })
+    }
+
+    /// How many times level `level` halved each side: a pixel of it covers `2^ex × 2^ey`
+    /// pixels of level 0 (a side stops halving at 1, as OpenEXR's rounding down keeps it).
+    fn shifts(&self, level: usize) -> (usize, usize) {
+        let (w0, h0) = self.sizes[0];
+        let shift = |side: usize| level.min((usize::BITS - 1 - side.leading_zeros()) as usize);
+        (shift(w0), shift(h0))
+    }
+
+    /// Read `rect` of level 0 in bands of whole blocks' rows (at least `2^level` rows,
+    /// so each covers whole rows of `level`), handing each band and its first row to `f`.
+    fn stream(
+        &self,
+        level: usize,
+        rect: (usize, usize, usize, usize),
+        depth: bool,
+        mut f: impl FnMut(usize, &exr::RegionRead),
+    ) -> Result<()> {
+        let (x, y, w, h) = rect;
+        // 16 rows: a scan-line block; bands of a level-L pixel's rows when they are more.
+        let band = 16usize.max(1 << level.min(20));
+        let mut top = y;
+        while top < y + h {
+            let rows = band.min(y + h - top);
+            let read = exr::read_region_with(&self.path, 0, (x, top, w, rows), depth)?;
+            self.bytes_read
+                .fetch_add(read.bytes_read, Ordering::Relaxed);
+            f(top, &read);
+            top += rows;
+        }
+        Ok(())
+    }
+}

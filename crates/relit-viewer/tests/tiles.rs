@@ -1,0 +1,204 @@
+//! Tiled bundles: every tile holds its level's pixels (level 0 cropped, coarser levels
+//! the means of level 0's blocks), read by region from files with and without mip
+//! levels; the server and the static export hand them out.
+
+mod common;
+
+use relit::maps::RelightableImage;
+use relit::storage::Precision;
+use relit_viewer::server::respond;
+use relit_viewer::tiles::TileSource;
+use relit_viewer::{export_web, BundleOptions, Tiling, WebBundle};
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+
+const SIDE: usize = 64;
+
+/// A 300×100 image of k = 9 (sides that do not halve evenly) as a scan-line EXR
+/// (level 0 alone) and as a tiled EXR with mip levels.
+fn files(dir: &Path) -> (RelightableImage, PathBuf, PathBuf) {
+    let image = common::sample_image(300, 100, 3);
+    let plain = dir.join("plain.exr");
+    let mips = dir.join("mips.exr");
+    relit::codec::exr::write(&plain, &image, Precision::F32).unwrap();
+    relit::codec::exr::write_tiled(&mips, &image, Precision::F32, SIDE).unwrap();
+    (image, plain, mips)
+}
+
+/// The bytes under which the overview is level 2 (75×25 texels of 9 RGBA layers of
+/// half floats: 135,000 bytes; level 1: 540,000).
+const OVERVIEW: usize = 200_000;
+
+/// Plane `j` (3i + c) of level `level` at (x, y): the mean of level 0's 2^l × 2^l block.
+fn expected(image: &RelightableImage, level: usize, j: usize, x: usize, y: usize) -> f64 {
+    let maps = &image.maps;
+    let n = maps.pixels();
+    let s = 1 << level;
+    let mut sum = 0.0;
+    for sy in y * s..(y + 1) * s {
+        for sx in x * s..(x + 1) * s {
+            sum += maps.data[j * n + sy * maps.width + sx] as f64;
+        }
+    }
+    sum / (s * s) as f64
+}
+
+fn halves(bytes: &[u8]) -> Vec<f32> {
+    bytes
+        .chunks_exact(2)
+        .map(|c| half::f16::from_le_bytes([c[0], c[1]]).to_f32())
+        .collect()
+}
+
+/// Check every tile of `source` against `image`'s levels (half-float rounding).
+fn check_tiles(source: &TileSource, image: &RelightableImage) {
+    let k = image.maps.k;
+    let layers = 3 * k.div_ceil(4);
+    let mut count = 0;
+    for (level, tx, ty) in source.tiles() {
+        let bytes = source.tile(level, tx, ty).unwrap();
+        assert_eq!(bytes.len(), source.tile_bytes(level, tx, ty));
+        let values = halves(&bytes);
+        let (lw, lh) = source.sizes()[level];
+        let (tw, th) = (SIDE.min(lw - tx * SIDE), SIDE.min(lh - ty * SIDE));
+        assert_eq!(values.len(), layers * tw * th * 4);
+        for (l, layer) in values.chunks_exact(tw * th * 4).enumerate() {
+            let (c, jl) = (l / k.div_ceil(4), l % k.div_ceil(4));
+            for (p, texel) in layer.chunks_exact(4).enumerate() {
+                let (x, y) = (tx * SIDE + p % tw, ty * SIDE + p / tw);
+                for (q, &v) in texel.iter().enumerate() {
+                    let i = 4 * jl + q;
+                    if i >= k {
+                        assert_eq!(v, 0.0);
+                        continue;
+                    }
+                    let want = expected(image, level, 3 * i + c, x, y);
+                    assert!(
+                        (v as f64 - want).abs() <= 1e-3 * want.abs().max(0.25),
+                        "level {level} tile {tx}_{ty} pixel ({x}, {y}) coefficient {i} channel {c}: {v} vs {want}"
+                    );
+                }
+            }
+        }
+        count += 1;
+    }
+    // Levels 0 and 1 of 64-pixel tiles: 5×2 and 3×1.
+    assert_eq!(count, 13);
+}
+
+#[test]
+fn tiles_hold_each_level_from_files_with_and_without_mip_levels() {
+    let dir = tempfile::tempdir().unwrap();
+    let (image, plain, mips) = files(dir.path());
+    for path in [&plain, &mips] {
+        let opened = TileSource::open(path, SIDE, OVERVIEW).unwrap();
+        let source = &opened.source;
+        assert_eq!(source.overview_level(), 2, "{}", path.display());
+        assert_eq!(source.sizes(), &[(300, 100), (150, 50), (75, 25)]);
+        // The overview: level 2's means; the depth whole, as the file has it.
+        let overview = &opened.overview.maps;
+        assert_eq!((overview.width, overview.height), (75, 25));
+        for j in 0..3 * image.maps.k {
+            for y in 0..25 {
+                for x in 0..75 {
+                    let v = overview.data[j * 75 * 25 + y * 75 + x] as f64;
+                    let want = expected(&image, 2, j, x, y);
+                    assert!((v - want).abs() < 1e-5, "overview plane {j} ({x}, {y})");
+                }
+            }
+        }
+        assert_eq!(opened.overview.depth, image.depth);
+        check_tiles(source, &image);
+        assert_eq!(source.counters().1, 13);
+    }
+    // A tile of level 0 of the tiled file reads its own block and little else.
+    let opened = TileSource::open(&mips, SIDE, OVERVIEW).unwrap();
+    let (before, _) = opened.source.counters();
+    opened.source.tile(0, 2, 1).unwrap();
+    let read = opened.source.counters().0 - before;
+    let file = std::fs::metadata(&mips).unwrap().len();
+    assert!(read * 8 < file, "{read} bytes read of {file}");
+    // Tiles exist only below the overview and inside each level.
+    for (level, x, y) in [(2, 0, 0), (0, 5, 0), (0, 0, 2), (1, 3, 0)] {
+        assert!(opened.source.tile(level, x, y).is_err());
+    }
+}
+
+fn options(tiling: Tiling) -> BundleOptions {
+    BundleOptions {
+        tiling,
+        overview_bytes: OVERVIEW,
+        ..Default::default()
+    }
+}
+
+#[test]
+fn the_server_hands_out_tiles_and_whole_layers_stay_the_default_for_small_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let (image, plain, _) = files(dir.path());
+    let bundle = WebBundle::read(&plain, &options(Tiling::Tiles(SIDE))).unwrap();
+    let info: Value = serde_json::from_slice(bundle.info()).unwrap();
+    assert_eq!(info["tiles"]["side"], 64);
+    assert_eq!(info["tiles"]["overview"], 2);
+    assert_eq!(
+        (info["width"].as_u64(), info["height"].as_u64()),
+        (Some(300), Some(100))
+    );
+    // The layers hold the overview; the depth stays whole.
+    let layer = &bundle.files["data/planes/L00.f16"];
+    assert_eq!(layer.len(), 75 * 25 * 8);
+    assert_eq!(bundle.files["data/depth.f32"].len(), 300 * 100 * 4);
+    let source = bundle.tiles.as_ref().unwrap();
+    let got = respond(&bundle, "GET", "/data/tiles/1/2_0.f16");
+    assert_eq!(got.status, 200);
+    assert_eq!(&*got.body, &source.tile(1, 2, 0).unwrap()[..]);
+    let head = respond(&bundle, "HEAD", "/data/tiles/0/4_1.f16");
+    assert_eq!((head.status, head.body.len()), (200, 44 * 36 * 9 * 8));
+    for path in [
+        "/data/tiles/2/0_0.f16",
+        "/data/tiles/0/5_0.f16",
+        "/data/tiles/0/0_0.png",
+        "/data/tiles/0/-1_0.f16",
+        "/data/tiles/0/0_0_0.f16",
+        "/data/tiles/x/0_0.f16",
+        "/data/tiles/0/99999999999999999999_0.f16",
+    ] {
+        assert_eq!(respond(&bundle, "GET", path).status, 404, "{path}");
+    }
+    // Auto: whole layers for a file this small; tiles are half floats, from EXR files.
+    let whole = WebBundle::read(&plain, &options(Tiling::Auto)).unwrap();
+    assert!(whole.tiles.is_none() && whole.files.contains_key("data/planes/L00.f16"));
+    let u8 = BundleOptions {
+        precision: Precision::U8,
+        ..options(Tiling::Tiles(SIDE))
+    };
+    let err = WebBundle::read(&plain, &u8).unwrap_err().to_string();
+    assert!(err.contains("tiled"), "{err}");
+    let rlz = dir.path().join("scene.rlz");
+    let settings = relit::compress::Settings::default();
+    relit::codec::packed::write(&rlz, &image, &settings).unwrap();
+    let err = WebBundle::read(&rlz, &options(Tiling::Tiles(SIDE)))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("relit EXR"), "{err}");
+}
+
+#[test]
+fn a_static_export_holds_every_tile() {
+    let dir = tempfile::tempdir().unwrap();
+    let (image, _, mips) = files(dir.path());
+    let site = dir.path().join("site");
+    export_web(&mips, &site, &options(Tiling::Tiles(SIDE))).unwrap();
+    let opened = TileSource::open(&mips, SIDE, OVERVIEW).unwrap();
+    let mut n = 0;
+    for (level, x, y) in opened.source.tiles() {
+        let file = site.join(TileSource::tile_path(level, x, y));
+        assert_eq!(
+            std::fs::read(&file).unwrap(),
+            opened.source.tile(level, x, y).unwrap()
+        );
+        n += 1;
+    }
+    assert_eq!(n, 13);
+    check_tiles(&opened.source, &image);
+}
