@@ -19,6 +19,7 @@ const app = {
   fixedSize: null,
   frameMs: NaN,
   frames: 0,
+  progressive: true, // a tiled bundle redraws as each tile arrives
 };
 
 function defaultView(r) {
@@ -239,7 +240,7 @@ async function start() {
   try {
     renderer = new Renderer(canvasEl);
     const info = await renderer.load(app.base);
-    renderer.onTile = request; // a tile arrived: draw again
+    renderer.onTile = () => { if (app.progressive) request(); }; // a tile arrived: draw again
     $('source').textContent = `${info.source} · ${info.width}×${info.height} · ${info.basis.name} · ${info.projection.type} · ${info.storage}${info.tiles ? ` · ${info.tiles.side}-px tiles` : ''}`;
     panel = new Panel(app, $('lights'));
     app.renderer = renderer;
@@ -292,12 +293,17 @@ window.relit = {
   settle: async (timeoutMs = 60000) => {
     const t0 = performance.now();
     for (;;) {
-      renderNow();
+      renderNow(); // finds the tiles the view needs and asks for the missing ones
       if (!renderer.tilesPending()) return renderer.tileStats || null;
-      if (performance.now() - t0 > timeoutMs) throw new Error('tiles still pending after ' + timeoutMs + ' ms');
-      await new Promise((r) => setTimeout(r, 20));
+      while (renderer.tilesPending()) {
+        if (performance.now() - t0 > timeoutMs) throw new Error('tiles still pending after ' + timeoutMs + ' ms');
+        await new Promise((r) => setTimeout(r, 10));
+      }
     }
   },
+  /** Whether a tile's arrival redraws the view (on by default; benchmarks of the
+   *  transfer alone turn it off). */
+  setProgressive: (on) => { app.progressive = !!on; },
   get tileStats() { return renderer.tileStats || null; },
   loadSlide: async (name, url) => { await renderer.loadSlide(name, url); app.changed(false); },
 };

@@ -286,7 +286,7 @@ export class Renderer {
 
   /** Whether tiles the last frame needed are still on their way. */
   tilesPending() {
-    return !!this.tiles && (this.wanted.length > 0 || this.inflight.size > 0);
+    return !!this.tiles && (this.inflight.size > 0 || this.wanted.some((key) => !this.resident.has(key)));
   }
 
   /** Fetch wanted tiles, TILE_FETCHES at a time. */

@@ -37,6 +37,11 @@
 //! entries by hand when smoothing) and relights them as any pixel's: every light type
 //! works, and the download is 2 bytes a pixel plus the entries.
 //!
+//! A *tiled* bundle ([`crate::tiles`], `info.json` `tiles`: `side`, the `levels`'
+//! sizes, the `overview` level and the tiles' `path`) ships its layers at the size of
+//! the overview, a coarse level of the image's mip pyramid, and serves every finer
+//! level as tiles of all layers, read from the file as they are asked for.
+//!
 //! The depth map (when the file has one) is `width × height` little-endian `f32`
 //! (`data/depth.f32`), 0 where nothing was hit; with the camera in `info.json` the
 //! viewer recomputes each pixel's surface point `P = O + d·V` exactly as the CPU engine.

@@ -6,6 +6,8 @@
 //!   weight table (the viewer knows no basis), a float depth map and the camera, plus
 //!   environment maps as radiance.
 //! * [`assets`] holds the viewer itself (HTML, ES modules, GLSL), embedded in the binary.
+//! * [`tiles`] sends a big file a tile at a time: an overview level held whole, finer
+//!   levels read by region from the EXR when the view asks for them.
 //! * [`server`] serves the embedded assets and an in-memory bundle over HTTP
 //!   ([`serve`]); [`export`] writes the same files as a static folder ([`export_web`]).
 //!
