@@ -28,7 +28,19 @@ use relit::codec::exr;
 use relit::maps::{CoefficientMaps, RelightableImage};
 use relit::storage::Precision;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+use std::sync::{Condvar, Mutex};
+
+/// A turn to read a tile ([`TileSource::turn`]).
+struct Turn<'a>(&'a (Mutex<usize>, Condvar));
+
+impl Drop for Turn<'_> {
+    fn drop(&mut self) {
+        let (count, freed) = self.0;
+        *count.lock().unwrap_or_else(|e| e.into_inner()) -= 1;
+        freed.notify_one();
+    }
+}
 
 /// Side of a tile unless one is named: the tiles of `relit convert --mip-tiles`, so a
 /// tile of a level the file holds is one block of it.
@@ -91,6 +103,12 @@ pub struct TileSource {
     k: usize,
     bytes_read: AtomicU64,
     tiles_read: AtomicU64,
+    /// Tiles being read now, at most [`TileSource::readers`]: each holds a tile's maps
+    /// (and a level's band), so clients asking for many at once wait rather than
+    /// multiply the server's memory.
+    reading: (Mutex<usize>, Condvar),
+    /// The most tiles read at once so far.
+    peak_readers: AtomicUsize,
 }
 
 /// What [`TileSource::open`] reads once: the overview's maps with the file's metadata,
@@ -128,6 +146,8 @@ impl TileSource {
             k,
             bytes_read: AtomicU64::new(0),
             tiles_read: AtomicU64::new(0),
+            reading: (Mutex::new(0), Condvar::new()),
+            peak_readers: AtomicUsize::new(0),
         };
         let (ow, oh) = all[overview];
         let mut depth = has_depth.then(|| vec![0.0f32; w * h]);
@@ -230,7 +250,10 @@ impl TileSource {
         let (w, h) = self.sizes[level];
         let (x0, y0) = (x * self.side, y * self.side);
         let rect = (x0, y0, self.side.min(w - x0), self.side.min(h - y0));
-        let maps = self.read_level(level, rect, None)?;
+        let maps = {
+            let _turn = self.turn();
+            self.read_level(level, rect, None)?
+        };
         self.tiles_read.fetch_add(1, Ordering::Relaxed);
         let n = crate::bundle::layers_per_channel(self.k);
         let mut bytes = Vec::with_capacity(maps.pixels() * texel_bytes(self.k));
@@ -240,6 +263,28 @@ impl TileSource {
             }
         }
         Ok(bytes)
+    }
+
+    /// The most tiles read at once so far (never more than [`Self::readers`]).
+    pub fn peak_readers(&self) -> usize {
+        self.peak_readers.load(Ordering::Relaxed)
+    }
+
+    /// Tiles read at once: one a core.
+    pub fn readers() -> usize {
+        std::thread::available_parallelism().map_or(2, |n| n.get())
+    }
+
+    /// Wait for a turn to read a tile; the turn ends when the guard drops.
+    fn turn(&self) -> Turn<'_> {
+        let (count, freed) = &self.reading;
+        let mut n = count.lock().unwrap_or_else(|e| e.into_inner());
+        while *n >= Self::readers() {
+            n = freed.wait(n).unwrap_or_else(|e| e.into_inner());
+        }
+        *n += 1;
+        self.peak_readers.fetch_max(*n, Ordering::Relaxed);
+        Turn(&self.reading)
     }
 
     /// The maps of `rect` of `level`: read from the file where it holds the level,

@@ -124,6 +124,30 @@ fn tiles_hold_each_level_from_files_with_and_without_mip_levels() {
     }
 }
 
+#[test]
+fn clients_asking_for_many_tiles_at_once_take_turns() {
+    let dir = tempfile::tempdir().unwrap();
+    let (image, plain, _) = files(dir.path());
+    let opened = TileSource::open(&plain, SIDE, OVERVIEW).unwrap();
+    let source = &opened.source;
+    let tiles: Vec<_> = source.tiles().collect();
+    let got: Vec<Vec<u8>> = std::thread::scope(|s| {
+        let handles: Vec<_> = (0..4 * tiles.len())
+            .map(|i| {
+                let (l, x, y) = tiles[i % tiles.len()];
+                s.spawn(move || source.tile(l, x, y).unwrap())
+            })
+            .collect();
+        handles.into_iter().map(|h| h.join().unwrap()).collect()
+    });
+    assert!(source.peak_readers() >= 1 && source.peak_readers() <= TileSource::readers());
+    for (i, bytes) in got.iter().enumerate() {
+        let (l, x, y) = tiles[i % tiles.len()];
+        assert_eq!(bytes, &source.tile(l, x, y).unwrap());
+    }
+    check_tiles(source, &image);
+}
+
 fn options(tiling: Tiling) -> BundleOptions {
     BundleOptions {
         tiling,
