@@ -56,9 +56,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     refuse_overwriting_inputs(std::slice::from_ref(&args.input), &[output])?;
     let start = std::time::Instant::now();
-    let mut image = codec::read(&args.input)?;
+    // EXR to tiled EXR with mip levels: a tile at a time, the maps never held whole.
+    let streamed = form == FileForm::Exr
+        && args.mip_tiles.is_some()
+        && args.file_space.is_none()
+        && FileForm::of(&args.input)? == FileForm::Exr;
+    let mut image = if streamed {
+        // Only the metadata and one pixel: the summary's size and basis.
+        codec::exr::read_region(&args.input, 0, (0, 0, 1, 1))?.image
+    } else {
+        codec::read(&args.input)?
+    };
     crate::shared::apply_file_space(&args.input, &mut image, args.file_space)?;
-    let (w, h) = (image.width(), image.height());
+    let (w, h) = if streamed {
+        codec::exr::levels(&args.input)?[0]
+    } else {
+        (image.width(), image.height())
+    };
     let description = match form {
         FileForm::Web => {
             let summary = codec::web::write(&args.output, &image, &args.web.options())
@@ -83,8 +97,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 .require(&[Precision::F32, Precision::F16], "--storage (OpenEXR)")?;
             match args.mip_tiles {
                 Some(tile) => {
-                    codec::exr::write_tiled(&args.output, &image, args.storage, tile)
-                        .with_context(|| format!("writing {}", args.output.display()))?;
+                    if streamed {
+                        codec::exr::write_tiled_from(&args.input, &args.output, args.storage, tile)
+                    } else {
+                        codec::exr::write_tiled(&args.output, &image, args.storage, tile)
+                    }
+                    .with_context(|| format!("writing {}", args.output.display()))?;
                     let levels = codec::exr::mip_sizes(w, h).len();
                     format!(
                         "OpenEXR {}, {tile}-pixel tiles, {levels} mip levels",
@@ -102,7 +120,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let seconds = start.elapsed().as_secs_f64();
     let bytes_in = crate::shared::size_on_disk(&args.input)?;
     let bytes_out = crate::shared::size_on_disk(&args.output)?;
-    let written = codec::read(&args.output)?;
+    let written = if streamed {
+        codec::exr::read_region(&args.output, 0, (0, 0, 1, 1))?.image
+    } else {
+        codec::read(&args.output)?
+    };
     let basis = written.meta.basis.build()?;
     let bits_per_pixel = |b: u64| 8.0 * b as f64 / (w * h) as f64;
     if args.json {

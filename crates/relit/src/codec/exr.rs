@@ -665,13 +665,7 @@ pub fn write_tiled(
 ) -> Result<()> {
     use rayon::prelude::*;
     let precision = precision.require(&[Precision::F32, Precision::F16], "OpenEXR")?;
-    if !TILE_SIDES.contains(&tile) {
-        return Err(Error::invalid(format!(
-            "EXR tiles are {} to {} pixels a side, not {tile}",
-            TILE_SIDES.start(),
-            TILE_SIDES.end()
-        )));
-    }
+    check_tile_side(tile)?;
     let maps = &image.maps;
     let sizes = mip_sizes(maps.width, maps.height);
     let levels = |plane: &[f32], precision: Precision, keep: fn(f32) -> bool| {
@@ -705,7 +699,9 @@ pub fn write_tiled(
     let encoding = Encoding {
         compression: Compression::ZIP16,
         blocks: Blocks::Tiles(Vec2(tile, tile)),
-        ..Encoding::default()
+        // Increasing: the blocks in one order, so the same maps make the same bytes
+        // (unspecified lets the writer put them down as its threads finish).
+        line_order: LineOrder::Increasing,
     };
     let layer = Layer::new(
         (maps.width, maps.height),
@@ -720,6 +716,18 @@ pub fn write_tiled(
             .to_buffered(out)
             .map_err(|e| exr_error(path, "write", e))
     })
+}
+
+/// Refuse tile sides outside [`TILE_SIDES`].
+fn check_tile_side(tile: usize) -> Result<()> {
+    if !TILE_SIDES.contains(&tile) {
+        return Err(Error::invalid(format!(
+            "EXR tiles are {} to {} pixels a side, not {tile}",
+            TILE_SIDES.start(),
+            TILE_SIDES.end()
+        )));
+    }
+    Ok(())
 }
 
 /// The level sizes of a tiled file with mip levels (level 0 first), or `None` for any
@@ -808,9 +816,9 @@ pub fn read_region(
     read_region_with(path, level, rect, false)
 }
 
-/// [`read_region`], and with `depth` the region's depth too where the file has one (0
-/// where nothing was hit): what a tiled viewer needs, which holds the depth whole but
-/// the coefficients a tile at a time.
+/// [`read_region`], and with `depth` the region's depth too where the file has one (as
+/// stored, as [`read`] gives it): what a tiled viewer needs, which holds the depth whole
+/// but the coefficients a tile at a time.
 pub fn read_region_with(
     path: &Path,
     level: usize,
@@ -923,9 +931,7 @@ pub fn read_region_with(
                 )?;
                 let (source, at) = (&samples[from - x0..to - x0], (y - ry) * rw + (from - rx));
                 if is_depth {
-                    for (d, &v) in depth_values[at..at + (to - from)].iter_mut().zip(source) {
-                        *d = if v.is_finite() && v > 0.0 { v } else { 0.0 };
-                    }
+                    depth_values[at..at + (to - from)].copy_from_slice(source);
                 } else {
                     maps.data[j * n + at..j * n + at + (to - from)].copy_from_slice(source);
                 }
@@ -1660,3 +1666,6 @@ mod tests {
         assert_eq!(try_zeroed::<u16>(Some(3), "small").unwrap(), vec![0; 3]);
     }
 }
+
+mod pyramid;
+pub use pyramid::write_tiled_from;
