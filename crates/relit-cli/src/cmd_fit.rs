@@ -32,6 +32,12 @@ pub struct Args {
     /// Precision of the stored maps: f16 (alias half) or f32 (alias float).
     #[arg(long, default_value = "f16")]
     pub storage: Precision,
+    /// Write the EXR tiled (tiles of this side, default 256) with mip levels, as `relit
+    /// convert --mip-tiles` does, so that viewers and `relit relight --roi/--level` read
+    /// only the tiles and level a view needs: the fit goes to a temporary file beside
+    /// the output, which is then made into the pyramid a tile at a time.
+    #[arg(long, num_args = 0..=1, default_missing_value = "256")]
+    pub mip_tiles: Option<usize>,
     /// Fit only part I of N (`I/N`, from 0): that band of rows, with the whole capture's
     /// choices, into an EXR that `relit merge` joins with the other parts into the
     /// single fit's file (docs/cluster.md: a Slurm job array).
@@ -94,6 +100,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 == relit::codec::FileForm::Compressed,
         "--budget writes a compressed file: name the output `*.rlz`"
     );
+    anyhow::ensure!(
+        args.mip_tiles.is_none()
+            || (args.part.is_none()
+                && relit::codec::FileForm::for_output(&args.output) == relit::codec::FileForm::Exr),
+        "--mip-tiles writes a whole EXR file: name the output `*.exr`, and tile the merged \
+         file of parts (`relit convert merged.exr -o X.exr --mip-tiles`)"
+    );
     let outputs = [Output::file(&args.output)];
     let inputs: Vec<PathBuf> = std::iter::once(args.capture.clone())
         .chain(args.plan.clone())
@@ -129,7 +142,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let form = relit::codec::FileForm::for_output(&args.output);
     // The lossless file is written as the strips are solved (the maps are never held
     // whole); the other forms need the whole image.
-    let (meta, report) = if form == relit::codec::FileForm::Exr {
+    let (meta, report) = if let (relit::codec::FileForm::Exr, Some(tile)) = (form, args.mip_tiles) {
+        let dir = match args.output.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        let level0 = tempfile::Builder::new()
+            .prefix(".relit-fit-")
+            .suffix(".exr")
+            .tempfile_in(&dir)
+            .with_context(|| format!("creating a temporary file in {}", dir.display()))?
+            .into_temp_path();
+        let made = relit::codec::exr::fit_to_exr(&capture, &options, &bars, &level0, args.storage)
+            .with_context(|| format!("writing {}", level0.display()))?;
+        relit::codec::exr::write_tiled_from(&level0, &args.output, args.storage, tile)
+            .with_context(|| format!("writing {}", args.output.display()))?;
+        made
+    } else if form == relit::codec::FileForm::Exr {
         relit::codec::exr::fit_to_exr(&capture, &options, &bars, &args.output, args.storage)
             .with_context(|| format!("writing {}", args.output.display()))?
     } else if let (relit::codec::FileForm::Compressed, Some(budget)) = (form, args.budget) {

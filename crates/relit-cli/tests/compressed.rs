@@ -336,4 +336,59 @@ fn a_tiled_exr_is_read_by_region_and_level() {
         "EXR outputs",
     );
     assert!(!d.join("x.exr").exists() && !d.join("x.rlz").exists());
+    // `relit fit --mip-tiles` writes the pyramid itself: the same file as converting the
+    // plain fit (levels equal), and no temporary file left beside it.
+    let fit = [
+        "fit",
+        "cap/dirs.lp",
+        "--basis",
+        "sh:4",
+        "--lambda",
+        "1e-3",
+        "-q",
+    ];
+    relit(d, &[&fit[..], &["-o", "plain.exr"]].concat());
+    relit(
+        d,
+        &[&fit[..], &["-o", "fitmip.exr", "--mip-tiles", "16"]].concat(),
+    );
+    relit(
+        d,
+        &[
+            "convert",
+            "plain.exr",
+            "-o",
+            "conv.exr",
+            "--mip-tiles",
+            "16",
+        ],
+    );
+    let levels = relit::codec::exr::levels(&d.join("fitmip.exr")).unwrap();
+    assert_eq!(levels.len(), 5, "{levels:?}");
+    for level in 0..levels.len() {
+        let (w, h) = levels[level];
+        let read = |f: &str| {
+            relit::codec::exr::read_region(&d.join(f), level, (0, 0, w, h))
+                .unwrap()
+                .image
+                .maps
+                .data
+        };
+        assert_eq!(read("fitmip.exr"), read("conv.exr"), "level {level}");
+    }
+    let left: Vec<_> = std::fs::read_dir(d)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with(".relit"))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+    refused(
+        &[&fit[..], &["-o", "x.rlz", "--mip-tiles"]].concat(),
+        "whole EXR",
+    );
+    refused(
+        &[&fit[..], &["-o", "x.exr", "--mip-tiles", "--tile", "0/2"]].concat(),
+        "whole EXR",
+    );
 }
