@@ -365,8 +365,7 @@ fn a_tiled_exr_is_read_by_region_and_level() {
     );
     let levels = relit::codec::exr::levels(&d.join("fitmip.exr")).unwrap();
     assert_eq!(levels.len(), 5, "{levels:?}");
-    for level in 0..levels.len() {
-        let (w, h) = levels[level];
+    for (level, &(w, h)) in levels.iter().enumerate() {
         let read = |f: &str| {
             relit::codec::exr::read_region(&d.join(f), level, (0, 0, w, h))
                 .unwrap()
