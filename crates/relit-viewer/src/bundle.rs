@@ -181,8 +181,8 @@ impl WebBundle {
         tile_side(path, relit::codec::FileForm::of(path)?, options)
     }
 
-    /// A tiled bundle of the relit EXR at `path` ([`crate::tiles`]): its overview, depth
-    /// and every other file now, its tiles as they are asked for.
+    /// A tiled bundle of the relit EXR or `.rlz` file at `path` ([`crate::tiles`]): its
+    /// overview, depth and every other file now, its tiles as they are asked for.
     pub fn read_tiled(path: &Path, side: usize, options: &BundleOptions) -> Result<WebBundle> {
         options
             .precision
@@ -384,22 +384,36 @@ fn tile_side(
     form: relit::codec::FileForm,
     options: &BundleOptions,
 ) -> Result<Option<usize>> {
-    let exr = form == relit::codec::FileForm::Exr;
-    match options.tiling {
-        Tiling::Whole => Ok(None),
-        Tiling::Tiles(side) if exr => Ok(Some(side)),
-        Tiling::Tiles(_) => Err(invalid(format!(
-            "{}: tiles are read by region from a relit EXR file; convert it first (`relit convert {} -o X.exr`)",
+    use relit::codec::{exr, packed, FileForm};
+    // What tiles can be read from: a relit EXR, or a compressed file of planes (a
+    // codebook file is already small: entries and an index a pixel).
+    let size_and_k = match form {
+        FileForm::Exr => {
+            let (w, h) = exr::levels(path)?[0];
+            Some((w, h, exr::read_region(path, 0, (0, 0, 1, 1))?.image.maps.k))
+        }
+        FileForm::Compressed => {
+            let header = packed::read_header(path)?;
+            match header.codebook {
+                Some(_) => None,
+                None => Some((
+                    header.width,
+                    header.height,
+                    header.meta.basis.build()?.len(),
+                )),
+            }
+        }
+        _ => None,
+    };
+    match (options.tiling, size_and_k) {
+        (Tiling::Whole, _) | (Tiling::Auto, None) => Ok(None),
+        (Tiling::Tiles(side), Some(_)) => Ok(Some(side)),
+        (Tiling::Tiles(_), None) => Err(invalid(format!(
+            "{}: tiles are read by region from a relit EXR or a .rlz file of planes (not a codebook); convert it first (`relit convert {} -o X.exr`)",
             path.display(),
             path.display()
         ))),
-        Tiling::Auto if !exr => Ok(None),
-        Tiling::Auto => {
-            let (w, h) = relit::codec::exr::levels(path)?[0];
-            let k = relit::codec::exr::read_region(path, 0, (0, 0, 1, 1))?
-                .image
-                .maps
-                .k;
+        (Tiling::Auto, Some((w, h, k))) => {
             let bytes = w * h * 3 * layers_per_channel(k) * 8;
             if bytes <= WHOLE_BYTES {
                 return Ok(None);

@@ -91,10 +91,23 @@ impl std::str::FromStr for Tiling {
     }
 }
 
-/// The tiles of one relit EXR file, read from it as they are asked for.
+/// The files tiles are read from by region.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Form {
+    /// A relit EXR: any level it holds, by region.
+    Exr,
+    /// A compressed `.rlz` file of planes (not a codebook): level 0, by tile.
+    Packed,
+}
+
+/// The tiles of one relit EXR or `.rlz` file, read from it as they are asked for.
 #[derive(Debug)]
 pub struct TileSource {
     path: PathBuf,
+    form: Form,
+    /// The block of level 0 read at once when a level is made from it (whole blocks of
+    /// the file: 16 scan lines across the image, or a compressed file's tile).
+    band: (usize, usize),
     side: usize,
     /// Level sizes from 0 to the overview's.
     sizes: Vec<(usize, usize)>,
@@ -119,19 +132,47 @@ pub struct Opened {
 }
 
 impl TileSource {
-    /// Open `path` (a relit EXR) for tiles of `side`, its overview the finest level
-    /// within `overview_bytes`; read the overview and the depth.
+    /// Open `path` (a relit EXR, or a `.rlz` file of planes) for tiles of `side`, its
+    /// overview the finest level within `overview_bytes`; read the overview and the
+    /// depth.
     pub fn open(path: &Path, side: usize, overview_bytes: usize) -> Result<Opened> {
+        use relit::codec::{packed, FileForm};
         if !TILE_SIDES.contains(&side) {
             return Err(invalid(format!(
                 "tiles are {TILE_SIDES:?} pixels a side, not {side}"
             )));
         }
-        let probe = exr::read_region_with(path, 0, (0, 0, 1, 1), true)?;
-        let has_depth = probe.image.depth.is_some();
-        let file_sizes = exr::levels(path)?;
+        let (form, meta, k, has_depth, file_sizes, band) = match FileForm::of(path)? {
+            FileForm::Exr => {
+                let probe = exr::read_region_with(path, 0, (0, 0, 1, 1), true)?;
+                let k = probe.image.maps.k;
+                let depth = probe.image.depth.is_some();
+                let levels = exr::levels(path)?;
+                let band = (levels[0].0, 16);
+                (Form::Exr, probe.image.meta, k, depth, levels, band)
+            }
+            FileForm::Compressed => {
+                let header = packed::read_header(path)?;
+                if header.codebook.is_some() {
+                    return Err(invalid(format!(
+                        "{}: a codebook file goes to the viewer as its entries and one index a pixel, not in tiles",
+                        path.display()
+                    )));
+                }
+                let k = header.meta.basis.build()?.len();
+                let (_, _, tw, th) = header.tile_rect(0);
+                let size = vec![(header.width, header.height)];
+                (Form::Packed, header.meta, k, header.depth, size, (tw, th))
+            }
+            _ => {
+                return Err(invalid(format!(
+                    "{}: tiles are read by region from a relit EXR or .rlz file; convert it first (`relit convert {} -o X.exr`)",
+                    path.display(),
+                    path.display()
+                )))
+            }
+        };
         let (file_levels, (w, h)) = (file_sizes.len(), file_sizes[0]);
-        let k = probe.image.maps.k;
         let all = exr::mip_sizes(w, h);
         // The overview: the finest level within its bytes (the coarsest if none is).
         let overview = all
@@ -140,6 +181,8 @@ impl TileSource {
             .unwrap_or(all.len() - 1);
         let source = TileSource {
             path: path.to_path_buf(),
+            form,
+            band,
             side,
             sizes: all[..=overview].to_vec(),
             file_levels,
@@ -153,12 +196,17 @@ impl TileSource {
         let mut depth = has_depth.then(|| vec![0.0f32; w * h]);
         // One pass reads the depth and makes the overview when the file lacks its
         // level and its pixels cover the whole image (sides divisible by 2^level).
+        // (A compressed file's depth is its own sections.)
         let (ex, ey) = source.shifts(overview);
-        let one_pass = overview >= file_levels && ow << ex == w && oh << ey == h;
+        let one_pass =
+            form == Form::Exr && overview >= file_levels && ow << ex == w && oh << ey == h;
         let maps = if !one_pass {
-            if let Some(depth) = depth.as_mut() {
-                source.stream(0, (0, 0, w, h), true, |y, read| {
-                    let d = read.image.depth.as_deref().unwrap_or(&[]);
+            if has_depth && form == Form::Packed {
+                depth = packed::read_depth(path)?;
+            } else if let Some(depth) = depth.as_mut() {
+                source.stream(0, (0, 0, w, h), true, |(_, y), _, d| {
+                    // EXR bands span the image's width.
+                    let d = d.unwrap_or(&[]);
                     depth[y * w..y * w + d.len()].copy_from_slice(d);
                 })?;
             }
@@ -167,11 +215,7 @@ impl TileSource {
             source.read_level(overview, (0, 0, ow, oh), depth.as_deref_mut())?
         };
         Ok(Opened {
-            overview: RelightableImage {
-                meta: probe.image.meta,
-                maps,
-                depth,
-            },
+            overview: RelightableImage { meta, maps, depth },
             source,
         })
     }
@@ -298,10 +342,7 @@ impl TileSource {
         mut depth: Option<&mut [f32]>,
     ) -> Result<CoefficientMaps> {
         if level < self.file_levels && depth.is_none() {
-            let read = exr::read_region(&self.path, level, rect)?;
-            self.bytes_read
-                .fetch_add(read.bytes_read, Ordering::Relaxed);
-            return Ok(read.image.maps);
+            return Ok(self.read(level, rect, false)?.0);
         }
         let w0 = self.sizes[0].0;
         // A level's pixel covers 2^e level-0 pixels along an axis, e stopping where the
@@ -313,8 +354,7 @@ impl TileSource {
         let n = rw * rh;
         let mut sums = vec![0.0f64; 3 * k * n];
         let with_depth = depth.is_some();
-        self.stream(level, from, with_depth, |y, read| {
-            let band = &read.image.maps;
+        self.stream(level, from, with_depth, |(x0, y), band, band_depth| {
             let m = band.pixels();
             for j in 0..3 * k {
                 let plane = &band.data[j * m..(j + 1) * m];
@@ -323,11 +363,11 @@ impl TileSource {
                     let oy = ((y + row) >> ey) - ry;
                     let out = &mut out[oy * rw..(oy + 1) * rw];
                     for (x, &v) in line.iter().enumerate() {
-                        out[x >> ex] += v as f64;
+                        out[((x0 + x) >> ex) - rx] += v as f64;
                     }
                 }
             }
-            if let (Some(depth), Some(d)) = (depth.as_deref_mut(), read.image.depth.as_deref()) {
+            if let (Some(depth), Some(d)) = (depth.as_deref_mut(), band_depth) {
                 depth[y * w0..y * w0 + d.len()].copy_from_slice(d);
             }
         })?;
@@ -348,25 +388,51 @@ impl TileSource {
         (shift(w0), shift(h0))
     }
 
-    /// Read `rect` of level 0 in bands of whole blocks' rows (at least `2^level` rows,
-    /// so each covers whole rows of `level`), handing each band and its first row to `f`.
+    /// `rect` of `level` (one the file holds) as stored, with its depth when asked for
+    /// and the file keeps it beside the coefficients (EXR); counts the bytes read.
+    fn read(
+        &self,
+        level: usize,
+        rect: (usize, usize, usize, usize),
+        depth: bool,
+    ) -> Result<(CoefficientMaps, Option<Vec<f32>>)> {
+        let (image, bytes) = match self.form {
+            Form::Exr => {
+                let read = exr::read_region_with(&self.path, level, rect, depth)?;
+                (read.image, read.bytes_read)
+            }
+            Form::Packed => {
+                let (image, bytes, _) = relit::codec::packed::read_region(&self.path, rect)?;
+                (image, bytes)
+            }
+        };
+        self.bytes_read.fetch_add(bytes, Ordering::Relaxed);
+        Ok((image.maps, image.depth))
+    }
+
+    /// Read `rect` of level 0 a block of the file at a time (rows: at least `2^level`,
+    /// so that an EXR band covers whole rows of `level`), handing each block's top-left
+    /// corner, maps and depth (EXR, when asked for) to `f`. Blocks end on the file's
+    /// block boundaries, so that none is decoded twice.
     fn stream(
         &self,
         level: usize,
         rect: (usize, usize, usize, usize),
         depth: bool,
-        mut f: impl FnMut(usize, &exr::RegionRead),
+        mut f: impl FnMut((usize, usize), &CoefficientMaps, Option<&[f32]>),
     ) -> Result<()> {
         let (x, y, w, h) = rect;
-        // 16 rows: a scan-line block; bands of a level-L pixel's rows when they are more.
-        let band = 16usize.max(1 << level.min(20));
+        let (across, down) = (self.band.0, self.band.1.max(1 << level.min(20)));
         let mut top = y;
         while top < y + h {
-            let rows = band.min(y + h - top);
-            let read = exr::read_region_with(&self.path, 0, (x, top, w, rows), depth)?;
-            self.bytes_read
-                .fetch_add(read.bytes_read, Ordering::Relaxed);
-            f(top, &read);
+            let rows = (down - top % down).min(y + h - top);
+            let mut left = x;
+            while left < x + w {
+                let columns = (across - left % across).min(x + w - left);
+                let (maps, block_depth) = self.read(0, (left, top, columns, rows), depth)?;
+                f((left, top), &maps, block_depth.as_deref());
+                left += columns;
+            }
             top += rows;
         }
         Ok(())

@@ -198,13 +198,45 @@ fn the_server_hands_out_tiles_and_whole_layers_stay_the_default_for_small_files(
     };
     let err = WebBundle::read(&plain, &u8).unwrap_err().to_string();
     assert!(err.contains("tiled"), "{err}");
-    let rlz = dir.path().join("scene.rlz");
-    let settings = relit::compress::Settings::default();
+    // A codebook file is not tiled (its entries and indices are small already).
+    let rlz = dir.path().join("book.rlz");
+    let settings = relit::compress::Settings {
+        codebook: Some(16),
+        ..Default::default()
+    };
     relit::codec::packed::write(&rlz, &image, &settings).unwrap();
     let err = WebBundle::read(&rlz, &options(Tiling::Tiles(SIDE)))
         .unwrap_err()
         .to_string();
-    assert!(err.contains("relit EXR"), "{err}");
+    assert!(err.contains("codebook"), "{err}");
+}
+
+/// A compressed file of planes is tiled too: its level 0 read a tile of the file at a
+/// time (its tiles of 40 pixels straddle the bundle's), the coarser levels the means of
+/// level 0 as the file decodes it, and its depth from its own sections.
+#[test]
+fn a_compressed_files_tiles_hold_its_decoded_levels() {
+    let dir = tempfile::tempdir().unwrap();
+    let image = common::sample_image(300, 100, 3);
+    let rlz = dir.path().join("scene.rlz");
+    let settings = relit::compress::Settings {
+        tile: 40,
+        ..Default::default()
+    };
+    relit::codec::packed::write(&rlz, &image, &settings).unwrap();
+    let decoded = relit::codec::packed::read(&rlz).unwrap();
+    let opened = TileSource::open(&rlz, SIDE, OVERVIEW).unwrap();
+    assert_eq!(opened.source.overview_level(), 2);
+    assert_eq!(opened.overview.depth, decoded.depth);
+    assert_eq!(opened.overview.meta.basis, decoded.meta.basis);
+    check_tiles(&opened.source, &decoded);
+    let bundle = WebBundle::read(&rlz, &options(Tiling::Tiles(SIDE))).unwrap();
+    let info: Value = serde_json::from_slice(bundle.info()).unwrap();
+    assert_eq!(info["tiles"]["overview"], 2);
+    assert_eq!(
+        info["basis"]["name"],
+        decoded.meta.basis.build().unwrap().name()
+    );
 }
 
 #[test]

@@ -977,6 +977,22 @@ try {
     expect('a view coarser than the overview fetches no tile', overview.tiles === 0, overview);
     const stats = await page.evaluate(() => window.relit.tileStats);
     expect('no tile failed or overflowed the atlas', stats.failed === 0 && stats.overflowed === 0, stats);
+    // A compressed file of planes is tiled the same way (its tiles decoded by region).
+    const rlz = path.join(work, 'pano-tiled.rlz');
+    run('convert', exr, '-o', rlz, '--layout', 'ycc', '--components', '6', '--codec', 'jpeg:90');
+    const rlzFrames = [];
+    for (const tiled of [false, true]) {
+      await open(rlz, tiled ? ['--tiles', '64', '--overview-mib', '0.2'] : ['--tiles', 'off'], size);
+      if (tiled) expect('a .rlz file of planes is tiled on request', !!current.info.tiles, current.info.tiles);
+      await setRig({ lights });
+      await page.evaluate(() => window.relit.setSmooth(true));
+      await setView(views[0][1]);
+      await page.evaluate(() => window.relit.settle());
+      rlzFrames.push(await canvas());
+    }
+    const r = compare(rlzFrames[0].rgb, rlzFrames[1].rgb);
+    results.comparisons['tiled .rlz flat ×4 vs whole'] = r;
+    expect('tiled .rlz flat ×4: the frame equals the whole bundle\'s (max |diff| ≤ 1)', r.max_abs <= 1, r);
   });
 } finally {
   await browser.close();

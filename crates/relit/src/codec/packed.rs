@@ -105,6 +105,13 @@ pub fn read_region(
     Ok((image, read, len))
 }
 
+/// The depth map of a compressed file, when it has one, reading only its sections.
+pub fn read_depth(path: &Path) -> Result<Option<Vec<f32>>> {
+    let (packed, _, _) = read_sections(path, &compress::depth_section)?;
+    compress::unpack_depth(&packed)
+        .map_err(|e| Error::new(e.kind(), format!("{}: {e}", path.display())))
+}
+
 /// Write `packed` to `path` (atomically: a temporary file renamed into place).
 pub fn write_packed(path: &Path, packed: &Packed) -> Result<()> {
     let bytes = to_bytes(packed)?;

@@ -1118,6 +1118,21 @@ fn decode_codes(
     Ok(codes)
 }
 
+/// Whether section `s` holds part of the depth map (its tiles are the last sections).
+pub fn depth_section(header: &Header, s: usize) -> bool {
+    let (across, down) = header.tiles();
+    header.depth && s >= header.sections() - across * down
+}
+
+/// The depth map of a file whose depth sections ([`depth_section`]) were read, when it
+/// has one.
+pub fn unpack_depth(packed: &Packed) -> Result<Option<Vec<f32>>> {
+    if packed.sections.len() != packed.header.sections() {
+        return Err(Error::parse("compressed file: wrong number of sections"));
+    }
+    depth(packed)
+}
+
 /// The depth map, when the file has one (its tiles are the last sections).
 fn depth(packed: &Packed) -> Result<Option<Vec<f32>>> {
     let header = &packed.header;
