@@ -524,34 +524,56 @@ fn native_headers(
     depth: bool,
     attrs: &LayerAttributes,
 ) -> exr::meta::Headers {
-    let half = precision == Precision::F16;
-    let mut channels: Vec<AnyChannel<FlatSamples>> = (0..k)
-        .flat_map(|i| (0..3).map(move |c| (i, c)))
-        .map(|(i, c)| {
-            let none = if half {
-                FlatSamples::F16(Vec::new())
-            } else {
-                FlatSamples::F32(Vec::new())
-            };
-            AnyChannel::new(channel_name(i, c).as_str(), none)
-        })
-        .collect();
-    if depth {
-        channels.push(AnyChannel::new("Z", FlatSamples::F32(Vec::new())));
-    }
+    let channels = empty_channels(k, precision, depth, |samples| samples);
     let (compression, blocks) = native_blocks(width, k, precision, depth);
+    headers_of((width, height), attrs, compression, blocks, channels)
+}
+
+/// The headers of a one-layer file of `channels` (sorted by name), its blocks written in
+/// increasing order, so that the same maps make the same bytes (unspecified would let
+/// the writer put them down as its threads finish).
+fn headers_of<S: for<'s> exr::image::write::samples::WritableSamples<'s>>(
+    size: (usize, usize),
+    attrs: &LayerAttributes,
+    compression: Compression,
+    blocks: Blocks,
+    channels: Vec<AnyChannel<S>>,
+) -> exr::meta::Headers {
     let encoding = Encoding {
         compression,
         blocks,
         line_order: LineOrder::Increasing,
     };
     let layer = Layer::new(
-        (width, height),
+        size,
         attrs.clone(),
         encoding,
         AnyChannels::sort(channels.into()),
     );
     Image::from_layer(layer).write().infer_meta_data()
+}
+
+/// The channels of a file of `k` coefficients per colour (and depth), holding no
+/// samples (`wrap` puts the empty samples of each into what the layer holds: the samples
+/// themselves, or one level of them): what the headers are inferred from.
+fn empty_channels<S: for<'s> exr::image::write::samples::WritableSamples<'s>>(
+    k: usize,
+    precision: Precision,
+    depth: bool,
+    wrap: impl Fn(FlatSamples) -> S,
+) -> Vec<AnyChannel<S>> {
+    let none = |precision: Precision| match precision {
+        Precision::F16 => FlatSamples::F16(Vec::new()),
+        _ => FlatSamples::F32(Vec::new()),
+    };
+    let mut channels: Vec<AnyChannel<S>> = (0..k)
+        .flat_map(|i| (0..3).map(move |c| (i, c)))
+        .map(|(i, c)| AnyChannel::new(channel_name(i, c).as_str(), wrap(none(precision))))
+        .collect();
+    if depth {
+        channels.push(AnyChannel::new("Z", wrap(none(Precision::F32))));
+    }
+    channels
 }
 
 fn attributes(meta: &Metadata, precision: Precision) -> LayerAttributes {

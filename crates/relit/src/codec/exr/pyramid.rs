@@ -15,9 +15,10 @@ use super::*;
 use exr::block::writer::ChunksWriter;
 use std::io::{Read, Seek, SeekFrom, Write};
 
-/// Write the relit EXR at `input` as a tiled file with mip levels at `path`: the same
-/// file [`super::write_tiled`] writes from the image [`super::read`] gives, byte for
-/// byte, read a tile of level 0 at a time.
+/// Write the relit EXR at `input` as a tiled file with mip levels at `path`, reading a
+/// tile of level 0 at a time: the file [`super::write_tiled`] writes from the image
+/// [`super::read`] gives, its offsets and blocks byte for byte (the header's
+/// attributes may come in another order: the exr crate keeps them in a hash map).
 pub fn write_tiled_from(
     input: &Path,
     path: &Path,
@@ -122,35 +123,17 @@ pub(super) fn tiled_headers(
     attrs: &LayerAttributes,
     tile: usize,
 ) -> exr::meta::Headers {
-    let none = |precision: Precision| Levels::Mip {
+    let channels = empty_channels(k, precision, depth, |samples| Levels::Mip {
         rounding_mode: RoundingMode::Down,
-        level_data: vec![if precision == Precision::F16 {
-            FlatSamples::F16(Vec::new())
-        } else {
-            FlatSamples::F32(Vec::new())
-        }],
-    };
-    let mut channels: Vec<AnyChannel<Levels<FlatSamples>>> = (0..k)
-        .flat_map(|i| (0..3).map(move |c| (i, c)))
-        .map(|(i, c)| AnyChannel::new(channel_name(i, c).as_str(), none(precision)))
-        .collect();
-    if depth {
-        channels.push(AnyChannel::new("Z", none(Precision::F32)));
-    }
-    let encoding = Encoding {
-        compression: Compression::ZIP16,
-        blocks: Blocks::Tiles(Vec2(tile, tile)),
-        // Increasing: the blocks in one order, so the same maps make the same bytes
-        // (unspecified lets the writer put them down as its threads finish).
-        line_order: LineOrder::Increasing,
-    };
-    let layer = Layer::new(
+        level_data: vec![samples],
+    });
+    headers_of(
         (width, height),
-        attrs.clone(),
-        encoding,
-        AnyChannels::sort(channels.into()),
-    );
-    Image::from_layer(layer).write().infer_meta_data()
+        attrs,
+        Compression::ZIP16,
+        Blocks::Tiles(Vec2(tile, tile)),
+        channels,
+    )
 }
 
 /// One tile of one level: a plane of `width × height` values for each channel of the
