@@ -12,17 +12,71 @@ pub struct Args {
     pub json: bool,
 }
 
+/// What `info` shows of a file: its metadata, size, coefficients and whether it has
+/// depth. A relit EXR or a `.rlz` file is read no further than its header (and one
+/// pixel), so that a file of gigabytes answers at once; the RTI tools' files and web
+/// folders are read whole.
+struct Summary {
+    meta: relit::maps::Metadata,
+    width: usize,
+    height: usize,
+    k: usize,
+    depth: bool,
+}
+
+fn summary(path: &std::path::Path) -> anyhow::Result<Summary> {
+    Ok(match FileForm::of(path)? {
+        FileForm::Exr => {
+            let probe = exr::read_region_with(path, 0, (0, 0, 1, 1), true)?.image;
+            let (width, height) = exr::levels(path)?[0];
+            Summary {
+                k: probe.maps.k,
+                depth: probe.depth.is_some(),
+                meta: probe.meta,
+                width,
+                height,
+            }
+        }
+        FileForm::Compressed => {
+            let header = codec::packed::read_header(path)?;
+            Summary {
+                k: header.meta.basis.build()?.len(),
+                depth: header.depth,
+                width: header.width,
+                height: header.height,
+                meta: header.meta,
+            }
+        }
+        _ => {
+            let image = codec::read(path)?;
+            Summary {
+                width: image.width(),
+                height: image.height(),
+                k: image.maps.k,
+                depth: image.depth.is_some(),
+                meta: image.meta,
+            }
+        }
+    })
+}
+
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let image = codec::read(&args.file)?;
+    let image = summary(&args.file)?;
     let meta = &image.meta;
     let bytes = crate::shared::size_on_disk(&args.file)?;
     let storage = match FileForm::of(&args.file)? {
         FileForm::Web => codec::web::describe(&args.file)?,
-        FileForm::Exr => exr::read_metadata_summary(&args.file)?
-            .into_iter()
-            .find(|(k, _)| k == "relit.storage")
-            .map(|(_, v)| format!("OpenEXR {v}"))
-            .unwrap_or_default(),
+        FileForm::Exr => {
+            let precision = exr::read_metadata_summary(&args.file)?
+                .into_iter()
+                .find(|(k, _)| k == "relit.storage")
+                .map(|(_, v)| v)
+                .unwrap_or_default();
+            format!(
+                "OpenEXR {precision} in {}",
+                exr::describe_layout(&args.file)?
+            )
+        }
         FileForm::Ptm => codec::ptm::describe(&args.file)?,
         FileForm::Rti => "HSH .rti (8-bit codes)".to_string(),
         FileForm::Compressed => {
@@ -74,47 +128,44 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.json {
         let value = serde_json::json!({
             "file": args.file.display().to_string(),
-            "width": image.width(),
-            "height": image.height(),
+            "width": image.width,
+            "height": image.height,
             "format_version": meta.format_version,
             "basis": meta.basis,
-            "coefficients": image.maps.k,
+            "coefficients": image.k,
             "color_space": meta.color_space,
             "light_frame": meta.light_frame,
             "projection": meta.projection,
             "storage": storage,
-            "depth": image.depth.is_some(),
+            "depth": image.depth,
             "fit": meta.fit,
             "bake": meta.bake,
             "file_bytes": bytes,
-            "bytes_per_pixel": bytes as f64 / (image.width() * image.height()) as f64,
-            "bits_per_pixel": 8.0 * bytes as f64 / (image.width() * image.height()) as f64,
+            "bytes_per_pixel": bytes as f64 / (image.width * image.height) as f64,
+            "bits_per_pixel": 8.0 * bytes as f64 / (image.width * image.height) as f64,
         });
         println!("{}", serde_json::to_string_pretty(&value)?);
         return Ok(());
     }
     println!("{}", args.file.display());
-    println!("  size          {}×{}", image.width(), image.height());
+    println!("  size          {}×{}", image.width, image.height);
     println!(
         "  basis         {} ({} coefficients × RGB)",
         meta.basis.build()?.name(),
-        image.maps.k
+        image.k
     );
     println!("  color space   {}", meta.color_space.name());
     println!(
         "  storage       {storage}, {} ({:.1} bits/pixel)",
         relit::memory::mib(bytes),
-        8.0 * bytes as f64 / (image.width() * image.height()) as f64
+        8.0 * bytes as f64 / (image.width * image.height) as f64
     );
     println!("  light frame   {}", meta.light_frame);
     println!(
         "  projection    {}",
         serde_json::to_string(&meta.projection)?
     );
-    println!(
-        "  depth         {}",
-        if image.depth.is_some() { "yes" } else { "no" }
-    );
+    println!("  depth         {}", if image.depth { "yes" } else { "no" });
     println!("  format        relit {}", meta.format_version);
     if let Some(fit) = &meta.fit {
         println!(

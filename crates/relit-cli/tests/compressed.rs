@@ -365,6 +365,14 @@ fn a_tiled_exr_is_read_by_region_and_level() {
     );
     let levels = relit::codec::exr::levels(&d.join("fitmip.exr")).unwrap();
     assert_eq!(levels.len(), 5, "{levels:?}");
+    // `relit info` names the layout (from the header alone).
+    let said = relit(d, &["info", "fitmip.exr"]);
+    assert!(
+        said.contains("tiles 16×16, 5 mip levels down to 1×1"),
+        "{said}"
+    );
+    let said = relit(d, &["info", "plain.exr"]);
+    assert!(said.contains("scan lines (16 a block)"), "{said}");
     for (level, &(w, h)) in levels.iter().enumerate() {
         let read = |f: &str| {
             relit::codec::exr::read_region(&d.join(f), level, (0, 0, w, h))

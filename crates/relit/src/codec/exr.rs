@@ -763,6 +763,27 @@ pub fn levels(path: &Path) -> Result<Vec<(usize, usize)>> {
     Ok(level_sizes(&first_header(path)?))
 }
 
+/// How the file's blocks are laid out, in words: `scan lines (16 a block)`, or
+/// `tiles 256×16`, with its mip levels when it has them.
+pub fn describe_layout(path: &Path) -> Result<String> {
+    let header = first_header(path)?;
+    Ok(match header.blocks {
+        exr::meta::BlockDescription::ScanLines => format!(
+            "scan lines ({} a block)",
+            header.compression.scan_lines_per_block()
+        ),
+        exr::meta::BlockDescription::Tiles(tiles) => {
+            let levels = level_sizes(&header);
+            let (w, h) = levels[levels.len() - 1];
+            let pyramid = match levels.len() {
+                1 => String::new(),
+                n => format!(", {n} mip levels down to {w}×{h}"),
+            };
+            format!("tiles {}×{}{pyramid}", tiles.tile_size.0, tiles.tile_size.1)
+        }
+    })
+}
+
 /// The header of the file's first layer, read alone.
 fn first_header(path: &Path) -> Result<exr::meta::header::Header> {
     let meta =
