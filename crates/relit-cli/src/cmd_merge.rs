@@ -41,6 +41,33 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     refuse_overwriting_inputs(&args.parts, &[Output::file(&args.output)])?;
     let start = std::time::Instant::now();
+    let storage = args.storage.unwrap_or_else(|| {
+        if args
+            .parts
+            .iter()
+            .any(|p| stored_precision(p) == Some(Precision::F32))
+        {
+            Precision::F32
+        } else {
+            Precision::F16
+        }
+    });
+    if form == FileForm::Exr {
+        // A band of rows at a time from every part's file: the maps are never held
+        // whole (the depth map is, when the parts have one).
+        storage.require(&[Precision::F32, Precision::F16], "--storage (OpenEXR)")?;
+        let (meta, (width, height)) =
+            relit::shard::merge_exr_files(&args.parts, &args.output, storage)
+                .with_context(|| format!("writing {}", args.output.display()))?;
+        let summary = Summary {
+            description: format!("OpenEXR {storage}"),
+            basis: meta.basis.build()?.name(),
+            width,
+            height,
+            fit_seconds: meta.fit.as_ref().map(|f| f.seconds),
+        };
+        return report(&args, &summary, start);
+    }
     // One part in memory at a time beside the whole image's maps.
     let read =
         |p: &std::path::PathBuf| codec::read(p).with_context(|| format!("reading {}", p.display()));
@@ -54,53 +81,55 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         merger.add(read(path)?, &path.display().to_string())?;
     }
     let image = merger.finish()?;
-    let storage = args.storage.unwrap_or_else(|| {
-        if args
-            .parts
-            .iter()
-            .any(|p| stored_precision(p) == Some(Precision::F32))
-        {
-            Precision::F32
-        } else {
-            Precision::F16
-        }
-    });
-    let description = match form {
-        FileForm::Compressed => {
-            let settings = args.compress.settings();
-            codec::packed::write(&args.output, &image, &settings)
-                .with_context(|| format!("writing {}", args.output.display()))?;
-            settings.describe()
-        }
-        _ => {
-            storage.require(&[Precision::F32, Precision::F16], "--storage (OpenEXR)")?;
-            codec::exr::write(&args.output, &image, storage)
-                .with_context(|| format!("writing {}", args.output.display()))?;
-            format!("OpenEXR {storage}")
-        }
+    // A compressed file needs the whole image.
+    let settings = args.compress.settings();
+    codec::packed::write(&args.output, &image, &settings)
+        .with_context(|| format!("writing {}", args.output.display()))?;
+    let summary = Summary {
+        description: settings.describe(),
+        basis: image.meta.basis.build()?.name(),
+        width: image.width(),
+        height: image.height(),
+        fit_seconds: image.meta.fit.as_ref().map(|f| f.seconds),
     };
+    report(&args, &summary, start)
+}
+
+/// What a merge wrote.
+struct Summary {
+    description: String,
+    basis: String,
+    width: usize,
+    height: usize,
+    fit_seconds: Option<f64>,
+}
+
+/// Print what was written (JSON with `--json`).
+fn report(args: &Args, s: &Summary, start: std::time::Instant) -> anyhow::Result<()> {
     let bytes = crate::shared::size_on_disk(&args.output)?;
     let seconds = start.elapsed().as_secs_f64();
-    let basis = image.meta.basis.build()?.name();
+    let count = args.parts.len();
     if args.json {
         let value = serde_json::json!({
             "output": args.output.display().to_string(),
             "parts": count,
-            "width": image.width(),
-            "height": image.height(),
-            "basis": basis,
-            "settings": description,
+            "width": s.width,
+            "height": s.height,
+            "basis": s.basis,
+            "settings": s.description,
             "bytes": bytes,
-            "fit_seconds": image.meta.fit.as_ref().map(|f| f.seconds),
+            "fit_seconds": s.fit_seconds,
             "seconds": seconds,
         });
         println!("{}", serde_json::to_string_pretty(&value)?);
     } else {
         println!(
-            "wrote {} ({description}, basis {basis}, {}×{}) from {count} parts: {} bytes, {:.2} s",
+            "wrote {} ({}, basis {}, {}×{}) from {count} parts: {} bytes, {:.2} s",
             args.output.display(),
-            image.width(),
-            image.height(),
+            s.description,
+            s.basis,
+            s.width,
+            s.height,
             bytes,
             seconds
         );

@@ -39,12 +39,18 @@ pub struct Merger {
     head: ShardInfo,
     meta: crate::maps::Metadata,
     first: String,
-    maps: CoefficientMaps,
+    /// The whole image's maps and depth, filled part by part; `None` when only the
+    /// parts' headers are checked ([`Merger::headers`]).
+    maps: Option<CoefficientMaps>,
     depth: Option<Vec<f32>>,
     /// Which file filled each part.
     slots: Vec<Option<String>>,
-    /// Each part's rows and fit information, for the pooled residual and time.
-    fits: Vec<(usize, FitInfo)>,
+    /// Each part's index, rows and fit information, for the pooled residual and time
+    /// (summed in the parts' order, so that the order they came in changes nothing).
+    fits: Vec<(usize, usize, FitInfo)>,
+    has_depth: bool,
+    width: usize,
+    k: usize,
 }
 
 impl Merger {
@@ -52,6 +58,17 @@ impl Merger {
     /// number of files given, which bounds what the parts' metadata may claim before
     /// anything is allocated from it.
     pub fn new(first: RelightableImage, name: &str, expected: usize) -> Result<Merger> {
+        Self::start(first, name, expected, true)
+    }
+
+    /// As [`Merger::new`], but for parts described by their headers alone (maps with
+    /// their size and `k` but no values, depth empty when present): it checks that they
+    /// make one fit and gives its metadata ([`Merger::finish_meta`]), holding no maps.
+    pub fn headers(first: RelightableImage, name: &str, expected: usize) -> Result<Merger> {
+        Self::start(first, name, expected, false)
+    }
+
+    fn start(first: RelightableImage, name: &str, expected: usize, hold: bool) -> Result<Merger> {
         let head = shard_of(&first, name)?;
         if head.count != expected {
             return Err(Error::invalid(format!(
@@ -68,11 +85,15 @@ impl Merger {
             head,
             meta: first.meta.clone(),
             first: name.to_string(),
-            maps: CoefficientMaps::zeros(width, head.full_height, k),
+            maps: hold.then(|| CoefficientMaps::zeros(width, head.full_height, k)),
             depth: first
                 .depth
                 .as_ref()
+                .filter(|_| hold)
                 .map(|_| vec![0.0; width * head.full_height]),
+            has_depth: first.depth.is_some(),
+            width,
+            k,
             slots: vec![None; head.count],
             fits: Vec::new(),
         };
@@ -98,14 +119,14 @@ impl Merger {
             )));
         }
         check_place(&part, shard, name)?;
-        if part.width() != self.maps.width || part.maps.k != self.maps.k {
+        if part.width() != self.width || part.maps.k != self.k {
             return Err(Error::invalid(format!(
                 "{name} is {} pixels wide with {} coefficients, {} {} with {}",
                 part.width(),
                 part.maps.k,
                 self.first,
-                self.maps.width,
-                self.maps.k
+                self.width,
+                self.k
             )));
         }
         let differs = |what: &str| {
@@ -126,7 +147,7 @@ impl Merger {
         if meta != self.meta {
             return Err(differs("colour space, projection or camera"));
         }
-        if part.depth.is_some() != self.depth.is_some() {
+        if part.depth.is_some() != self.has_depth {
             return Err(differs("depth map (one has it, the other not)"));
         }
         if let Some(other) = &self.slots[shard.index] {
@@ -142,24 +163,41 @@ impl Merger {
     /// Copy a checked part into its rows.
     fn place(&mut self, part: RelightableImage, shard: ShardInfo, name: &str) {
         let rows = shard.rows();
-        let width = self.maps.width;
+        let width = self.width;
         let plane_len = width * self.head.full_height;
         let n = part.maps.pixels();
-        for (plane, out) in self.maps.data.chunks_exact_mut(plane_len).enumerate() {
-            out[rows.start * width..rows.end * width]
-                .copy_from_slice(&part.maps.data[plane * n..(plane + 1) * n]);
+        if let Some(maps) = self.maps.as_mut() {
+            for (plane, out) in maps.data.chunks_exact_mut(plane_len).enumerate() {
+                out[rows.start * width..rows.end * width]
+                    .copy_from_slice(&part.maps.data[plane * n..(plane + 1) * n]);
+            }
         }
         if let (Some(depth), Some(src)) = (self.depth.as_mut(), part.depth.as_ref()) {
             depth[rows.start * width..rows.end * width].copy_from_slice(src);
         }
         self.slots[shard.index] = Some(name.to_string());
         if let Some(fit) = part.meta.fit {
-            self.fits.push((rows.len(), fit));
+            self.fits.push((shard.index, rows.len(), fit));
         }
     }
 
     /// The whole image, once every part is in.
-    pub fn finish(self) -> Result<RelightableImage> {
+    pub fn finish(mut self) -> Result<RelightableImage> {
+        let maps = self
+            .maps
+            .take()
+            .ok_or_else(|| Error::invalid("the merger checked headers only: it holds no maps"))?;
+        let depth = self.depth.take();
+        Ok(RelightableImage {
+            meta: self.finish_meta()?,
+            maps,
+            depth,
+        })
+    }
+
+    /// The joined file's metadata, once every part is in: the fit's pooled residual
+    /// and total time, no shard.
+    pub fn finish_meta(self) -> Result<crate::maps::Metadata> {
         let missing: Vec<String> = (0..self.head.count)
             .filter(|&s| self.slots[s].is_none())
             .map(|s| s.to_string())
@@ -173,14 +211,14 @@ impl Merger {
             )));
         }
         let mut meta = self.meta;
+        let mut fits = self.fits;
+        fits.sort_by_key(|&(index, _, _)| index);
+        let fits: Vec<(usize, FitInfo)> = fits.into_iter().map(|(_, r, f)| (r, f)).collect();
         if let Some(fit) = meta.fit.as_mut() {
             // The residual pooled over the parts that measured one (each measures the
             // subsample pixels in its rows), weighted by their rows; the time is the total.
-            let measured: Vec<&(usize, FitInfo)> = self
-                .fits
-                .iter()
-                .filter(|(_, f)| f.psnr_srgb8 > 0.0)
-                .collect();
+            let measured: Vec<&(usize, FitInfo)> =
+                fits.iter().filter(|(_, f)| f.psnr_srgb8 > 0.0).collect();
             let rows: f64 = measured.iter().map(|(r, _)| *r as f64).sum();
             if rows > 0.0 {
                 for c in 0..3 {
@@ -196,15 +234,142 @@ impl Merger {
                     .sum();
                 fit.psnr_srgb8 = -10.0 * (mse8 / rows).log10();
             }
-            fit.seconds = self.fits.iter().map(|(_, f)| f.seconds).sum();
+            fit.seconds = fits.iter().map(|(_, f)| f.seconds).sum();
             fit.shard = None;
         }
-        Ok(RelightableImage {
-            meta,
-            maps: self.maps,
-            depth: self.depth,
-        })
+        Ok(meta)
     }
+}
+
+/// Join the parts of one sharded fit, relit EXR files in any order, into the EXR file
+/// `output` in `precision`, a band of rows at a time: the file [`merge`] and
+/// [`crate::codec::exr::write`] make of the same parts, holding a band of 16 rows (and
+/// the depth map, when the parts have one) instead of the whole image's maps. Returns
+/// the joined file's metadata and size.
+pub fn merge_exr_files(
+    parts: &[std::path::PathBuf],
+    output: &std::path::Path,
+    precision: crate::storage::Precision,
+) -> Result<(crate::maps::Metadata, (usize, usize))> {
+    use crate::codec::exr;
+    use crate::fit::Piece;
+    let name = |p: &std::path::Path| p.display().to_string();
+    // Each part as its header describes it: metadata, size and k, no values.
+    let heads: Vec<RelightableImage> = parts
+        .iter()
+        .map(|p| {
+            let probe = exr::read_region_with(p, 0, (0, 0, 1, 1), true)?.image;
+            let (width, height) = exr::levels(p)?[0];
+            Ok(RelightableImage {
+                maps: CoefficientMaps {
+                    width,
+                    height,
+                    k: probe.maps.k,
+                    data: Vec::new(),
+                },
+                depth: probe.depth.map(|_| Vec::new()),
+                meta: probe.meta,
+            })
+        })
+        .collect::<Result<_>>()?;
+    let first = heads
+        .first()
+        .ok_or_else(|| Error::invalid("no parts to merge"))?;
+    let mut merger = Merger::headers(first.clone(), &name(&parts[0]), parts.len())?;
+    for (head, path) in heads.iter().zip(parts).skip(1) {
+        merger.add(head.clone(), &name(path))?;
+    }
+    let meta = merger.finish_meta()?;
+    let shards: Vec<ShardInfo> = heads
+        .iter()
+        .zip(parts)
+        .map(|(h, p)| shard_of(h, &name(p)))
+        .collect::<Result<_>>()?;
+    let mut order: Vec<usize> = (0..parts.len()).collect();
+    order.sort_by_key(|&i| shards[i].row0);
+    let (width, k, height) = (first.maps.width, first.maps.k, shards[0].full_height);
+    // Rows a band: a block of the file (16 scan lines, or a tile's height).
+    let has_depth = first.depth.is_some();
+    let tiles = exr::ExrStream::tiles(width, k, precision, has_depth);
+    let band = tiles.map_or(16, |(_, h)| h);
+    // The parts' rows overlapping [top, top + rows), in order: (first row, maps, depth).
+    let segments = |top: usize, rows: usize, depth: bool| {
+        order
+            .iter()
+            .filter_map(|&i| {
+                let r = shards[i].rows();
+                let (lo, hi) = (r.start.max(top), r.end.min(top + rows));
+                (lo < hi).then(|| {
+                    let read = exr::read_region_with(
+                        &parts[i],
+                        0,
+                        (0, lo - r.start, width, hi - lo),
+                        depth,
+                    )?;
+                    Ok((lo, read.image))
+                })
+            })
+            .collect::<Result<Vec<_>>>()
+    };
+    let depth = if has_depth {
+        let mut depth = vec![0.0f32; width * height];
+        for top in (0..height).step_by(band) {
+            for (y0, part) in segments(top, band.min(height - top), true)? {
+                let d = part.depth.unwrap_or_default();
+                depth[y0 * width..y0 * width + d.len()].copy_from_slice(&d);
+            }
+        }
+        Some(depth)
+    } else {
+        None
+    };
+    let mut stream = exr::ExrStream::new(width, height, k, precision, depth)?;
+    for top in (0..height).step_by(band) {
+        let segments = segments(top, band.min(height - top), false)?;
+        match tiles {
+            None => {
+                for (y0, part) in segments {
+                    let piece = Piece {
+                        x0: 0,
+                        y0,
+                        width,
+                        height: part.maps.height,
+                    };
+                    stream.piece(piece, part.maps)?;
+                }
+            }
+            Some((tile, _)) => {
+                for x0 in (0..width).step_by(tile) {
+                    let columns = tile.min(width - x0);
+                    for (y0, part) in &segments {
+                        let piece = Piece {
+                            x0,
+                            y0: *y0,
+                            width: columns,
+                            height: part.maps.height,
+                        };
+                        stream.piece(piece, columns_of(&part.maps, x0, columns))?;
+                    }
+                }
+            }
+        }
+    }
+    stream.finish(output, &meta)?;
+    Ok((meta, (width, height)))
+}
+
+/// Columns `x0 .. x0 + width` of `maps`.
+fn columns_of(maps: &CoefficientMaps, x0: usize, width: usize) -> CoefficientMaps {
+    let mut out = CoefficientMaps::zeros(width, maps.height, maps.k);
+    let (n, m) = (maps.pixels(), out.pixels());
+    for plane in 0..3 * maps.k {
+        for y in 0..maps.height {
+            let from = plane * n + y * maps.width + x0;
+            out.data[plane * m + y * width..plane * m + (y + 1) * width]
+                .copy_from_slice(&maps.data[from..from + width]);
+        }
+    }
+    out
 }
 
 /// That `part` holds the rows its shard description gives it.
@@ -271,6 +436,63 @@ mod tests {
 
     fn names(count: usize) -> Vec<String> {
         (0..count).map(|i| format!("part{i}.exr")).collect()
+    }
+
+    /// Parts joined from their files a band at a time make the file the merge in memory
+    /// makes: the same maps bit for bit, depth and metadata, for a narrow image (scan
+    /// lines) and a wide one (tiles 16 lines high), parts given in any order.
+    #[test]
+    fn parts_merged_from_files_a_band_at_a_time_equal_the_merge_in_memory() {
+        use crate::codec::exr;
+        use crate::storage::Precision;
+        let dir = tempfile::tempdir().unwrap();
+        let dirs = crate::sphere::hemisphere_fibonacci(40);
+        let mut wide = crate::synth::bumpy_plane(1200, 5, &dirs);
+        wide.depth = Some(Arc::new((0..6000).map(|p| 1.0 + p as f32).collect()));
+        let options = FitOptions {
+            basis: BasisRequest::parse("sh:9").unwrap(),
+            objective: Objective::Linear,
+            ..Default::default()
+        };
+        for (capture, count, tiled) in [(capture(), 3, false), (wide, 2, true)] {
+            let pieces = parts(&capture, &options, count);
+            assert_eq!(
+                exr::ExrStream::tiles(capture.width, 9, Precision::F16, true).is_some(),
+                tiled
+            );
+            let paths: Vec<std::path::PathBuf> = pieces
+                .iter()
+                .enumerate()
+                .map(|(i, part)| {
+                    let path = dir.path().join(format!("part{i}.exr"));
+                    exr::write(&path, part, Precision::F32).unwrap();
+                    path
+                })
+                .rev()
+                .collect();
+            let in_memory = dir.path().join("in_memory.exr");
+            let banded = dir.path().join("banded.exr");
+            let merged = merge(pieces, &names(count)).unwrap();
+            exr::write(&in_memory, &merged, Precision::F16).unwrap();
+            let (meta, size) = merge_exr_files(&paths, &banded, Precision::F16).unwrap();
+            assert_eq!(size, (capture.width, capture.height));
+            let (a, b) = (exr::read(&in_memory).unwrap(), exr::read(&banded).unwrap());
+            assert_eq!(b.meta, meta);
+            assert_eq!(a.meta, b.meta);
+            assert_eq!(a.depth, b.depth);
+            assert!(a
+                .maps
+                .data
+                .iter()
+                .zip(&b.maps.data)
+                .all(|(x, y)| x.to_bits() == y.to_bits()));
+            assert_eq!(a.maps.data.len(), b.maps.data.len());
+        }
+        // A missing part is named, and nothing is written.
+        let two = [dir.path().join("part0.exr"), dir.path().join("part1.exr")];
+        let out = dir.path().join("missing.exr");
+        assert!(merge_exr_files(&two[..1], &out, Precision::F16).is_err());
+        assert!(!out.exists());
     }
 
     /// The joined parts hold the single fit's maps bit for bit, whatever the basis, the
