@@ -69,7 +69,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     crate::shared::apply_file_space(&args.input, &mut image, args.file_space)?;
     let (w, h) = if streamed {
-        codec::exr::levels(&args.input)?[0]
+        let shape = codec::exr::read_shape(&args.input)?;
+        (shape.width, shape.height)
     } else {
         (image.width(), image.height())
     };
@@ -120,12 +121,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let seconds = start.elapsed().as_secs_f64();
     let bytes_in = crate::shared::size_on_disk(&args.input)?;
     let bytes_out = crate::shared::size_on_disk(&args.output)?;
-    let written = if streamed {
-        codec::exr::read_region(&args.output, 0, (0, 0, 1, 1))?.image
+    // What was written, read back: from its header alone when it was streamed.
+    let (written_basis, written_k) = if streamed {
+        let shape = codec::exr::read_shape(&args.output)?;
+        (shape.meta.basis, shape.k)
     } else {
-        codec::read(&args.output)?
+        let written = codec::read(&args.output)?;
+        (written.meta.basis, written.maps.k)
     };
-    let basis = written.meta.basis.build()?;
+    let basis = written_basis.build()?;
     let bits_per_pixel = |b: u64| 8.0 * b as f64 / (w * h) as f64;
     if args.json {
         let value = serde_json::json!({
@@ -133,7 +137,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "output": args.output.display().to_string(),
             "settings": description,
             "basis": basis.name(),
-            "coefficients": written.maps.k,
+            "coefficients": written_k,
             "input_bytes": bytes_in,
             "output_bytes": bytes_out,
             "input_bits_per_pixel": bits_per_pixel(bytes_in),

@@ -13,8 +13,7 @@ pub struct Args {
 }
 
 /// What `info` shows of a file: its metadata, size, coefficients and whether it has
-/// depth. A relit EXR or a `.rlz` file is read no further than its header (and one
-/// pixel), so that a file of gigabytes answers at once; the RTI tools' files and web
+/// depth. A relit EXR or a `.rlz` file is read no further than its header, so that a file of gigabytes answers at once; the RTI tools' files and web
 /// folders are read whole.
 struct Summary {
     meta: relit::maps::Metadata,
@@ -27,14 +26,13 @@ struct Summary {
 fn summary(path: &std::path::Path) -> anyhow::Result<Summary> {
     Ok(match FileForm::of(path)? {
         FileForm::Exr => {
-            let probe = exr::read_region_with(path, 0, (0, 0, 1, 1), true)?.image;
-            let (width, height) = exr::levels(path)?[0];
+            let shape = exr::read_shape(path)?;
             Summary {
-                k: probe.maps.k,
-                depth: probe.depth.is_some(),
-                meta: probe.meta,
-                width,
-                height,
+                k: shape.k,
+                depth: shape.depth,
+                meta: shape.meta,
+                width: shape.width,
+                height: shape.height,
             }
         }
         FileForm::Compressed => {

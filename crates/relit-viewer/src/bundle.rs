@@ -389,8 +389,8 @@ fn tile_side(
     // codebook file is already small: entries and an index a pixel).
     let size_and_k = match form {
         FileForm::Exr => {
-            let (w, h) = exr::levels(path)?[0];
-            Some((w, h, exr::read_region(path, 0, (0, 0, 1, 1))?.image.maps.k))
+            let shape = exr::read_shape(path)?;
+            Some((shape.width, shape.height, shape.k))
         }
         FileForm::Compressed => {
             let header = packed::read_header(path)?;

@@ -144,12 +144,9 @@ impl TileSource {
         }
         let (form, meta, k, has_depth, file_sizes, band) = match FileForm::of(path)? {
             FileForm::Exr => {
-                let probe = exr::read_region_with(path, 0, (0, 0, 1, 1), true)?;
-                let k = probe.image.maps.k;
-                let depth = probe.image.depth.is_some();
-                let levels = exr::levels(path)?;
-                let band = (levels[0].0, 16);
-                (Form::Exr, probe.image.meta, k, depth, levels, band)
+                let shape = exr::read_shape(path)?;
+                let band = (shape.width, 16);
+                (Form::Exr, shape.meta, shape.k, shape.depth, shape.levels, band)
             }
             FileForm::Compressed => {
                 let header = packed::read_header(path)?;
@@ -260,9 +257,15 @@ impl TileSource {
 
     /// The bytes of tile `(level, x, y)` (of this source's, [`Self::parse_path`]).
     pub fn tile_bytes(&self, level: usize, x: usize, y: usize) -> usize {
+        let (_, _, w, h) = self.tile_rect(level, x, y);
+        w * h * texel_bytes(self.k)
+    }
+
+    /// The pixels of tile `(level, x, y)` in its level: `(x0, y0, width, height)`.
+    fn tile_rect(&self, level: usize, x: usize, y: usize) -> (usize, usize, usize, usize) {
         let (w, h) = self.sizes[level];
-        let s = self.side;
-        s.min(w - x * s) * s.min(h - y * s) * texel_bytes(self.k)
+        let (x0, y0) = (x * self.side, y * self.side);
+        (x0, y0, self.side.min(w - x0), self.side.min(h - y0))
     }
 
     /// The bundle path of tile `(level, x, y)`.
@@ -291,9 +294,7 @@ impl TileSource {
         if level >= self.overview_level() || x >= self.grid(level).0 || y >= self.grid(level).1 {
             return Err(invalid(format!("no tile {level}/{x}_{y}")));
         }
-        let (w, h) = self.sizes[level];
-        let (x0, y0) = (x * self.side, y * self.side);
-        let rect = (x0, y0, self.side.min(w - x0), self.side.min(h - y0));
+        let rect = self.tile_rect(level, x, y);
         let maps = {
             let _turn = self.turn();
             self.read_level(level, rect, None)?

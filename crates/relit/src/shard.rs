@@ -258,17 +258,16 @@ pub fn merge_exr_files(
     let heads: Vec<RelightableImage> = parts
         .iter()
         .map(|p| {
-            let probe = exr::read_region_with(p, 0, (0, 0, 1, 1), true)?.image;
-            let (width, height) = exr::levels(p)?[0];
+            let shape = exr::read_shape(p)?;
             Ok(RelightableImage {
                 maps: CoefficientMaps {
-                    width,
-                    height,
-                    k: probe.maps.k,
+                    width: shape.width,
+                    height: shape.height,
+                    k: shape.k,
                     data: Vec::new(),
                 },
-                depth: probe.depth.map(|_| Vec::new()),
-                meta: probe.meta,
+                depth: shape.depth.then(Vec::new),
+                meta: shape.meta,
             })
         })
         .collect::<Result<_>>()?;

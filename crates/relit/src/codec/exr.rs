@@ -784,6 +784,42 @@ pub fn describe_layout(path: &Path) -> Result<String> {
     })
 }
 
+/// What a relit EXR's header says of it, read without any of its blocks.
+#[derive(Clone, Debug)]
+pub struct FileShape {
+    pub meta: Metadata,
+    /// Level 0's size.
+    pub width: usize,
+    pub height: usize,
+    /// Coefficients per colour channel.
+    pub k: usize,
+    /// Whether it has a depth channel.
+    pub depth: bool,
+    /// Its level sizes: a tiled file's mip levels, or level 0 alone.
+    pub levels: Vec<(usize, usize)>,
+}
+
+/// The metadata, size, coefficients, depth and levels of the relit EXR at `path`, from
+/// its header alone (what `relit info`, the tiled viewer and the streaming writers
+/// need before they read any pixel).
+pub fn read_shape(path: &Path) -> Result<FileShape> {
+    let header = first_header(path)?;
+    let (meta, k) = parse_header(path, &header)?;
+    let levels = level_sizes(&header);
+    Ok(FileShape {
+        meta,
+        width: levels[0].0,
+        height: levels[0].1,
+        k,
+        depth: header
+            .channels
+            .list
+            .iter()
+            .any(|c| c.name.to_string() == "Z"),
+        levels,
+    })
+}
+
 /// The header of the file's first layer, read alone.
 fn first_header(path: &Path) -> Result<exr::meta::header::Header> {
     let meta =

@@ -27,11 +27,14 @@ pub fn write_tiled_from(
 ) -> Result<()> {
     let precision = precision.require(&[Precision::F32, Precision::F16], "OpenEXR")?;
     check_tile_side(tile)?;
-    let (w, h) = levels(input)?[0];
-    let probe = read_region_with(input, 0, (0, 0, 1, 1), true)?;
-    let k = probe.image.maps.k;
-    let depth = probe.image.depth.is_some();
-    let meta = probe.image.meta;
+    let FileShape {
+        meta,
+        width: w,
+        height: h,
+        k,
+        depth,
+        ..
+    } = read_shape(input)?;
     let headers = tiled_headers(
         w,
         h,
