@@ -799,23 +799,20 @@ pub struct FileShape {
     pub levels: Vec<(usize, usize)>,
 }
 
-/// The metadata, size, coefficients, depth and levels of the relit EXR at `path`, from
-/// its header alone (what `relit info`, the tiled viewer and the streaming writers
-/// need before they read any pixel).
+/// The metadata, size, coefficients, depth and levels of the relit EXR at `path`: what
+/// `relit info`, the tiled viewer and the streaming writers need before they read the
+/// pixels. Its header, offset table and first pixel are read, so that a truncated or
+/// damaged file is refused here as any reader refuses it.
 pub fn read_shape(path: &Path) -> Result<FileShape> {
-    let header = first_header(path)?;
-    let (meta, k) = parse_header(path, &header)?;
-    let levels = level_sizes(&header);
+    let probe = read_region_with(path, 0, (0, 0, 1, 1), true)?;
+    let levels = probe.levels;
+    let image = probe.image;
     Ok(FileShape {
-        meta,
         width: levels[0].0,
         height: levels[0].1,
-        k,
-        depth: header
-            .channels
-            .list
-            .iter()
-            .any(|c| c.name.to_string() == "Z"),
+        k: image.maps.k,
+        depth: image.depth.is_some(),
+        meta: image.meta,
         levels,
     })
 }
@@ -856,8 +853,9 @@ fn header_levels(header: &exr::meta::header::Header) -> Option<Vec<(usize, usize
 pub struct RegionRead {
     /// The region's maps, and its depth when asked for ([`read_region_with`]).
     pub image: RelightableImage,
-    /// The level's size.
+    /// The level's size, and every level's (level 0 first).
     pub level_size: (usize, usize),
+    pub levels: Vec<(usize, usize)>,
     /// Bytes the read pulled from the file, and the file's size.
     pub bytes_read: u64,
     pub file_bytes: u64,
@@ -1026,6 +1024,7 @@ pub fn read_region_with(
             depth: z.map(|_| depth_values),
         },
         level_size: (lw, lh),
+        levels: sizes,
         bytes_read,
         file_bytes,
     })
