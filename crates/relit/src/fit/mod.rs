@@ -483,16 +483,6 @@ impl Design {
             m[i * self.k + i] += total_weight * DEFINITENESS;
         }
     }
-
-    /// [`Design::regularize`] for lane `lane` of interleaved matrices.
-    fn regularize_lane(&self, m: &mut [linalg::Lanes], lane: usize, lambda: f64, total: f64) {
-        for (v, &p) in m.iter_mut().zip(&self.penalty) {
-            v[lane] += total * lambda * p;
-        }
-        for i in 0..self.k {
-            m[i * self.k + i][lane] += total * DEFINITENESS;
-        }
-    }
 }
 
 /// Quadrature weight per captured direction: the solid angles of a full spherical grid,
@@ -1590,28 +1580,35 @@ fn solve_chunk(
         for g in (0..len).step_by(LANES) {
             let used = LANES.min(len - g);
             let mut total = [1.0; LANES];
-            for l in 0..LANES {
-                if l >= used {
-                    s.lane_m.iter_mut().for_each(|v| v[l] = 0.0);
-                    (0..k).for_each(|i| s.lane_m[i * k + i][l] = 1.0);
-                    s.lane_coef.iter_mut().for_each(|v| v[l] = 0.0);
-                    continue;
-                }
+            for (l, t_l) in total.iter_mut().enumerate().take(used) {
                 let p = g + l;
                 let sum: f64 = s.weights[p * n..(p + 1) * n]
                     .iter()
                     .map(|&w| w as f64)
                     .sum();
-                total[l] = sum.max(1e-30);
-                for (x, &(r, c)) in pairs.iter().enumerate() {
-                    let v = s.packed[p * t + x] as f64;
-                    s.lane_m[r * k + c][l] = v;
-                    s.lane_m[c * k + r][l] = v;
+                *t_l = sum.max(1e-30);
+            }
+            // The lower triangle only (all that the factorisation and the solve read),
+            // every lane of an entry at once: the weighted sums plus the penalty and the
+            // definiteness term, added in `Design::regularize`'s order so that a lane is
+            // the scalar system bit for bit. Unused lanes get the identity.
+            for (x, &(r, c)) in pairs.iter().enumerate() {
+                let penalty = design.penalty[c * k + r];
+                let mut v = [if r == c { 1.0 } else { 0.0 }; LANES];
+                for l in 0..used {
+                    v[l] = s.packed[(g + l) * t + x] as f64 + total[l] * lambda * penalty;
+                    if r == c {
+                        v[l] += total[l] * DEFINITENESS;
+                    }
                 }
-                for (dst, &v) in s.lane_coef.iter_mut().zip(&s.rhs[p * k..(p + 1) * k]) {
-                    dst[l] = v as f64;
+                s.lane_m[c * k + r] = v;
+            }
+            for (i, dst) in s.lane_coef.iter_mut().enumerate() {
+                let mut v = [0.0; LANES];
+                for l in 0..used {
+                    v[l] = s.rhs[(g + l) * k + i] as f64;
                 }
-                design.regularize_lane(&mut s.lane_m, l, lambda, total[l]);
+                *dst = v;
             }
             let ok = linalg::cholesky_lanes(&mut s.lane_m, k);
             linalg::cholesky_solve_lanes(&s.lane_m, k, &mut s.lane_coef);
