@@ -392,16 +392,21 @@ fn factor_lanes(
     k: usize,
     used: usize,
 ) -> [bool; LANES] {
-    for (x, (dst, src)) in f.iter_mut().zip(m).enumerate() {
-        for l in 0..LANES {
-            dst[l] = src[l] + total[l] * lambda * penalty[x];
-        }
-        if x % (k + 1) == 0 {
+    // The lower triangle only: all that the factorisation and the solve read.
+    for r in 0..k {
+        for c in 0..=r {
+            let x = r * k + c;
+            let (dst, src) = (&mut f[x], &m[x]);
             for l in 0..LANES {
-                dst[l] += total[l] * super::DEFINITENESS;
+                dst[l] = src[l] + total[l] * lambda * penalty[x];
             }
+            if r == c {
+                for l in 0..LANES {
+                    dst[l] += total[l] * super::DEFINITENESS;
+                }
+            }
+            dst[used..].fill(if r == c { 1.0 } else { 0.0 });
         }
-        dst[used..].fill(if x % (k + 1) == 0 { 1.0 } else { 0.0 });
     }
     linalg::cholesky_lanes(f, k)
 }
@@ -520,7 +525,6 @@ fn fold_errors(
                     if shared.is_none() {
                         for (x, &(r, col)) in pairs.iter().enumerate() {
                             let v = packed[b * t + x];
-                            m[r * k + col][l] = v;
                             m[col * k + r][l] = v;
                         }
                         total[l] = weights.iter().sum();
