@@ -572,3 +572,107 @@ fn auto_chooses_among_the_candidates_it_is_given_and_scores_every_light() {
     };
     assert!(fit(&capture, &too_big, &Silent).is_err());
 }
+
+/// The perceptual fit's passes, written out plainly for one pixel at a time: the first
+/// solve weighted by the mean over the channels of their observation weights
+/// (`shared_first`), or by each channel's own; then one pass per channel reweighted by
+/// the secants to its prediction.
+fn plain_perceptual_fit(
+    design: &Design,
+    images: &[ImageRgb],
+    lambda: f64,
+    shared_first: bool,
+) -> Vec<f64> {
+    let (k, n) = (design.k, design.n);
+    let pixels = images[0].width * images[0].height;
+    let solve = |w: &[f64], obs: &[f64]| -> Vec<f64> {
+        let (mut m, mut b) = (vec![0.0; k * k], vec![0.0; k]);
+        for j in 0..n {
+            let row = design.row(j);
+            for r in 0..k {
+                b[r] += w[j] * row[r] * obs[j];
+                for c in 0..k {
+                    m[r * k + c] += w[j] * row[r] * row[c];
+                }
+            }
+        }
+        design.regularize(&mut m, lambda, w.iter().sum());
+        assert!(linalg::cholesky(&mut m, k));
+        linalg::cholesky_solve(&m, k, &mut b);
+        b
+    };
+    let mut out = vec![0.0; pixels * k * 3];
+    for p in 0..pixels {
+        let obs: Vec<Vec<f64>> = (0..3)
+            .map(|c| images.iter().map(|im| im.data[3 * p + c] as f64).collect())
+            .collect();
+        for c in 0..3 {
+            let first: Vec<f64> = (0..n)
+                .map(|j| match shared_first {
+                    true => (0..3).map(|c| perceptual_weight(obs[c][j])).sum::<f64>() / 3.0,
+                    false => perceptual_weight(obs[c][j]),
+                })
+                .collect();
+            let coef = solve(&first, &obs[c]);
+            let secant: Vec<f64> = (0..n)
+                .map(|j| {
+                    let pred: f64 = design.row(j).iter().zip(&coef).map(|(a, b)| a * b).sum();
+                    secant_weight(pred, obs[c][j])
+                })
+                .collect();
+            for (i, v) in solve(&secant, &obs[c]).into_iter().enumerate() {
+                out[(p * k + i) * 3 + c] = v;
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn the_perceptual_fit_shares_its_first_weights_across_channels_and_reweights_each() {
+    // Four bands of data fitted with three, so that the weights matter, in colours whose
+    // channels differ by 20× in radiance, so that their sRGB weights differ too.
+    let (w, h) = (6, 4);
+    let dirs = fibonacci(60);
+    let data = capture_of(&known_coefficients(w * h, 16), w, h, 4, &dirs);
+    let images: Vec<ImageRgb> = (0..dirs.len())
+        .map(|j| {
+            let mut img = data.load(j).unwrap();
+            for px in img.data.chunks_exact_mut(3) {
+                px[1] *= 0.3;
+                px[2] *= 0.05;
+            }
+            img
+        })
+        .collect();
+    let capture = Capture::from_memory(images.clone(), &dirs, Projection::default()).unwrap();
+    let lambda = 1e-3;
+    let opts = options(3, Objective::Perceptual, lambda);
+    assert_eq!(opts.reweights, 1);
+    let fitted = fit(&capture, &opts, &Silent).unwrap();
+    let design = Design::new(
+        &dirs,
+        BasisSpec::named("sh:9").unwrap().build().unwrap(),
+        opts.regularizer,
+    );
+    let error = |want: &[f64]| {
+        let maps = &fitted.image.maps;
+        let mut worst = 0f64;
+        for p in 0..maps.pixels() {
+            for i in 0..9 {
+                for c in 0..3 {
+                    let got = maps.plane(i, c)[p] as f64;
+                    worst = worst.max((got - want[(p * 9 + i) * 3 + c]).abs());
+                }
+            }
+        }
+        worst
+    };
+    let shared = error(&plain_perceptual_fit(&design, &images, lambda, true));
+    let own = error(&plain_perceptual_fit(&design, &images, lambda, false));
+    assert!(shared < 2e-5, "{shared}");
+    assert!(
+        own > 10.0 * shared,
+        "own first weights {own}, shared {shared}"
+    );
+}
