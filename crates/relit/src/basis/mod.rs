@@ -44,10 +44,10 @@ pub use ptm::PolynomialTextureMap;
 pub use rbf::{relight_kernels, relight_rbf};
 pub use rotation::{
     check_rotation, compose, mat3_apply, rotation_about_axis, rotation_from_yaw_pitch_roll,
-    transpose, Mat3, ShRotation, MAT3_IDENTITY,
+    transpose, Mat3, MAT3_IDENTITY,
 };
 pub use sg::{mean_nearest_angle, sharpness_for_width, SphericalGaussians};
-pub use sh::{sh_index, SphericalHarmonics, MAX_BANDS};
+pub use sh::{sh_index, ShRotation, SphericalHarmonics, MAX_BANDS};
 pub use table::{octahedral_direction, octahedral_uv, TableAccuracy, WeightTable};
 
 use crate::sphere::Vec3;

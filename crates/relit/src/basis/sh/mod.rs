@@ -6,6 +6,10 @@
 //! so each `Y_lm` is a polynomial in `(x, y, z)` built by the appendix's recurrence on
 //! the associated Legendre functions with the `sinᵐθ` factor taken out.
 
+mod rotation;
+
+pub use rotation::ShRotation;
+
 use super::{Basis, BasisSpec, BuildContext, Family};
 use crate::sphere::Vec3;
 use crate::{Error, Result};
