@@ -36,6 +36,7 @@ mod rotation;
 mod sg;
 pub(crate) mod sh;
 pub(crate) mod table;
+mod window;
 
 pub use bilinear::{grid_basis, GridMap};
 pub use hsh::HemisphericalHarmonics;
@@ -47,9 +48,11 @@ pub use rotation::{
     transpose, Mat3, MAT3_IDENTITY,
 };
 pub use sg::{mean_nearest_angle, sharpness_for_width, SphericalGaussians};
-pub use sh::{sh_index, ShRotation, SphericalHarmonics, MAX_BANDS};
+pub use sh::{sh_index, ShEnvironment, ShRotation, SphericalHarmonics, MAX_BANDS};
 pub use table::{octahedral_direction, octahedral_uv, TableAccuracy, WeightTable};
+pub use window::Window;
 
+use crate::image::ImageRgb;
 use crate::sphere::Vec3;
 use crate::{Error, Result};
 use serde::{Deserialize, Serialize};
@@ -103,10 +106,20 @@ pub trait Basis: Send + Sync + std::fmt::Debug {
         roughness_penalty(self, PENALTY_POINTS)
     }
 
-    /// The number of bands `n` when the basis is exactly the functions of the sphere up
-    /// to band `n − 1` in the real-SH order, so that rotations and band windows act on
-    /// its coefficients in closed form (environment lights use it); `None` otherwise.
-    fn band_limit(&self) -> Option<usize> {
+    /// The basis' own way of lighting its maps by the lat-long environment `map` (linear
+    /// RGB, laid out as [`crate::sphere::latlong_direction`] says), made once per map,
+    /// where it has one finer than sampling the map as directional lights; `None` (the
+    /// default): environment lights take the generic quadrature of the map.
+    fn environment(&self, map: &ImageRgb) -> Option<Result<Box<dyn PreparedEnvironment>>> {
+        let _ = map;
+        None
+    }
+
+    /// Per coefficient, its band `l` when the basis is orthonormal over the sphere and
+    /// its coefficients come in bands that the spherical Laplacian scales by `l(l+1)`,
+    /// so that band windows ([`Window`]) apply and `Σ_i e_i b_i` is the environment
+    /// its weights `e` light with; `None` otherwise (windows are refused).
+    fn coefficient_bands(&self) -> Option<Vec<usize>> {
         None
     }
 
@@ -134,6 +147,14 @@ pub trait Basis: Send + Sync + std::fmt::Debug {
     /// This basis as `Any`, for back ends with a fast path of their own for one family
     /// (the SH kernel of the CPU engine); nothing else may downcast.
     fn as_any(&self) -> &dyn std::any::Any;
+}
+
+/// An environment map made ready by a basis for its own lighting
+/// ([`Basis::environment`]): what does not change when the environment turns.
+pub trait PreparedEnvironment: Send + Sync + std::fmt::Debug {
+    /// The weights per colour channel that relight the basis' maps by one dot product
+    /// per pixel, the environment turned by `rotation` (`E'(ω) = E(Rᵀ ω)`) and windowed.
+    fn weights(&self, rotation: &Mat3, window: Window) -> Result<[Vec<f64>; 3]>;
 }
 
 /// Points a measured roughness penalty averages over.

@@ -30,6 +30,13 @@ impl PixelBasis {
         }
     }
 
+    /// Whether `basis` has a kernel of its own that evaluates it exactly (to f32
+    /// rounding), so that [`Self::new`] builds no table for it.
+    #[cfg(test)]
+    pub(crate) fn evaluates_exactly(basis: &dyn Basis) -> bool {
+        ShKernel::of(basis).is_some()
+    }
+
     /// Coefficients per colour channel `k`.
     pub(crate) fn len(&self) -> usize {
         match self {
