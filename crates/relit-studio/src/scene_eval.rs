@@ -138,11 +138,11 @@ pub struct BakedScore {
 /// Two brute forces, both `Σ_j w_j I_j` over the raw captured images `I_j`:
 /// * `brute_force_raw`: `w_j` the radiance of the full-resolution map around each
 ///   captured direction, the best any relighting of this capture can do;
-/// * `brute_force`: `w_j` from the *band-limited, windowed* environment that the SH
+/// * `brute_force`: `w_j` from the *band-limited, windowed* environment that the
 ///   relighting of a basis with bands itself applies
-///   ([`EnvironmentLight::band_limited`]). The dot product and this sum light the scene identically, so any gap between them is the fit's
-///   (and a wrong projection, rotation, window or direction convention would show as
-///   a large one). For a basis without bands (HSH, SG, RBF, …) there is no band limit
+///   ([`EnvironmentLight::band_limited`]). The dot product and this sum light the scene
+///   identically, so any gap between them is the fit's (and a wrong projection,
+///   rotation, window or direction convention would show as a large one). For a basis without bands (HSH, SG, RBF, …) there is no band limit
 ///   to mirror: `brute_force` is `brute_force_raw`, and only the unwindowed light is
 ///   checked.
 #[derive(Clone, Debug, Serialize)]
