@@ -5,11 +5,14 @@
 //! dot product of the pixel's coefficients with the weight vector `b(L)`, which is all
 //! that anything after the fit asks of a basis. Files, the CPU and GPU engines, the
 //! browser viewer, environment lights and the studio never name a particular basis: a
-//! directional or environment light is one weight vector per frame, a light with a
-//! position evaluates [`Basis::eval`] per pixel (or samples a [`WeightTable`] of it,
-//! which is how back ends that cannot run Rust get any basis).
+//! directional or environment light is one weight vector per frame (for an environment,
+//! from the basis' own [`Basis::environment`] where it has one, else from a quadrature
+//! of the map), a light with a position evaluates [`Basis::eval`] per pixel (or samples
+//! a [`WeightTable`] of it, which is how back ends that cannot run Rust get any basis).
 //!
-//! The bases live one per file, each registered once in [`FAMILIES`]:
+//! The bases live one per module, each registered once in [`FAMILIES`]; a basis with
+//! maths of its own beyond evaluation keeps it in its module (SH's rotation and exact
+//! environment projection live in [`sh`]):
 //!
 //! | name | functions |
 //! |---|---|
