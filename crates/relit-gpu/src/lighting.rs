@@ -163,7 +163,7 @@ impl Lighting {
 
     /// Add a uniform light: `weights[c][i]` per channel `c` and coefficient `i` (a
     /// directional light's basis values, or an environment's
-    /// `EnvironmentLight::light_weights`), scaled by `rgb` (colour × intensity ×
+    /// `BasisEnvironment::weights`), scaled by `rgb` (colour × intensity ×
     /// 2^exposure). On display-referred maps each call is one light, decoded from sRGB
     /// on its own.
     pub fn add_uniform(&mut self, weights: [Vec<f64>; 3], rgb: [f64; 3]) -> Result<()> {

@@ -138,11 +138,11 @@ pub struct BakedScore {
 /// Two brute forces, both `Σ_j w_j I_j` over the raw captured images `I_j`:
 /// * `brute_force_raw`: `w_j` the radiance of the full-resolution map around each
 ///   captured direction, the best any relighting of this capture can do;
-/// * `brute_force`: `w_j` from the *band-limited, windowed* environment that the SH
-///   relighting itself applies ([`EnvironmentLight::band_limited`]). The SH dot product
-///   and this sum light the scene identically, so any gap between them is the fit's
-///   (and a wrong projection, rotation, window or direction convention would show as
-///   a large one). For a basis without bands (HSH, SG, RBF, …) there is no band limit
+/// * `brute_force`: `w_j` from the *band-limited, windowed* environment that the
+///   relighting of a basis with bands itself applies
+///   ([`EnvironmentLight::band_limited`]). The dot product and this sum light the scene
+///   identically, so any gap between them is the fit's (and a wrong projection,
+///   rotation, window or direction convention would show as a large one). For a basis without bands (HSH, SG, RBF, …) there is no band limit
 ///   to mirror: `brute_force` is `brute_force_raw`, and only the unwindowed light is
 ///   checked.
 #[derive(Clone, Debug, Serialize)]
@@ -244,7 +244,7 @@ pub fn evaluate(
     capture.camera = Some(CameraSpec::from(camera));
     let fitted = fit::fit(&capture, &options.fit, progress)?;
     let relighter = Relighter::new(&fitted.image)?;
-    let bands = relighter.basis().band_limit().unwrap_or(0);
+    let banded = relighter.basis().coefficient_bands().is_some();
     let baked_maps = options
         .bake
         .as_ref()
@@ -310,7 +310,7 @@ pub fn evaluate(
                 &reference,
                 &mask,
                 &options.windows,
-                bands,
+                banded,
             )?);
         }
         if let Light::Area(a) = light {
@@ -416,18 +416,18 @@ fn environment_checks(
     reference: &ImageRgb,
     mask: &[f32],
     windows: &[Window],
-    bands: usize,
+    banded: bool,
 ) -> Result<Vec<EnvironmentCheck>> {
     let env = EnvironmentLight::load(&base.join(&light.map))?.with_rotation(light.rotation()?)?;
     let directions = capture.directions();
     let rgb = Light::Environment(light.clone()).rgb();
     let raw = brute_force(capture, &env.weights_for_directions(&directions)?, rgb)?;
     let brute_force_raw = compare_in(&raw, reference, mask);
-    // Windows scale SH bands; a basis without bands is relit unwindowed, and its
+    // Windows scale bands; a basis without bands is relit unwindowed, and its
     // "same lighting" brute force is the full map (there is no band limit to mirror).
     windows
         .iter()
-        .filter(|&&window| bands > 0 || window == Window::None)
+        .filter(|&&window| banded || window == Window::None)
         .map(|&window| {
             let mut windowed = light.clone();
             windowed.window = window;
@@ -438,8 +438,11 @@ fn environment_checks(
             )?;
             let relight_seconds = t.elapsed().as_secs_f64();
             let (w, h) = BAND_LIMITED_MAP;
-            let brute = if bands > 0 {
-                let limited = env.clone().with_window(window)?.band_limited(bands, w, h)?;
+            let brute = if banded {
+                let limited =
+                    env.clone()
+                        .with_window(window)?
+                        .band_limited(relighter.basis(), w, h)?;
                 brute_force(capture, &limited.weights_for_directions(&directions)?, rgb)?
             } else {
                 raw.clone()

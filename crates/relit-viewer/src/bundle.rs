@@ -530,16 +530,15 @@ fn check_shape(
     Ok(())
 }
 
-/// The band windows of environment lights, per coefficient, for band-limited bases
-/// ([`Basis::band_limit`]); `None` for others. A Laplacian window of the rig's own λ needs the
-/// eigenvalue `l(l+1)` of each coefficient's band (`h = 1/(1 + λ·e²)`), shipped too.
+/// The band windows of environment lights, per coefficient, for bases with bands
+/// ([`Basis::coefficient_bands`]); `None` for others. A Laplacian window of the rig's own
+/// λ needs the eigenvalue `l(l+1)` of each coefficient's band (`h = 1/(1 + λ·e²)`),
+/// shipped too.
 fn band_windows(basis: &dyn Basis) -> Result<Option<serde_json::Value>> {
-    let Some(bands) = basis.band_limit() else {
+    let Some(band) = basis.coefficient_bands() else {
         return Ok(None);
     };
-    // Flat index l(l+1) + m: coefficient i lies in band ⌊√i⌋.
-    let band = |i: usize| (i as f64).sqrt().floor() as usize;
-    let k = basis.len();
+    let bands = band.iter().max().map_or(0, |&l| l + 1);
     let mut windows = serde_json::Map::new();
     for (name, window) in [
         ("none", Window::None),
@@ -550,10 +549,10 @@ fn band_windows(basis: &dyn Basis) -> Result<Option<serde_json::Value>> {
         let h = window.factors(bands)?;
         windows.insert(
             name.into(),
-            json!((0..k).map(|i| h[band(i)]).collect::<Vec<_>>()),
+            json!(band.iter().map(|&l| h[l]).collect::<Vec<_>>()),
         );
     }
-    let eigenvalues: Vec<usize> = (0..k).map(|i| band(i) * (band(i) + 1)).collect();
+    let eigenvalues: Vec<usize> = band.iter().map(|&l| l * (l + 1)).collect();
     Ok(Some(
         json!({ "factors": windows, "laplacian_eigenvalues": eigenvalues }),
     ))

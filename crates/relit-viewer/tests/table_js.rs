@@ -9,7 +9,7 @@ mod common;
 
 use relit::basis::mat3_apply;
 use relit::basis::{Basis, BasisSpec, WeightTable};
-use relit::envmap::EnvironmentLight;
+use relit::envmap::{EnvironmentLight, Window};
 use relit::image::ImageRgb;
 use relit::light::EnvironmentMapLight;
 use relit::sphere::{fibonacci, Vec3};
@@ -230,10 +230,9 @@ fn environment_js_gives_the_library_weights() {
             }
         }
         let library = env
-            .clone()
-            .with_rotation(rotation)
+            .for_basis(basis.as_ref())
             .unwrap()
-            .light_weights(4)
+            .weights(basis.as_ref(), rotation, Window::None)
             .unwrap();
         let largest = library.iter().flatten().fold(0f64, |m, v| m.max(v.abs()));
         let off = |a: &[Vec<f64>], b: &[Vec<f64>]| {

@@ -1211,8 +1211,8 @@ mod tests {
     /// engine's frame equals the per-pixel reference with `basis.eval` itself, within
     /// what the basis' half-float weight table may cost per pixel (`reference_within`,
     /// with the table's largest error measured on 4096 directions, doubled for the
-    /// directions between them) plus f32 rounding (1e-4 of the peak). SH and HSH have no
-    /// table (a bound of 0: their recurrence is exact to f32 rounding).
+    /// directions between them) plus f32 rounding (1e-4 of the peak). A basis with an
+    /// exact kernel of its own (SH and HSH: their recurrence) has no table, a bound of 0.
     #[test]
     fn every_basis_relights_every_light_like_its_reference() {
         for basis in every_family() {
@@ -1230,8 +1230,8 @@ mod tests {
                         2.0 * accuracy.relative_max * peak
                     }
                 };
-                let recurrence = matches!(basis.family(), "sh" | "hsh");
-                assert_eq!(eps == 0.0, recurrence, "{name}");
+                let exact = PixelBasis::evaluates_exactly(basis.as_ref());
+                assert_eq!(eps == 0.0, exact, "{name}");
                 if basis.planar_grid().is_some() {
                     // Its own grid: the basis up to half-float rounding (2⁻¹¹ relative).
                     assert_eq!(r.pixel_path(), "planar grid", "{name}");

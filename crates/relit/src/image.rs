@@ -12,6 +12,8 @@ use std::cell::Cell;
 use std::path::Path;
 
 pub(crate) mod jpeg;
+#[cfg(test)]
+pub(crate) mod test_maps;
 
 /// The most bytes a decoded image may take in its own 8-bit or 16-bit samples: a header
 /// that claims more is refused before anything is allocated.

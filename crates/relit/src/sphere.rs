@@ -200,6 +200,32 @@ pub fn grid_quadrature_weights(dirs: &[Vec3]) -> Option<Vec<f64>> {
     Some(weights)
 }
 
+/// The light vector of texture position `(u, v)` of a lat-long map: `θ = π·v` from +y,
+/// azimuth `α = 2π·(u − ½)` from −z toward +x, `ω = (sin θ sin α, cos θ, −sin θ cos α)`;
+/// the centre column looks along −z and the seam is behind the camera, the layout of a
+/// panorama taken by the equirectangular camera at the default pose.
+pub fn latlong_direction(u: f64, v: f64) -> Vec3 {
+    let (sin_t, cos_t) = (PI * v).sin_cos();
+    let (sin_a, cos_a) = (2.0 * PI * (u - 0.5)).sin_cos();
+    Vec3::new(sin_t * sin_a, cos_t, -sin_t * cos_a)
+}
+
+/// The texture position `[u, v]` of the non-zero direction `dir`: the inverse of
+/// [`latlong_direction`], with `u ∈ [0, 1]` (both ends are the seam behind the camera)
+/// and `v ∈ [0, 1]`.
+pub fn latlong_uv(dir: Vec3) -> [f64; 2] {
+    let u = dir.x.atan2(-dir.z) / (2.0 * PI) + 0.5;
+    let v = dir.x.hypot(dir.z).atan2(dir.y) / PI;
+    [u, v]
+}
+
+/// The solid angle of a texel in row `row` of a `width × height` lat-long map:
+/// `(2π / width)·(cos θ_top − cos θ_bottom)`.
+pub fn texel_solid_angle(width: usize, height: usize, row: usize) -> f64 {
+    let theta = |r: usize| PI * r as f64 / height as f64;
+    2.0 * PI / width as f64 * (theta(row).cos() - theta(row + 1).cos())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,5 +1,5 @@
 //! The top-level modules of crate `relit` form a DAG that follows the data: spheres,
-//! bases, colours and cameras at the bottom; images, storage and maps above them; files
+//! colours and cameras at the bottom; images, bases, storage and maps above them; files
 //! (`codec`) above those; environments, lights and the engine next; fitting, evaluation,
 //! capture and synthesis on top. This test reads `src/` and fails, naming the cycle and
 //! where each of its references is, when a module refers to one that refers back to it.

@@ -5,11 +5,14 @@
 //! dot product of the pixel's coefficients with the weight vector `b(L)`, which is all
 //! that anything after the fit asks of a basis. Files, the CPU and GPU engines, the
 //! browser viewer, environment lights and the studio never name a particular basis: a
-//! directional or environment light is one weight vector per frame, a light with a
-//! position evaluates [`Basis::eval`] per pixel (or samples a [`WeightTable`] of it,
-//! which is how back ends that cannot run Rust get any basis).
+//! directional or environment light is one weight vector per frame (for an environment,
+//! from the basis' own [`Basis::environment`] where it has one, else from a quadrature
+//! of the map), a light with a position evaluates [`Basis::eval`] per pixel (or samples
+//! a [`WeightTable`] of it, which is how back ends that cannot run Rust get any basis).
 //!
-//! The bases live one per file, each registered once in [`FAMILIES`]:
+//! The bases live one per module, each registered once in [`FAMILIES`]; a basis with
+//! maths of its own beyond evaluation keeps it in its module (SH's rotation and exact
+//! environment projection live in [`sh`]):
 //!
 //! | name | functions |
 //! |---|---|
@@ -36,6 +39,7 @@ mod rotation;
 mod sg;
 pub(crate) mod sh;
 pub(crate) mod table;
+mod window;
 
 pub use bilinear::{grid_basis, GridMap};
 pub use hsh::HemisphericalHarmonics;
@@ -44,12 +48,14 @@ pub use ptm::PolynomialTextureMap;
 pub use rbf::{relight_kernels, relight_rbf};
 pub use rotation::{
     check_rotation, compose, mat3_apply, rotation_about_axis, rotation_from_yaw_pitch_roll,
-    transpose, Mat3, ShRotation, MAT3_IDENTITY,
+    transpose, Mat3, MAT3_IDENTITY,
 };
 pub use sg::{mean_nearest_angle, sharpness_for_width, SphericalGaussians};
-pub use sh::{sh_index, SphericalHarmonics, MAX_BANDS};
+pub use sh::{sh_index, ShEnvironment, ShRotation, SphericalHarmonics, MAX_BANDS};
 pub use table::{octahedral_direction, octahedral_uv, TableAccuracy, WeightTable};
+pub use window::Window;
 
+use crate::image::ImageRgb;
 use crate::sphere::Vec3;
 use crate::{Error, Result};
 use serde::{Deserialize, Serialize};
@@ -103,10 +109,20 @@ pub trait Basis: Send + Sync + std::fmt::Debug {
         roughness_penalty(self, PENALTY_POINTS)
     }
 
-    /// The number of bands `n` when the basis is exactly the functions of the sphere up
-    /// to band `n − 1` in the real-SH order, so that rotations and band windows act on
-    /// its coefficients in closed form (environment lights use it); `None` otherwise.
-    fn band_limit(&self) -> Option<usize> {
+    /// The basis' own way of lighting its maps by the lat-long environment `map` (linear
+    /// RGB, laid out as [`crate::sphere::latlong_direction`] says), made once per map,
+    /// where it has one finer than sampling the map as directional lights; `None` (the
+    /// default): environment lights take the generic quadrature of the map.
+    fn environment(&self, map: &ImageRgb) -> Option<Result<Box<dyn PreparedEnvironment>>> {
+        let _ = map;
+        None
+    }
+
+    /// Per coefficient, its band `l` when the basis is orthonormal over the sphere and
+    /// its coefficients come in bands that the spherical Laplacian scales by `l(l+1)`,
+    /// so that band windows ([`Window`]) apply and `Σ_i e_i b_i` is the environment
+    /// its weights `e` light with; `None` otherwise (windows are refused).
+    fn coefficient_bands(&self) -> Option<Vec<usize>> {
         None
     }
 
@@ -134,6 +150,14 @@ pub trait Basis: Send + Sync + std::fmt::Debug {
     /// This basis as `Any`, for back ends with a fast path of their own for one family
     /// (the SH kernel of the CPU engine); nothing else may downcast.
     fn as_any(&self) -> &dyn std::any::Any;
+}
+
+/// An environment map made ready by a basis for its own lighting
+/// ([`Basis::environment`]): what does not change when the environment turns.
+pub trait PreparedEnvironment: Send + Sync + std::fmt::Debug {
+    /// The weights per colour channel that relight the basis' maps by one dot product
+    /// per pixel, the environment turned by `rotation` (`E'(ω) = E(Rᵀ ω)`) and windowed.
+    fn weights(&self, rotation: &Mat3, window: Window) -> Result<[Vec<f64>; 3]>;
 }
 
 /// Points a measured roughness penalty averages over.

@@ -116,7 +116,7 @@ pub fn quadrature_weights(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::basis::{rotation_from_yaw_pitch_roll, BasisSpec, SphericalHarmonics};
+    use crate::basis::{rotation_from_yaw_pitch_roll, BasisSpec, Window};
     use crate::envmap::EnvironmentLight;
 
     /// A 256×128 sky: a gradient, a warm ground and a small bright sun.
@@ -175,13 +175,16 @@ mod tests {
         let lights = environment_quadrature(&map, QUADRATURE_WIDTH, QUADRATURE_HEIGHT);
         let rotation = rotation_from_yaw_pitch_roll(40.0, -15.0, 10.0).unwrap();
         for bands in [3, 5, 8] {
-            let sh = SphericalHarmonics::new(bands).unwrap();
-            let got = quadrature_weights(&lights, &sh, &rotation);
-            let exact = EnvironmentLight::from_image(map.clone())
+            let sh = BasisSpec::named(&format!("sh:{}", bands * bands))
                 .unwrap()
-                .with_rotation(rotation)
+                .build()
+                .unwrap();
+            let got = quadrature_weights(&lights, sh.as_ref(), &rotation);
+            let exact = sh
+                .environment(&map)
+                .expect("an exact projection")
                 .unwrap()
-                .light_weights(bands)
+                .weights(&rotation, Window::None)
                 .unwrap();
             let peak = exact.iter().flatten().fold(0f64, |m, v| m.max(v.abs()));
             let err = got

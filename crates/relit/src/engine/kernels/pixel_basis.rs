@@ -30,6 +30,13 @@ impl PixelBasis {
         }
     }
 
+    /// Whether `basis` has a kernel of its own that evaluates it exactly (to f32
+    /// rounding), so that [`Self::new`] builds no table for it.
+    #[cfg(test)]
+    pub(crate) fn evaluates_exactly(basis: &dyn Basis) -> bool {
+        ShKernel::of(basis).is_some()
+    }
+
     /// Coefficients per colour channel `k`.
     pub(crate) fn len(&self) -> usize {
         match self {
@@ -100,10 +107,10 @@ impl PixelBasis {
 }
 
 /// A basis evaluated at many light vectors as the CPU engine evaluates it per pixel for
-/// lights with a position, 64 vectors at a time: the real SH basis by an f32 recurrence
-/// (AVX2/FMA where the CPU has it; within 2e-5 of
-/// [`crate::basis::SphericalHarmonics`]), any other basis from its weight table in half
-/// floats (within the table's measured error, [`BasisEvaluator::table_accuracy`]).
+/// lights with a position, 64 vectors at a time: a basis with a kernel of its own by
+/// that kernel's f32 recurrence (AVX2/FMA where the CPU has it; within 2e-5 of
+/// [`Basis::eval`]), any other basis from its weight table in half floats (within the
+/// table's measured error, [`BasisEvaluator::table_accuracy`]).
 #[derive(Clone, Debug)]
 pub struct BasisEvaluator {
     basis: PixelBasis,

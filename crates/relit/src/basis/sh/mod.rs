@@ -6,7 +6,14 @@
 //! so each `Y_lm` is a polynomial in `(x, y, z)` built by the appendix's recurrence on
 //! the associated Legendre functions with the `sinᵐθ` factor taken out.
 
-use super::{Basis, BasisSpec, BuildContext, Family};
+mod environment;
+mod rotation;
+
+pub use environment::ShEnvironment;
+pub use rotation::ShRotation;
+
+use super::{Basis, BasisSpec, BuildContext, Family, PreparedEnvironment};
+use crate::image::ImageRgb;
 use crate::sphere::Vec3;
 use crate::{Error, Result};
 use std::f64::consts::PI;
@@ -119,8 +126,19 @@ impl Basis for SphericalHarmonics {
         "sh"
     }
 
-    fn band_limit(&self) -> Option<usize> {
-        Some(self.bands)
+    fn environment(&self, map: &ImageRgb) -> Option<Result<Box<dyn PreparedEnvironment>>> {
+        Some(
+            ShEnvironment::project(map, self.bands)
+                .map(|e| Box::new(e) as Box<dyn PreparedEnvironment>),
+        )
+    }
+
+    fn coefficient_bands(&self) -> Option<Vec<usize>> {
+        Some(
+            (0..self.bands)
+                .flat_map(|l| std::iter::repeat_n(l, 2 * l + 1))
+                .collect(),
+        )
     }
 
     fn as_any(&self) -> &dyn std::any::Any {
