@@ -98,9 +98,24 @@ pub fn write(path: &Path, image: &RelightableImage, precision: Precision) -> Res
                 }
                 data
             });
-            chunk_writer
-                .on_progress(|_| {})
-                .compress_all_blocks_parallel(&meta, blocks)
+            // A batch of blocks a few per thread, compressed side by side
+            // (`zip::compress`), then written in order.
+            use rayon::prelude::*;
+            let mut blocks = blocks;
+            let batch = 2 * rayon::current_num_threads().max(1);
+            loop {
+                let made: Vec<_> = blocks.by_ref().take(batch).collect();
+                if made.is_empty() {
+                    return Ok(());
+                }
+                let chunks = made
+                    .into_par_iter()
+                    .map(|(i, block)| Ok((i, zip::compress(&meta.headers, block)?)))
+                    .collect::<exr::error::Result<Vec<_>>>()?;
+                for (i, chunk) in chunks {
+                    chunk_writer.write_chunk(i, chunk)?;
+                }
+            }
         })
         .map_err(|e| exr_error(path, "write", e))
     })
@@ -329,11 +344,13 @@ impl ExrStream {
                 }
             }
         }
-        exr::block::UncompressedBlock {
-            index: *block,
-            data,
-        }
-        .compress_to_chunk(&self.headers)
+        zip::compress(
+            &self.headers,
+            exr::block::UncompressedBlock {
+                index: *block,
+                data,
+            },
+        )
         .map_err(|e| Error::new(ErrorKind::Io, format!("cannot compress a block: {e}")))
     }
 
@@ -1746,4 +1763,5 @@ mod tests {
 }
 
 mod pyramid;
+mod zip;
 pub use pyramid::write_tiled_from;
