@@ -2,6 +2,7 @@
 
 use crate::shared::{mib, refuse_overwriting_inputs, scene_inputs, Bars, CompressArgs};
 use anyhow::Context;
+use relit::basis::BasisSpec;
 use relit::envmap::Window;
 use relit::fsutil::Output;
 use relit::storage::Precision;
@@ -16,13 +17,13 @@ pub struct Args {
     /// plus one-bounce interreflection, as `render-truth --indirect`).
     #[arg(long, default_value = "diffuse", value_parser = |s: &str| Transfer::parse(s).map_err(|e| e.to_string()))]
     pub transfer: Transfer,
-    /// SH bands (1–8): bands² coefficients per colour channel.
-    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=8), conflicts_with = "basis")]
-    pub bands: u32,
-    /// The basis by its fit name instead of --bands: `sh:K` with K = 1, 4, 9, …, 64 (the
-    /// bake projects onto spherical harmonics only).
-    #[arg(long, value_parser = parse_sh_basis)]
-    pub basis: Option<u32>,
+    /// Spherical-harmonic bands (1–8), shorthand for `--basis sh:K` with K = bands².
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=8), conflicts_with = "basis")]
+    pub bands: Option<u32>,
+    /// The basis by its fit name: any whose coefficients come in bands (`sh:K`, K = 1, 4,
+    /// 9, …, 64). Default: the fit's default, sh:25.
+    #[arg(long, value_parser = |s: &str| BasisSpec::named(s).map_err(|e| e.to_string()))]
+    pub basis: Option<BasisSpec>,
     /// Directions traced per camera sample (quasi-Monte Carlo).
     #[arg(long, default_value_t = 256)]
     pub samples: u32,
@@ -61,27 +62,16 @@ pub struct Args {
     pub quiet: bool,
 }
 
-/// The bands of `sh:K`.
-fn parse_sh_basis(spec: &str) -> Result<u32, String> {
-    let k = spec.strip_prefix("sh:").ok_or_else(|| {
-        format!("a bake projects onto spherical harmonics: use sh:K, not `{spec}`")
-    })?;
-    let k: u32 = k
-        .parse()
-        .map_err(|_| format!("`{k}` is not a number of coefficients"))?;
-    let bands = (k as f64).sqrt().round() as u32;
-    if bands * bands != k || !(1..=8).contains(&bands) {
-        return Err(format!("sh:K needs K = 1, 4, 9, …, 64, not {k}"));
-    }
-    Ok(bands)
-}
-
 pub fn run(args: Args) -> anyhow::Result<()> {
     args.storage
         .require(&[Precision::F32, Precision::F16], "--storage (OpenEXR)")?;
     let options = BakeOptions {
         transfer: args.transfer,
-        bands: args.basis.unwrap_or(args.bands) as usize,
+        basis: match (args.basis, args.bands) {
+            (Some(basis), _) => basis,
+            (None, Some(bands)) => BasisSpec::named(&format!("sh:{}", bands * bands))?,
+            (None, None) => BasisSpec::default(),
+        },
         samples: args.samples,
         indirect: args.indirect.unwrap_or(match args.transfer {
             Transfer::Bleeding => 16,
@@ -98,14 +88,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let (scene, camera) = args.scene.open("bake", &outputs)?;
     if !args.json && !args.quiet {
         eprintln!(
-            "relit bake: `{}` ({} triangles), {} {}×{}, {} transfer onto sh:{}, {} directions per sample{}",
+            "relit bake: `{}` ({} triangles), {} {}×{}, {} transfer onto {}, {} directions per sample{}",
             scene.name,
             scene.triangle_count(),
             camera.projection().name(),
             camera.width(),
             camera.height(),
             options.transfer.name(),
-            options.bands * options.bands,
+            options.basis.build()?.name(),
             options.samples,
             if options.transfer == Transfer::Bleeding {
                 format!(

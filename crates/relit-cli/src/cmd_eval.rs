@@ -265,17 +265,18 @@ pub fn load_mask(
     Ok(Some(values))
 }
 
-/// The SH bands a bake beside a fit of `basis` uses: the fit's own for `sh:K`, else 5.
-fn bake_bands(basis: &relit::fit::BasisRequest) -> usize {
+/// The basis a bake beside a fit of `basis` uses: the fit's own when a bake can project
+/// onto it (its coefficients come in bands), else the default.
+fn bake_basis(basis: &relit::fit::BasisRequest) -> relit::basis::BasisSpec {
     match basis {
-        relit::fit::BasisRequest::Fixed(choice) => choice
-            .name()
-            .strip_prefix("sh:")
-            .and_then(|k| k.parse::<usize>().ok())
-            .map(|k| (k as f64).sqrt().round() as usize)
-            .filter(|&b| b * b <= 64 && b >= 1)
-            .unwrap_or(5),
-        relit::fit::BasisRequest::Auto => 5,
+        relit::fit::BasisRequest::Fixed(choice) => relit::basis::BasisSpec::named(&choice.name())
+            .ok()
+            .filter(|spec| {
+                spec.build()
+                    .is_ok_and(|b| b.coefficient_bands().is_some())
+            })
+            .unwrap_or_default(),
+        relit::fit::BasisRequest::Auto => relit::basis::BasisSpec::default(),
     }
 }
 
@@ -399,7 +400,7 @@ fn run_scene(args: Args) -> anyhow::Result<()> {
     };
     let options = SceneEvalOptions {
         bake: args.bake.then(|| relit_studio::bake::BakeOptions {
-            bands: bake_bands(&options.fit.basis),
+            basis: bake_basis(&options.fit.basis),
             ..Default::default()
         }),
         ..options

@@ -3,8 +3,11 @@
 //! A capture measures each pixel's response `f_p(ω)` to a unit directional light
 //! toward `ω` and fits a basis to it. When the scene is known, the same function can be
 //! integrated directly: per camera sample, rays from the visible point find which
-//! directions are open, and `f_p` is projected onto real spherical harmonics,
-//! `c_i = ∫ f_p(ω) Y_i(ω) dω`. The result is the file a fit writes (same basis, camera
+//! directions are open, and `f_p` is projected onto the basis,
+//! `c_i = ∫ f_p(ω) Y_i(ω) dω`: a basis orthonormal over the sphere whose coefficients
+//! come in bands (`Basis::coefficient_bands`; relit's real spherical harmonics, `sh:K`),
+//! so that the projection is that integral and the Funk–Hecke closed form below holds
+//! band by band. The result is the file a fit writes (same basis, camera
 //! and depth), so every light type and every command after the fit works on it
 //! unchanged; relit's environment lights are `Σ_i c_i e_i` with the map's own SH
 //! coefficients `e_i` ([`relit::envmap`]), seed 003's dot product.
@@ -50,7 +53,7 @@ use crate::scene::Scene;
 use crate::texture::hash2;
 use crate::{invalid, Result};
 use rayon::prelude::*;
-use relit::basis::{Basis, SphericalHarmonics};
+use relit::basis::{Basis, BasisSpec};
 use relit::camera::{Camera, CameraSpec};
 use relit::envmap::Window;
 use relit::maps::{BakeInfo, CoefficientMaps, MapSpace, Metadata, RelightableImage};
@@ -94,11 +97,13 @@ impl Transfer {
 }
 
 /// What to bake and how finely.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct BakeOptions {
     pub transfer: Transfer,
-    /// SH bands (1..=8): `bands²` coefficients per colour channel.
-    pub bands: usize,
+    /// The basis the transfer is projected onto: one whose coefficients come in bands
+    /// ([`Basis::coefficient_bands`]: orthonormal over the sphere, band by band), which
+    /// the Funk–Hecke closed form and the band windows need; `sh:25` by default.
+    pub basis: BasisSpec,
     /// Directions traced per camera sample.
     pub samples: u32,
     /// Bounce rays per camera sample (`bleeding` only; as `render-truth --indirect`).
@@ -120,7 +125,7 @@ impl Default for BakeOptions {
     fn default() -> Self {
         BakeOptions {
             transfer: Transfer::Diffuse,
-            bands: 5,
+            basis: BasisSpec::default(),
             samples: 256,
             indirect: 0,
             bounce_samples: 64,
@@ -134,13 +139,7 @@ impl Default for BakeOptions {
 impl BakeOptions {
     /// Check the options.
     pub fn validate(&self) -> Result<()> {
-        if !(1..=relit::basis::MAX_BANDS).contains(&self.bands) {
-            return Err(invalid(format!(
-                "a bake needs 1 to {} SH bands, not {}",
-                relit::basis::MAX_BANDS,
-                self.bands
-            )));
-        }
+        let (_, bands) = self.banded_basis()?;
         if !(1..=1 << 16).contains(&self.samples) {
             return Err(invalid(format!(
                 "directions per sample must be 1 to 65536, not {}",
@@ -168,8 +167,21 @@ impl BakeOptions {
             _ => {}
         }
         self.render_options().validate()?;
-        self.window.factors(self.bands)?;
+        self.window.factors(band_count(&bands))?;
         Ok(())
+    }
+
+    /// The basis, with the band of each of its coefficients.
+    fn banded_basis(&self) -> Result<(Box<dyn Basis>, Vec<usize>)> {
+        let basis = self.basis.build()?;
+        let bands = basis.coefficient_bands().ok_or_else(|| {
+            invalid(format!(
+                "a bake projects onto a basis whose coefficients come in bands (orthonormal \
+                 over the sphere, band by band, for the Funk–Hecke closed form): {} has none",
+                basis.name()
+            ))
+        })?;
+        Ok((basis, bands))
     }
 
     fn render_options(&self) -> RenderOptions {
@@ -226,15 +238,16 @@ pub fn bake(
     let start = Instant::now();
     let renderer = Renderer::new(scene, camera, &options.render_options(), progress)?;
     let gbuffer_seconds = start.elapsed().as_secs_f64();
-    let basis = SphericalHarmonics::new(options.bands)?;
+    let (basis, bands) = options.banded_basis()?;
     let k = basis.len();
     let (w, h) = (camera.width(), camera.height());
     let baker = Baker {
         scene,
-        basis: &basis,
+        basis: basis.as_ref(),
+        bands: &bands,
         options,
-        clamped_cosine: funk_hecke(options.bands, |t| t),
-        hemisphere: funk_hecke(options.bands, |_| 1.0),
+        clamped_cosine: funk_hecke(band_count(&bands), |t| t),
+        hemisphere: funk_hecke(band_count(&bands), |_| 1.0),
     };
     progress.begin("transfer", h as u64);
     let rows: Vec<RowResult> = (0..h)
@@ -262,7 +275,7 @@ pub fn bake(
     progress.end();
     let transfer_seconds = start.elapsed().as_secs_f64() - gbuffer_seconds;
 
-    let factors = options.window.factors(options.bands)?;
+    let factors = options.window.factors(band_count(&bands))?;
     let n = w * h;
     let mut maps = CoefficientMaps::zeros(w, h, k);
     let (mut rays, mut white_sum, mut variance_sum, mut covered) = (0u64, 0.0, 0.0, 0usize);
@@ -273,7 +286,7 @@ pub fn bake(
             for i in 0..k {
                 for c in 0..3 {
                     maps.data[(3 * i + c) * n + pixel] =
-                        (row.coefficients[(x * 3 + c) * k + i] * factors[band_of(i)]) as f32;
+                        (row.coefficients[(x * 3 + c) * k + i] * factors[bands[i]]) as f32;
                 }
             }
             if renderer.mask()[pixel] > 0.0 {
@@ -340,7 +353,9 @@ struct PixelStats {
 
 struct Baker<'a> {
     scene: &'a Scene,
-    basis: &'a SphericalHarmonics,
+    basis: &'a dyn Basis,
+    /// The band of each coefficient.
+    bands: &'a [usize],
     options: &'a BakeOptions,
     /// Funk–Hecke factors per band of the clamped cosine and of the hemisphere.
     clamped_cosine: Vec<f64>,
@@ -544,7 +559,7 @@ impl Baker<'_> {
                 .zip(weights.iter())
                 .enumerate()
             {
-                *o += scale * v * kernel[band_of(i)] * y;
+                *o += scale * v * kernel[self.bands[i]] * y;
             }
         }
         // Y_0 is constant, so the white-sky value of the closed form is λ_0 · open.
@@ -650,13 +665,15 @@ impl Baker<'_> {
     }
 }
 
-/// The band of coefficient `i` (`i = l(l+1) + m`).
-fn band_of(i: usize) -> usize {
-    (i as f64).sqrt() as usize
+/// How many bands `bands` (each coefficient's) span.
+fn band_count(bands: &[usize]) -> usize {
+    bands.iter().max().map_or(0, |&l| l + 1)
 }
 
 /// The Funk–Hecke factors `λ_l = 2π ∫₋₁¹ k(t) P_l(t) dt` of a kernel `k` of `n·ω` that
-/// vanishes for `t ≤ 0`, for `l < bands`: `∫ k(n·ω) Y_lm(ω) dω = λ_l Y_lm(n)`.
+/// vanishes for `t ≤ 0`, for `l < bands`: `∫ k(n·ω) Y_lm(ω) dω = λ_l Y_lm(n)`, for every
+/// function `Y_lm` of band `l` of a basis orthonormal band by band (a zonal kernel acts on
+/// each band's functions as one factor).
 pub(crate) fn funk_hecke(bands: usize, kernel: impl Fn(f64) -> f64) -> Vec<f64> {
     // The integrands are polynomials on [0, 1]: the midpoint rule with this many
     // steps is exact to about 1e-9.

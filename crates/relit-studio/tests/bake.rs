@@ -266,8 +266,9 @@ fn bleeding_adds_the_renderers_one_bounce_light() {
 fn bad_options_are_refused() {
     let (scene, camera) = floor_scene(false);
     for bad in [
+        // A basis without bands: no Funk–Hecke form, no windows.
         BakeOptions {
-            bands: 9,
+            basis: relit::basis::BasisSpec::named("sg:16").unwrap(),
             ..BakeOptions::default()
         },
         BakeOptions {
