@@ -271,10 +271,7 @@ fn bake_basis(basis: &relit::fit::BasisRequest) -> relit::basis::BasisSpec {
     match basis {
         relit::fit::BasisRequest::Fixed(choice) => relit::basis::BasisSpec::named(&choice.name())
             .ok()
-            .filter(|spec| {
-                spec.build()
-                    .is_ok_and(|b| b.coefficient_bands().is_some())
-            })
+            .filter(|spec| spec.build().is_ok_and(|b| b.coefficient_bands().is_some()))
             .unwrap_or_default(),
         relit::fit::BasisRequest::Auto => relit::basis::BasisSpec::default(),
     }

@@ -201,11 +201,11 @@ fn bad_bake_requests_are_refused_before_any_work() {
         (vec!["bake", "nowhere", "-o", "x.exr"], "nowhere"),
         (
             vec!["bake", "box", "--basis", "hsh:9", "-o", "x.exr"],
-            "spherical harmonics",
+            "hsh:9 has none",
         ),
         (
             vec!["bake", "box", "--basis", "sh:10", "-o", "x.exr"],
-            "K = 1, 4, 9",
+            "it offers [1, 4, 9, 16",
         ),
     ] {
         let out = relit(d, &args);
