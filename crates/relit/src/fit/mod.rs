@@ -1584,26 +1584,26 @@ struct Tables<'a> {
 /// 0.01 dB (scripts/realrti_table.py, 2026-12-05).
 fn solve_chunk(tables: &Tables, reweights: usize, len: usize, s: &mut Scratch) {
     let (n, q) = (tables.design.n, &tables.design.q);
+    let block = len * n;
     if reweights == 0 {
         for c in 0..3 {
-            for x in 0..len * n {
-                s.weights[x] = (q[x % n] * perceptual_weight(s.obs[c * len * n + x])) as f32;
-            }
+            let obs = &s.obs[c * block..(c + 1) * block];
+            weigh(&mut s.weights[..block], q, |x| perceptual_weight(obs[x]));
             weighted_solve(tables, len, c..c + 1, s);
         }
         return;
     }
-    for x in 0..len * n {
-        let mean = (0..3)
-            .map(|c| perceptual_weight(s.obs[c * len * n + x]))
+    let obs = &s.obs;
+    weigh(&mut s.weights[..block], q, |x| {
+        (0..3)
+            .map(|c| perceptual_weight(obs[c * block + x]))
             .sum::<f64>()
-            / 3.0;
-        s.weights[x] = (q[x % n] * mean) as f32;
-    }
+            / 3.0
+    });
     weighted_solve(tables, len, 0..3, s);
     for c in 0..3 {
         for _ in 0..reweights {
-            let (k, block) = (tables.design.k, len * n);
+            let k = tables.design.k;
             linalg::matmul_bt(
                 len,
                 k,
@@ -1612,10 +1612,23 @@ fn solve_chunk(tables: &Tables, reweights: usize, len: usize, s: &mut Scratch) {
                 &tables.design.a,
                 &mut s.pred,
             );
-            for x in 0..block {
-                s.weights[x] = (q[x % n] * secant_weight(s.pred[x], s.obs[c * block + x])) as f32;
-            }
+            let (pred, obs) = (&s.pred, &s.obs[c * block..(c + 1) * block]);
+            weigh(&mut s.weights[..block], q, |x| {
+                secant_weight(pred[x], obs[x])
+            });
             weighted_solve(tables, len, c..c + 1, s);
+        }
+    }
+}
+
+/// `weights[x] = q[j] · weight(x)` for sample `x` of light `j`, a pixel's run of the N
+/// lights at a time (an index modulo N per sample had cost a division each).
+#[inline]
+fn weigh(weights: &mut [f32], q: &[f64], weight: impl Fn(usize) -> f64) {
+    let n = q.len();
+    for (p, run) in weights.chunks_exact_mut(n).enumerate() {
+        for (j, (w, &qj)) in run.iter_mut().zip(q).enumerate() {
+            *w = (qj * weight(p * n + j)) as f32;
         }
     }
 }
