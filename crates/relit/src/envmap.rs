@@ -372,18 +372,6 @@ mod tests {
     use crate::basis::{rotation_from_yaw_pitch_roll, BasisSpec};
     use crate::image::test_maps::{sampled_map, smooth_sky};
 
-    fn shared_envmaps() -> Option<Vec<std::path::PathBuf>> {
-        let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-            .join("../../../shared/data/envmaps");
-        let mut paths: Vec<_> = std::fs::read_dir(&dir)
-            .ok()?
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| p.extension().is_some_and(|e| e == "hdr"))
-            .collect();
-        paths.sort();
-        (!paths.is_empty()).then_some(paths)
-    }
-
     /// Rounding in sums over a few thousand texels, with f32 radiance stored exactly.
     const EXACT_TOLERANCE: f64 = 1e-9;
 
@@ -581,7 +569,7 @@ mod tests {
 
     #[test]
     fn shared_envmaps_load() {
-        let Some(paths) = shared_envmaps() else {
+        let Some(paths) = crate::image::test_maps::shared_envmaps() else {
             println!("skipped: shared/data/envmaps is not present");
             return;
         };

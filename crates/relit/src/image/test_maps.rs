@@ -29,3 +29,17 @@ pub(crate) fn smooth_sky(d: Vec3) -> [f64; 3] {
         lobe + 0.4 - 0.1 * d.x,
     ]
 }
+
+/// The HDR environment maps of the shared data (`../shared/data/envmaps`), sorted; `None`
+/// where that folder is not beside the repository.
+pub(crate) fn shared_envmaps() -> Option<Vec<std::path::PathBuf>> {
+    let dir =
+        std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/envmaps");
+    let mut paths: Vec<_> = std::fs::read_dir(&dir)
+        .ok()?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "hdr"))
+        .collect();
+    paths.sort();
+    (!paths.is_empty()).then_some(paths)
+}

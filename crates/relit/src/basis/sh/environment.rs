@@ -259,18 +259,6 @@ mod tests {
             .clone()
     }
 
-    fn shared_envmaps() -> Option<Vec<std::path::PathBuf>> {
-        let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-            .join("../../../shared/data/envmaps");
-        let mut paths: Vec<_> = std::fs::read_dir(&dir)
-            .ok()?
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| p.extension().is_some_and(|e| e == "hdr"))
-            .collect();
-        paths.sort();
-        (!paths.is_empty()).then_some(paths)
-    }
-
     #[test]
     fn constant_map_projects_onto_the_constant_only() {
         let radiance = [1.5f32, 2.0, 0.25];
@@ -416,7 +404,7 @@ mod tests {
 
     #[test]
     fn shared_envmaps_project() {
-        let Some(paths) = shared_envmaps() else {
+        let Some(paths) = crate::image::test_maps::shared_envmaps() else {
             println!("skipped: shared/data/envmaps is not present");
             return;
         };
