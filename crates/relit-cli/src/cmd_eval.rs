@@ -478,8 +478,8 @@ fn run_scene(args: Args) -> anyhow::Result<()> {
     );
     if let Some(bake) = &report.bake {
         println!(
-            "baked: sh:{} diffuse transfer in {:.1} s ({:.2} Mrays/s), sampling noise {:.2} %",
-            bake.coefficients,
+            "baked: {} diffuse transfer in {:.1} s ({:.2} Mrays/s), sampling noise {:.2} %",
+            bake.basis,
             bake.total_seconds,
             bake.rays_per_second / 1e6,
             100.0 * bake.relative_noise()

@@ -197,6 +197,8 @@ impl BakeOptions {
 pub struct BakeStats {
     pub width: usize,
     pub height: usize,
+    /// The basis the transfer was projected onto (`sh:25`).
+    pub basis: String,
     pub coefficients: usize,
     pub gbuffer_seconds: f64,
     pub transfer_seconds: f64,
@@ -302,6 +304,7 @@ pub fn bake(
     let stats = BakeStats {
         width: w,
         height: h,
+        basis: basis.name(),
         coefficients: k,
         gbuffer_seconds,
         transfer_seconds,
