@@ -53,6 +53,9 @@ pub fn srgb_slope(v: f64) -> f64 {
     }
 }
 
+/// The linear value where the sRGB curve's linear segment meets its power law.
+pub const SRGB_KNEE: f64 = 0.003_130_8;
+
 /// Intervals of the table behind [`linear_to_srgb_tabulated`], over `√v ∈ [0, 1]`.
 const ENCODE_INTERVALS: usize = 4096;
 
@@ -96,7 +99,7 @@ pub fn linear_to_srgb_tabulated(v: f32) -> f32 {
 #[inline]
 pub fn srgb_slope_tabulated(v: f64) -> f64 {
     let v = v.clamp(0.0, 1.0);
-    if v > 0.003_130_8 {
+    if v > SRGB_KNEE {
         (linear_to_srgb_tabulated(v as f32) as f64 + 0.055) / (2.4 * v)
     } else {
         12.92

@@ -690,6 +690,24 @@ fn perceptual_weight(v: f64) -> f64 {
     s * s
 }
 
+/// [`perceptual_weight`] of `v` given its encoding `encoded = srgb_extended(v)`, bit
+/// for bit, without encoding `v` again: the per-pixel solve encodes each observation
+/// once for its first weights and its secants.
+#[inline]
+fn perceptual_weight_encoded(v: f64, encoded: f64) -> f64 {
+    if v > 1.0 {
+        return perceptual_weight(v); // the slope at white, not the extended line's value
+    }
+    // Above the knee `srgb_slope_tabulated` is (srgb(v) + 0.055) / (2.4 v); below it
+    // (and for NaN) the linear segment's slope.
+    let s = if v > color::SRGB_KNEE {
+        (encoded + 0.055) / (2.4 * v)
+    } else {
+        12.92
+    };
+    s * s
+}
+
 /// The sRGB curve continued by straight lines below 0 and above 1, so that secants
 /// between out-of-range values keep a positive slope (a clipped curve would give
 /// saturated samples zero weight and leave a fully saturated pixel undetermined).
@@ -727,12 +745,18 @@ fn srgb_shown(v: f64) -> f64 {
 /// the weight under which the linear residual equals the display-space residual.
 #[inline]
 fn secant_weight(pred: f64, obs: f64) -> f64 {
+    secant_weight_encoded(pred, obs, srgb_extended(obs))
+}
+
+/// [`secant_weight`] given the observation's encoding `srgb_extended(obs)`.
+#[inline]
+fn secant_weight_encoded(pred: f64, obs: f64, obs_encoded: f64) -> f64 {
     const TANGENT_BELOW: f64 = 1e-5; // closer than this, f32 rounding dominates the secant
     let d = pred - obs;
     if d.abs() < TANGENT_BELOW {
         return perceptual_weight(0.5 * (pred + obs));
     }
-    let s = (srgb_extended(pred) - srgb_extended(obs)) / d;
+    let s = (srgb_extended(pred) - obs_encoded) / d;
     s * s
 }
 
@@ -1455,6 +1479,8 @@ fn scatter_planar<R: AsRef<[f32]> + Sync>(runs: &[R], piece: Piece, maps: &mut C
 struct Scratch {
     /// The chunk's observations, one len×N block per colour channel.
     obs: Vec<f64>,
+    /// `srgb_extended` of each observation, laid out as `obs`.
+    encoded: Vec<f64>,
     weights: Vec<f32>,
     weighted_obs: Vec<f32>,
     packed: Vec<f32>,
@@ -1511,6 +1537,7 @@ fn solve_per_pixel(
             .map_init(
                 || Scratch {
                     obs: vec![0.0; 3 * CHUNK * n],
+                    encoded: vec![0.0; 3 * CHUNK * n],
                     weights: vec![0.0; CHUNK * n],
                     weighted_obs: vec![0.0; CHUNK * n],
                     packed: vec![0.0; CHUNK * t],
@@ -1585,18 +1612,25 @@ struct Tables<'a> {
 fn solve_chunk(tables: &Tables, reweights: usize, len: usize, s: &mut Scratch) {
     let (n, q) = (tables.design.n, &tables.design.q);
     let block = len * n;
+    // Every observation encoded once: its first weight and each secant read it.
+    for (e, &v) in s.encoded[..3 * block].iter_mut().zip(&s.obs) {
+        *e = srgb_extended(v);
+    }
     if reweights == 0 {
         for c in 0..3 {
             let obs = &s.obs[c * block..(c + 1) * block];
-            weigh(&mut s.weights[..block], q, |x| perceptual_weight(obs[x]));
+            let encoded = &s.encoded[c * block..(c + 1) * block];
+            weigh(&mut s.weights[..block], q, |x| {
+                perceptual_weight_encoded(obs[x], encoded[x])
+            });
             weighted_solve(tables, len, c..c + 1, s);
         }
         return;
     }
-    let obs = &s.obs;
+    let (obs, encoded) = (&s.obs, &s.encoded);
     weigh(&mut s.weights[..block], q, |x| {
         (0..3)
-            .map(|c| perceptual_weight(obs[c * block + x]))
+            .map(|c| perceptual_weight_encoded(obs[c * block + x], encoded[c * block + x]))
             .sum::<f64>()
             / 3.0
     });
@@ -1613,8 +1647,9 @@ fn solve_chunk(tables: &Tables, reweights: usize, len: usize, s: &mut Scratch) {
                 &mut s.pred,
             );
             let (pred, obs) = (&s.pred, &s.obs[c * block..(c + 1) * block]);
+            let encoded = &s.encoded[c * block..(c + 1) * block];
             weigh(&mut s.weights[..block], q, |x| {
-                secant_weight(pred[x], obs[x])
+                secant_weight_encoded(pred[x], obs[x], encoded[x])
             });
             weighted_solve(tables, len, c..c + 1, s);
         }
