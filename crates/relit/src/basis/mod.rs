@@ -178,9 +178,11 @@ pub fn roughness_penalty<B: Basis + ?Sized>(basis: &B, points: usize) -> Vec<f64
     let k = basis.len();
     let dirs = penalty_points(basis.domain(), points);
     const H: f64 = 1e-4;
-    let mut p = vec![0.0; k * k];
-    let (mut plus, mut minus, mut grad) = (vec![0.0; k], vec![0.0; k], vec![0.0; k]);
-    for d in &dirs {
+    // One row of gradients per point and tangent, then their Gram matrix in one
+    // matrix product (the sum of outer products, loop by loop, had been most of it).
+    let mut gradients = vec![0.0; 2 * dirs.len() * k];
+    let (mut plus, mut minus) = (vec![0.0; k], vec![0.0; k]);
+    for (d, rows) in dirs.iter().zip(gradients.chunks_exact_mut(2 * k)) {
         let helper = if d.x.abs() < 0.9 {
             Vec3::new(1.0, 0.0, 0.0)
         } else {
@@ -188,20 +190,31 @@ pub fn roughness_penalty<B: Basis + ?Sized>(basis: &B, points: usize) -> Vec<f64
         };
         let t1 = d.cross(helper).normalized().expect("a tangent");
         let t2 = d.cross(t1);
-        for t in [t1, t2] {
+        for (t, grad) in [t1, t2].into_iter().zip(rows.chunks_exact_mut(k)) {
             basis.eval((*d + t * H).normalized().expect("unit"), &mut plus);
             basis.eval((*d - t * H).normalized().expect("unit"), &mut minus);
             for i in 0..k {
                 grad[i] = (plus[i] - minus[i]) / (2.0 * H);
             }
-            for i in 0..k {
-                for j in 0..k {
-                    p[i * k + j] += grad[i] * grad[j];
-                }
-            }
         }
     }
-    p.iter_mut().for_each(|v| *v /= dirs.len() as f64);
+    gram_mean(&gradients, k, dirs.len())
+}
+
+/// `GᵀG / points` for the gradient rows `g` (any number of rows of `k`), made exactly
+/// symmetric: the roughness penalty from sampled gradients.
+pub(crate) fn gram_mean(g: &[f64], k: usize, points: usize) -> Vec<f64> {
+    let rows = g.len() / k.max(1);
+    let mut p = vec![0.0; k * k];
+    crate::linalg::matmul_at(k, rows, k, g, g, &mut p);
+    let count = points as f64;
+    for a in 0..k {
+        for b in a..k {
+            let v = p[a * k + b] / count;
+            p[a * k + b] = v;
+            p[b * k + a] = v;
+        }
+    }
     p
 }
 
