@@ -93,6 +93,66 @@ pub fn linear_to_srgb_tabulated(v: f32) -> f32 {
     }
 }
 
+/// `dst[i] = linear_to_srgb_tabulated(src[i] as f32) as f64`, bit for bit, four
+/// values at a time where the CPU has AVX2 (square roots and table reads side by side:
+/// the per-pixel fit encodes every observation and every prediction, and one at a time
+/// that was a fifth of its time).
+pub fn linear_to_srgb_tabulated_batch(src: &[f64], dst: &mut [f64]) {
+    assert_eq!(src.len(), dst.len());
+    #[cfg(target_arch = "x86_64")]
+    if is_x86_feature_detected!("avx2") {
+        let table = encode_table();
+        let whole = src.len() / 4 * 4;
+        // SAFETY: AVX2 is present (checked above); the quads lie inside both slices.
+        unsafe { encode_quads_avx2(table, &src[..whole], &mut dst[..whole]) };
+        for (d, &v) in dst[whole..].iter_mut().zip(&src[whole..]) {
+            *d = linear_to_srgb_tabulated(v as f32) as f64;
+        }
+        return;
+    }
+    for (d, &v) in dst.iter_mut().zip(src) {
+        *d = linear_to_srgb_tabulated(v as f32) as f64;
+    }
+}
+
+/// [`linear_to_srgb_tabulated_batch`] of whole quads, the same operations in the same
+/// order as the scalar curve (no fused multiply-adds).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn encode_quads_avx2(table: &[f32], src: &[f64], dst: &mut [f64]) {
+    use std::arch::x86_64::*;
+    debug_assert!(table.len() == ENCODE_INTERVALS + 1 && src.len() % 4 == 0);
+    let zero = _mm_setzero_ps();
+    let one = _mm_set1_ps(1.0);
+    let knee = _mm_set1_ps(0.003_130_8);
+    let slope = _mm_set1_ps(12.92);
+    let scale = _mm256_set1_pd(ENCODE_INTERVALS as f64);
+    let last = _mm_set1_epi32(ENCODE_INTERVALS as i32 - 1);
+    let izero = _mm_setzero_si128();
+    for (s, d) in src.chunks_exact(4).zip(dst.chunks_exact_mut(4)) {
+        // SAFETY: four f64 are read from `s` and written to `d`; the indices are
+        // clamped to the table's intervals, whose upper ends (i + 1) are in the table.
+        let v = _mm256_cvtpd_ps(unsafe { _mm256_loadu_pd(s.as_ptr()) });
+        // f32::clamp keeps NaN: max and min return their second operand on NaN.
+        let v = _mm_min_ps(one, _mm_max_ps(zero, v));
+        let above = _mm_cmpgt_ps(v, knee);
+        let x = _mm256_mul_pd(_mm256_sqrt_pd(_mm256_cvtps_pd(v)), scale);
+        // Lanes on the linear segment (or NaN) read entry 0 and are not kept.
+        let i = _mm_min_epi32(_mm_max_epi32(_mm256_cvttpd_epi32(x), izero), last);
+        let t = _mm256_sub_pd(x, _mm256_cvtepi32_pd(i));
+        let (a, b) = unsafe {
+            (
+                _mm_i32gather_ps::<4>(table.as_ptr(), i),
+                _mm_i32gather_ps::<4>(table.as_ptr().add(1), i),
+            )
+        };
+        let (a, b) = (_mm256_cvtps_pd(a), _mm256_cvtps_pd(b));
+        let curve = _mm256_cvtpd_ps(_mm256_add_pd(a, _mm256_mul_pd(t, _mm256_sub_pd(b, a))));
+        let encoded = _mm_blendv_ps(_mm_mul_ps(v, slope), curve, above);
+        unsafe { _mm256_storeu_pd(d.as_mut_ptr(), _mm256_cvtps_pd(encoded)) };
+    }
+}
+
 /// [`srgb_slope`] from the tabulated encoding: above the knee the slope
 /// `(1.055/2.4)·v^{−7/12}` equals `(srgb(v) + 0.055) / (2.4·v)`. Relative error
 /// below 1e-6.
@@ -158,6 +218,36 @@ mod tests {
         assert_eq!(linear_to_srgb_tabulated(2.0), 1.0);
         assert!(linear_to_srgb_tabulated(f32::NAN).is_nan());
         assert_eq!(srgb_slope_tabulated(0.0), 12.92);
+    }
+
+    #[test]
+    fn the_batch_encoding_is_the_scalar_one_bit_for_bit() {
+        let mut values: Vec<f64> = (0..=40_000)
+            .map(|i| (i as f64 / 40_000.0).powi(3) * 1.2 - 0.01)
+            .collect();
+        values.extend([
+            0.0,
+            -0.0,
+            1.0,
+            0.003_130_8,
+            0.003_130_9,
+            1e-30,
+            -5.0,
+            7.0,
+            f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            0.999_999_9,
+        ]);
+        let mut batch = vec![0.0; values.len()];
+        linear_to_srgb_tabulated_batch(&values, &mut batch);
+        for (&v, &b) in values.iter().zip(&batch) {
+            let scalar = linear_to_srgb_tabulated(v as f32) as f64;
+            assert!(
+                scalar.to_bits() == b.to_bits() || (scalar.is_nan() && b.is_nan()),
+                "{v}: batch {b}, scalar {scalar}"
+            );
+        }
     }
 
     #[test]

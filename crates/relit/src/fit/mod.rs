@@ -745,19 +745,29 @@ fn srgb_shown(v: f64) -> f64 {
 /// the weight under which the linear residual equals the display-space residual.
 #[inline]
 fn secant_weight(pred: f64, obs: f64) -> f64 {
-    secant_weight_encoded(pred, obs, srgb_extended(obs))
+    secant_weight_encoded(pred, obs, srgb_extended(pred), srgb_extended(obs))
 }
 
-/// [`secant_weight`] given the observation's encoding `srgb_extended(obs)`.
+/// [`secant_weight`] given both ends' encodings (`srgb_extended`).
 #[inline]
-fn secant_weight_encoded(pred: f64, obs: f64, obs_encoded: f64) -> f64 {
+fn secant_weight_encoded(pred: f64, obs: f64, pred_encoded: f64, obs_encoded: f64) -> f64 {
     const TANGENT_BELOW: f64 = 1e-5; // closer than this, f32 rounding dominates the secant
     let d = pred - obs;
     if d.abs() < TANGENT_BELOW {
         return perceptual_weight(0.5 * (pred + obs));
     }
-    let s = (srgb_extended(pred) - obs_encoded) / d;
+    let s = (pred_encoded - obs_encoded) / d;
     s * s
+}
+
+/// [`srgb_extended`] of every value of `src`, bit for bit, the curve a batch at a time.
+fn srgb_extended_batch(src: &[f64], dst: &mut [f64]) {
+    color::linear_to_srgb_tabulated_batch(src, dst);
+    for (d, &v) in dst.iter_mut().zip(src) {
+        if !(0.0..=1.0).contains(&v) {
+            *d = srgb_extended(v);
+        }
+    }
 }
 
 /// Deterministically spread `count` pixel indices over `pixels`.
@@ -1488,6 +1498,8 @@ struct Scratch {
     rhs: Vec<f32>,
     coef: Vec<f64>,
     pred: Vec<f64>,
+    /// `srgb_extended` of each prediction.
+    pred_encoded: Vec<f64>,
     m: Vec<f64>,
     lane_m: Vec<linalg::Lanes>,
     lane_coef: Vec<linalg::Lanes>,
@@ -1544,6 +1556,7 @@ fn solve_per_pixel(
                     rhs: vec![0.0; 3 * CHUNK * k],
                     coef: vec![0.0; 3 * CHUNK * k],
                     pred: vec![0.0; CHUNK * n],
+                    pred_encoded: vec![0.0; CHUNK * n],
                     m: vec![0.0; k * k],
                     lane_m: vec![[0.0; LANES]; k * k],
                     lane_coef: vec![[0.0; LANES]; k],
@@ -1613,9 +1626,7 @@ fn solve_chunk(tables: &Tables, reweights: usize, len: usize, s: &mut Scratch) {
     let (n, q) = (tables.design.n, &tables.design.q);
     let block = len * n;
     // Every observation encoded once: its first weight and each secant read it.
-    for (e, &v) in s.encoded[..3 * block].iter_mut().zip(&s.obs) {
-        *e = srgb_extended(v);
-    }
+    srgb_extended_batch(&s.obs[..3 * block], &mut s.encoded[..3 * block]);
     if reweights == 0 {
         for c in 0..3 {
             let obs = &s.obs[c * block..(c + 1) * block];
@@ -1646,10 +1657,12 @@ fn solve_chunk(tables: &Tables, reweights: usize, len: usize, s: &mut Scratch) {
                 &tables.design.a,
                 &mut s.pred,
             );
+            srgb_extended_batch(&s.pred[..block], &mut s.pred_encoded[..block]);
             let (pred, obs) = (&s.pred, &s.obs[c * block..(c + 1) * block]);
-            let encoded = &s.encoded[c * block..(c + 1) * block];
+            let (pred_encoded, obs_encoded) =
+                (&s.pred_encoded, &s.encoded[c * block..(c + 1) * block]);
             weigh(&mut s.weights[..block], q, |x| {
-                secant_weight_encoded(pred[x], obs[x], encoded[x])
+                secant_weight_encoded(pred[x], obs[x], pred_encoded[x], obs_encoded[x])
             });
             weighted_solve(tables, len, c..c + 1, s);
         }
