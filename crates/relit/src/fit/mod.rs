@@ -1538,6 +1538,8 @@ fn solve_per_pixel(
         }
     }
     let a32: Vec<f32> = design.a.iter().map(|&v| v as f32).collect();
+    let lower: Vec<usize> = pairs.iter().map(|&(r, c)| c * k + r).collect();
+    let packed_penalty: Vec<f64> = lower.iter().map(|&x| design.penalty[x]).collect();
     progress.begin("fitting pieces", spill.pieces() as u64);
     let mut buffer = Vec::new();
     for s in 0..spill.pieces() {
@@ -1580,6 +1582,8 @@ fn solve_per_pixel(
                         outer: &outer,
                         a32: &a32,
                         pairs: &pairs,
+                        lower: &lower,
+                        packed_penalty: &packed_penalty,
                         lambda,
                     };
                     solve_chunk(&tables, reweights, len, scratch);
@@ -1610,6 +1614,10 @@ struct Tables<'a> {
     /// The N×k basis values, single precision.
     a32: &'a [f32],
     pairs: &'a [(usize, usize)],
+    /// Where each packed pair `(r, c)` goes in a k×k system: its lower triangle, `c·k + r`.
+    lower: &'a [usize],
+    /// The penalty's entry of each packed pair.
+    packed_penalty: &'a [f64],
     lambda: f64,
 }
 
@@ -1690,6 +1698,8 @@ fn weighted_solve(tables: &Tables, len: usize, channels: std::ops::Range<usize>,
         outer,
         a32,
         pairs,
+        lower,
+        packed_penalty,
         lambda,
     } = *tables;
     let (k, n, t) = (design.k, design.n, pairs.len());
@@ -1725,16 +1735,21 @@ fn weighted_solve(tables: &Tables, len: usize, channels: std::ops::Range<usize>,
         // every lane of an entry at once: the weighted sums plus the penalty and the
         // definiteness term, added in `Design::regularize`'s order so that a lane is
         // the scalar system bit for bit. Unused lanes get the identity.
-        for (x, &(r, c)) in pairs.iter().enumerate() {
-            let penalty = design.penalty[c * k + r];
-            let mut v = [if r == c { 1.0 } else { 0.0 }; LANES];
-            for l in 0..used {
-                v[l] = s.packed[(g + l) * t + x] as f64 + total[l] * lambda * penalty;
-                if r == c {
-                    v[l] += total[l] * DEFINITENESS;
-                }
+        // A pixel's packed sums are contiguous: read them lane by lane.
+        if used < LANES {
+            for (&x, &(r, c)) in lower.iter().zip(pairs) {
+                s.lane_m[x][used..].fill(if r == c { 1.0 } else { 0.0 });
             }
-            s.lane_m[c * k + r] = v;
+        }
+        for l in 0..used {
+            let sums = &s.packed[(g + l) * t..(g + l + 1) * t];
+            let scaled = total[l] * lambda;
+            for ((&x, &sum), &penalty) in lower.iter().zip(sums).zip(packed_penalty) {
+                s.lane_m[x][l] = sum as f64 + scaled * penalty;
+            }
+            for i in 0..k {
+                s.lane_m[i * k + i][l] += total[l] * DEFINITENESS;
+            }
         }
         let ok = linalg::cholesky_lanes(&mut s.lane_m, k);
         for ch in channels.clone() {
