@@ -15,8 +15,10 @@
 //! `relit eval` never take part: they are not in the capture the fit sees.
 
 use super::{
-    brightness_kept, light_relevance, perceptual_weight, srgb_on_screen, Objective, Regularizer,
+    brightness_kept, light_relevance, perceptual_weight_encoded, srgb_on_screen, Objective,
+    Regularizer,
 };
+use crate::color;
 use crate::basis::{Basis, BasisChoice, Family, Samples, FAMILIES};
 use crate::linalg::{self, Lanes, LANES};
 use crate::sphere::Vec3;
@@ -489,18 +491,25 @@ fn fold_errors(
             let mut acc = vec![[0.0f64; SLOTS]; lights];
             let first = block * SERIES_BLOCK;
             let len = SERIES_BLOCK.min(series - first);
-            // Each sample's weight, computed once for the normal matrix and the sums.
-            let weights: Vec<f64> = (first..first + len)
-                .flat_map(|s| {
-                    let obs = &train_values[s * nt..(s + 1) * nt];
-                    obs.iter()
-                        .zip(q_train)
-                        .map(move |(&v, &q)| match objective {
-                            Objective::Linear => q,
-                            _ => q * perceptual_weight(v as f64),
-                        })
-                })
+            // Each sample's weight, computed once for the normal matrix and the sums
+            // (the perceptual weights from the block's encodings, a batch at a time).
+            let values: Vec<f64> = train_values[first * nt..(first + len) * nt]
+                .iter()
+                .map(|&v| v as f64)
                 .collect();
+            let weights: Vec<f64> = match objective {
+                Objective::Linear => (0..len).flat_map(|_| q_train.iter().copied()).collect(),
+                _ => {
+                    let mut encoded = vec![0.0; values.len()];
+                    color::linear_to_srgb_tabulated_batch(&values, &mut encoded);
+                    values
+                        .iter()
+                        .zip(&encoded)
+                        .zip(q_train.iter().cycle())
+                        .map(|((&v, &e), &q)| q * perceptual_weight_encoded(v, e))
+                        .collect()
+                }
+            };
             let mut packed = Vec::new();
             if shared.is_none() {
                 packed = vec![0.0; len * t];
@@ -513,6 +522,7 @@ fn fold_errors(
             let mut coef = vec![[0.0; LANES]; k];
             let mut rhs0 = vec![[0.0; LANES]; k];
             let mut held_obs = vec![[(0.0, 0.0); LANES]; lights];
+            let (mut preds, mut shown) = (vec![0.0; LANES * lights], vec![0.0; LANES * lights]);
             for g in (0..len).step_by(LANES) {
                 let used = LANES.min(len - g);
                 let mut total = [0.0; LANES];
@@ -565,6 +575,21 @@ fn fold_errors(
                     };
                     coef.copy_from_slice(&rhs0);
                     linalg::cholesky_solve_lanes(&f, k, &mut coef);
+                    // Every lane's predictions at the held-out lights, then how a
+                    // screen shows them, a batch at a time.
+                    for l in 0..used {
+                        for h in 0..lights {
+                            let mut pred = 0.0;
+                            for (a, c) in a_held[h * k..(h + 1) * k].iter().zip(&coef) {
+                                pred += a * c[l];
+                            }
+                            preds[l * lights + h] = pred;
+                        }
+                    }
+                    color::linear_to_srgb_tabulated_batch(
+                        &preds[..used * lights],
+                        &mut shown[..used * lights],
+                    );
                     for l in 0..used {
                         if !ok[l] {
                             acc.iter_mut().for_each(|a| a[li] = f64::INFINITY);
@@ -572,11 +597,8 @@ fn fold_errors(
                         }
                         for (h, obs) in held_obs.iter().enumerate() {
                             let (o, o_shown) = obs[l];
-                            let mut pred = 0.0;
-                            for (a, c) in a_held[h * k..(h + 1) * k].iter().zip(&coef) {
-                                pred += a * c[l];
-                            }
-                            let d = srgb_on_screen(pred) - o_shown;
+                            let pred = preds[l * lights + h];
+                            let d = shown[l * lights + h] - o_shown;
                             acc[h][li] += d * d;
                             let d = pred - o;
                             acc[h][LINEAR + li] += d * d;
