@@ -1,13 +1,25 @@
 //! OpenEXR's ZIP compression of a block, made here rather than by the exr crate: the
 //! same format (bytes split into even and odd halves, each byte replaced by its
 //! difference from the one before plus 128, then a zlib stream), so every OpenEXR reader
-//! reads it, with zlib-rs at level 2 in place of the crate's miniz_oxide at level 4.
+//! reads it, with zlib-rs coding Huffman only in place of the crate's miniz_oxide at
+//! level 4.
 //!
 //! Why: a `perf` profile of a 2048×512 fit (rbf:25, half floats) spent 19 % of its CPU
-//! time in the crate's deflate. On that file's 256 blocks (157 MB), miniz_oxide level 4
-//! made 31 MB/s at 0.827 of the raw size, zlib-rs level 2 59 MB/s at 0.820 (level 1: 100
-//! MB/s but 0.952; PIZ 0.939 and slower to read). Coefficient maps are noisy half
-//! floats: deflate finds little to take out, so its faster levels lose almost nothing.
+//! time in the crate's deflate. Coefficient maps are noisy half floats: after the byte
+//! split and differences there are almost no repeated strings for deflate's matching to
+//! find, only skewed byte frequencies, which Huffman coding alone takes. On that file's
+//! 16-line blocks (157 MB), one run each:
+//!
+//! | deflate | speed | size (of raw) |
+//! |---|---:|---:|
+//! | miniz_oxide level 4 (the exr crate) | 31 MB/s | 0.827 |
+//! | zlib-rs level 1 | 102 MB/s | 0.950 |
+//! | zlib-rs level 2 (relit until 2026-12-05) | 59 MB/s | 0.816 |
+//! | zlib-rs level 3 | 54 MB/s | 0.813 |
+//! | zlib-rs Huffman only (now) | 158 MB/s | 0.799 |
+//!
+//! and on RealRTI item11's fit (rbf:25, 567×534): level 2 67 MB/s at 0.769, Huffman only
+//! 160 MB/s at 0.749. PIZ made 0.939 and reads 4.6× slower.
 
 use exr::block::chunk::{
     Chunk, CompressedBlock, CompressedScanLineBlock, CompressedTileBlock, TileCoordinates,
@@ -16,10 +28,15 @@ use exr::block::{BlockIndex, UncompressedBlock};
 use exr::meta::header::Header;
 use exr::meta::BlockDescription;
 use exr::prelude::{Compression, Vec2};
-use std::io::Write;
 
-/// The deflate level: see the module docs.
-const LEVEL: u32 = 2;
+/// The zlib stream's settings: see the module docs.
+fn config() -> zlib_rs::DeflateConfig {
+    zlib_rs::DeflateConfig {
+        level: 2, // unused by Huffman-only coding, which has no matching to tune
+        strategy: zlib_rs::Strategy::HuffmanOnly,
+        ..zlib_rs::DeflateConfig::default()
+    }
+}
 
 /// `block` compressed as `headers` say, as [`UncompressedBlock::compress_to_chunk`]
 /// would make it: ZIP blocks (and only on a little-endian machine, where the block's
@@ -102,14 +119,16 @@ pub(crate) fn zip(raw: &[u8]) -> Vec<u8> {
         *byte = current.wrapping_sub(previous).wrapping_add(128);
         previous = current;
     }
-    let mut encoder = flate2::write::ZlibEncoder::new(
-        Vec::with_capacity(raw.len() / 2),
-        flate2::Compression::new(LEVEL),
+    let mut out = vec![0u8; zlib_rs::compress_bound(split.len())];
+    let (written, code) = zlib_rs::compress_slice(&mut out, &split, config());
+    assert_eq!(
+        code,
+        zlib_rs::ReturnCode::Ok,
+        "deflating into a buffer of the bound's size cannot fail"
     );
-    encoder
-        .write_all(&split)
-        .and_then(|()| encoder.finish())
-        .expect("deflating into memory cannot fail")
+    let len = written.len();
+    out.truncate(len);
+    out
 }
 
 #[cfg(test)]
@@ -241,3 +260,4 @@ mod tests {
         assert_eq!(back.data, data);
     }
 }
+
