@@ -121,7 +121,7 @@ pub fn linear_to_srgb_tabulated_batch(src: &[f64], dst: &mut [f64]) {
 #[target_feature(enable = "avx2")]
 unsafe fn encode_quads_avx2(table: &[f32], src: &[f64], dst: &mut [f64]) {
     use std::arch::x86_64::*;
-    debug_assert!(table.len() == ENCODE_INTERVALS + 1 && src.len() % 4 == 0);
+    debug_assert!(table.len() == ENCODE_INTERVALS + 1 && src.len().is_multiple_of(4));
     let zero = _mm_setzero_ps();
     let one = _mm_set1_ps(1.0);
     let knee = _mm_set1_ps(0.003_130_8);

@@ -1741,14 +1741,14 @@ fn weighted_solve(tables: &Tables, len: usize, channels: std::ops::Range<usize>,
                 s.lane_m[x][used..].fill(if r == c { 1.0 } else { 0.0 });
             }
         }
-        for l in 0..used {
+        for (l, &total_l) in total.iter().enumerate().take(used) {
             let sums = &s.packed[(g + l) * t..(g + l + 1) * t];
-            let scaled = total[l] * lambda;
+            let scaled = total_l * lambda;
             for ((&x, &sum), &penalty) in lower.iter().zip(sums).zip(packed_penalty) {
                 s.lane_m[x][l] = sum as f64 + scaled * penalty;
             }
             for i in 0..k {
-                s.lane_m[i * k + i][l] += total[l] * DEFINITENESS;
+                s.lane_m[i * k + i][l] += total_l * DEFINITENESS;
             }
         }
         let ok = linalg::cholesky_lanes(&mut s.lane_m, k);

@@ -18,8 +18,8 @@ use super::{
     brightness_kept, light_relevance, perceptual_weight_encoded, srgb_on_screen, Objective,
     Regularizer,
 };
-use crate::color;
 use crate::basis::{Basis, BasisChoice, Family, Samples, FAMILIES};
+use crate::color;
 use crate::linalg::{self, Lanes, LANES};
 use crate::sphere::Vec3;
 use crate::Result;

@@ -260,4 +260,3 @@ mod tests {
         assert_eq!(back.data, data);
     }
 }
-
