@@ -619,18 +619,18 @@ fn choose_basis(
     };
     // Each candidate's best score over the objectives, with the objective behind it.
     let judge = |choice: &BasisChoice, view: &select::Subsample, folds: usize| {
+        let scores = select::validate(
+            choice,
+            objectives,
+            options.regularizer,
+            criterion,
+            dirs,
+            &q,
+            view,
+            folds,
+        )?;
         let mut own: Option<(Objective, CandidateScore)> = None;
-        for &o in objectives {
-            let score = select::validate(
-                choice,
-                o,
-                options.regularizer,
-                criterion,
-                dirs,
-                &q,
-                view,
-                folds,
-            )?;
+        for (&o, score) in objectives.iter().zip(scores) {
             if !matches!(&own, Some((_, b)) if !score.beats(b)) {
                 own = Some((o, score));
             }

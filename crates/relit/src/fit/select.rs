@@ -219,68 +219,97 @@ impl Subsample<'_> {
     }
 }
 
-/// Validate `choice` under `objective` (linear or perceptual) on `sub`, lit from `dirs`
-/// with quadrature weights `q`; returns the best λ of [`VALIDATION_LADDER`] by
-/// `criterion` and its error.
+/// Validate `choice` under each of `objectives` (linear or perceptual) on `sub`, lit
+/// from `dirs` with quadrature weights `q`: for each, in order, the best λ of
+/// [`VALIDATION_LADDER`] by `criterion` and its error.
+///
+/// Objectives that validate on the same pixels share each fold's basis: building a
+/// data-driven basis (its principal components, its roughness penalty) is a good part
+/// of a fold's cost, and it depends on the fold's lights and pixels, not the objective.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn validate(
     choice: &BasisChoice,
-    objective: Objective,
+    objectives: &[Objective],
     regularizer: Regularizer,
     criterion: Criterion,
     dirs: &[Vec3],
     q: &[f64],
     sub: &Subsample,
     folds: usize,
-) -> Result<CandidateScore> {
+) -> Result<Vec<CandidateScore>> {
     let n = sub.n;
-    let keep = match objective {
-        Objective::Perceptual => perceptual_pixels(sub.count, n, choice.k),
-        _ => sub.count,
-    };
-    let thinned: Vec<f32>;
-    let thin;
-    let sub = if keep < sub.count {
-        thinned = sub.thinned(keep);
-        thin = Subsample {
-            values: &thinned,
-            count: keep,
-            n,
+    let keeps: Vec<usize> = objectives
+        .iter()
+        .map(|o| match o {
+            Objective::Perceptual => perceptual_pixels(sub.count, n, choice.k),
+            _ => sub.count,
+        })
+        .collect();
+    let mut distinct = keeps.clone();
+    distinct.sort_unstable();
+    distinct.dedup();
+    let mut scores: Vec<Option<CandidateScore>> = vec![None; objectives.len()];
+    for keep in distinct {
+        let group: Vec<usize> = (0..objectives.len())
+            .filter(|&i| keeps[i] == keep)
+            .collect();
+        let grouped: Vec<Objective> = group.iter().map(|&i| objectives[i]).collect();
+        let thinned: Vec<f32>;
+        let thin;
+        let sub = if keep < sub.count {
+            thinned = sub.thinned(keep);
+            thin = Subsample {
+                values: &thinned,
+                count: keep,
+                n,
+            };
+            &thin
+        } else {
+            sub
         };
-        &thin
-    } else {
-        sub
-    };
-    let series = sub.count * 3;
-    let relevance = light_relevance(sub.values, sub.count, n);
-    // Squared display errors per captured light (each is held out once) and λ.
-    let mut per_light = vec![[0.0f64; SLOTS]; n];
-    // Folds in parallel too: a fold's basis is built on one thread, and two folds
-    // keep both cores of a small machine busy where one fold's blocks would not.
-    let fold_results = (0..folds)
-        .into_par_iter()
-        .map(|fold| fold_result(choice, objective, regularizer, dirs, q, sub, folds, fold))
-        .collect::<Result<Vec<_>>>()?;
-    for (held, errors) in fold_results {
-        for (&j, e) in held.iter().zip(errors) {
-            per_light[j] = e;
+        let series = sub.count * 3;
+        let relevance = light_relevance(sub.values, sub.count, n);
+        // Folds in parallel too: a fold's basis is built on one thread, and two folds
+        // keep both cores of a small machine busy where one fold's blocks would not.
+        let fold_results = (0..folds)
+            .into_par_iter()
+            .map(|fold| fold_result(choice, &grouped, regularizer, dirs, q, sub, folds, fold))
+            .collect::<Result<Vec<_>>>()?;
+        for (g, &i) in group.iter().enumerate() {
+            // Squared display errors per captured light (each is held out once) and λ.
+            let mut per_light = vec![[0.0f64; SLOTS]; n];
+            for (held, errors) in &fold_results {
+                for (&j, e) in held.iter().zip(&errors[g]) {
+                    per_light[j] = *e;
+                }
+            }
+            scores[i] = Some(score_lights(
+                choice, criterion, q, &relevance, &per_light, series,
+            )?);
         }
     }
-    score_lights(choice, criterion, q, &relevance, &per_light, series)
+    Ok(scores
+        .into_iter()
+        .map(|s| s.expect("every objective is in a group"))
+        .collect())
 }
 
-/// One fold of [`validate`]: the held-out lights and their errors.
+/// The errors of one fold of [`validate`] and each objective: the fold's held-out
+/// lights, and per objective their errors.
+type FoldErrors = (Vec<usize>, Vec<Vec<[f64; SLOTS]>>);
+
+/// One fold of [`validate`]: its basis built once, then each objective's errors.
 #[allow(clippy::too_many_arguments)]
 fn fold_result(
     choice: &BasisChoice,
-    objective: Objective,
+    objectives: &[Objective],
     regularizer: Regularizer,
     dirs: &[Vec3],
     q: &[f64],
     sub: &Subsample,
     folds: usize,
     fold: usize,
-) -> Result<(Vec<usize>, Vec<[f64; SLOTS]>)> {
+) -> Result<FoldErrors> {
     let n = sub.n;
     let series = sub.count * 3;
     let train: Vec<usize> = (0..n).filter(|j| j % folds != fold).collect();
@@ -299,17 +328,24 @@ fn fold_result(
             n: train.len(),
         }),
     )?;
-    let errors = fold_errors(
-        basis.as_ref(),
-        objective,
-        regularizer,
-        &train_dirs,
-        &held.iter().map(|&j| dirs[j]).collect::<Vec<_>>(),
-        &train.iter().map(|&j| q[j]).collect::<Vec<_>>(),
-        &values,
-        &held,
-        sub,
-    );
+    let held_dirs: Vec<Vec3> = held.iter().map(|&j| dirs[j]).collect();
+    let q_train: Vec<f64> = train.iter().map(|&j| q[j]).collect();
+    let errors = objectives
+        .iter()
+        .map(|&objective| {
+            fold_errors(
+                basis.as_ref(),
+                objective,
+                regularizer,
+                &train_dirs,
+                &held_dirs,
+                &q_train,
+                &values,
+                &held,
+                sub,
+            )
+        })
+        .collect();
     Ok((held, errors))
 }
 
