@@ -175,6 +175,85 @@ fn cholesky_solve_lanes_body(f: &[Lanes], n: usize, b: &mut [Lanes]) {
     }
 }
 
+/// [`cholesky_solve_lanes`] of two systems side by side, `(fa, ba)` and `(fb, bb)` (the
+/// factors may be the same), each bit for bit its own solve: a substitution waits on
+/// every subtraction in turn, and two independent ones fill each other's waits.
+pub fn cholesky_solve_lanes_pair(
+    fa: &[Lanes],
+    fb: &[Lanes],
+    n: usize,
+    ba: &mut [Lanes],
+    bb: &mut [Lanes],
+) {
+    #[cfg(target_arch = "x86_64")]
+    if is_x86_feature_detected!("avx2") {
+        // SAFETY: AVX2 is present.
+        return unsafe { cholesky_solve_lanes_pair_avx2(fa, fb, n, ba, bb) };
+    }
+    cholesky_solve_lanes_pair_body(fa, fb, n, ba, bb)
+}
+
+/// [`cholesky_solve_lanes_pair`] compiled for AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn cholesky_solve_lanes_pair_avx2(
+    fa: &[Lanes],
+    fb: &[Lanes],
+    n: usize,
+    ba: &mut [Lanes],
+    bb: &mut [Lanes],
+) {
+    cholesky_solve_lanes_pair_body(fa, fb, n, ba, bb)
+}
+
+#[inline(always)]
+fn cholesky_solve_lanes_pair_body(
+    fa: &[Lanes],
+    fb: &[Lanes],
+    n: usize,
+    ba: &mut [Lanes],
+    bb: &mut [Lanes],
+) {
+    // One step of both substitutions: `(s − Σ x·y) / d` for each, terms in order.
+    #[inline(always)]
+    fn step(
+        (mut sa, mut sb): (Lanes, Lanes),
+        terms: impl Iterator<Item = (Lanes, Lanes, Lanes, Lanes)>,
+        da: Lanes,
+        db: Lanes,
+    ) -> (Lanes, Lanes) {
+        for (xa, ya, xb, yb) in terms {
+            for l in 0..LANES {
+                sa[l] -= xa[l] * ya[l];
+                sb[l] -= xb[l] * yb[l];
+            }
+        }
+        for l in 0..LANES {
+            sa[l] /= da[l];
+            sb[l] /= db[l];
+        }
+        (sa, sb)
+    }
+    for i in 0..n {
+        let (a, b) = step(
+            (ba[i], bb[i]),
+            (0..i).map(|k| (fa[i * n + k], ba[k], fb[i * n + k], bb[k])),
+            fa[i * n + i],
+            fb[i * n + i],
+        );
+        (ba[i], bb[i]) = (a, b);
+    }
+    for i in (0..n).rev() {
+        let (a, b) = step(
+            (ba[i], bb[i]),
+            (i + 1..n).map(|k| (fa[k * n + i], ba[k], fb[k * n + i], bb[k])),
+            fa[i * n + i],
+            fb[i * n + i],
+        );
+        (ba[i], bb[i]) = (a, b);
+    }
+}
+
 /// `(s − Σ x·y) / d` lane by lane, subtracting the terms in order: one step of forward
 /// or back substitution.
 #[inline(always)]
@@ -772,8 +851,26 @@ mod tests {
         let plain_ok = cholesky_lanes_body(&mut plain, n);
         cholesky_solve_lanes_body(&plain, n, &mut plain_rhs);
         let ok = cholesky_lanes(&mut packed, n);
+        let (mut first, mut second) = (
+            rhs.clone(),
+            rhs.iter().map(|r| r.map(|v| -2.0 * v)).collect::<Vec<_>>(),
+        );
         cholesky_solve_lanes(&packed, n, &mut rhs);
         assert_eq!(plain_ok, ok);
+        // Two systems side by side (here one factor twice, the second right-hand side
+        // scaled): each as it is alone.
+        let mut second_alone = second.clone();
+        cholesky_solve_lanes(&packed, n, &mut second_alone);
+        cholesky_solve_lanes_pair(&packed, &packed, n, &mut first, &mut second);
+        for (p, q) in first
+            .iter()
+            .zip(&rhs)
+            .chain(second.iter().zip(&second_alone))
+        {
+            for l in 0..LANES {
+                assert_eq!(p[l].to_bits(), q[l].to_bits());
+            }
+        }
         for (p, q) in plain.iter().zip(&packed).chain(plain_rhs.iter().zip(&rhs)) {
             for l in 0..LANES {
                 assert_eq!(p[l].to_bits(), q[l].to_bits());

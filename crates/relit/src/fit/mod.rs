@@ -1503,6 +1503,7 @@ struct Scratch {
     m: Vec<f64>,
     lane_m: Vec<linalg::Lanes>,
     lane_coef: Vec<linalg::Lanes>,
+    lane_coef2: Vec<linalg::Lanes>,
 }
 
 /// Indices of the packed upper triangle of a k×k symmetric matrix, row by row.
@@ -1562,6 +1563,7 @@ fn solve_per_pixel(
                     m: vec![0.0; k * k],
                     lane_m: vec![[0.0; LANES]; k * k],
                     lane_coef: vec![[0.0; LANES]; k],
+                    lane_coef2: vec![[0.0; LANES]; k],
                 },
                 |scratch, chunk| {
                     let a = chunk * CHUNK;
@@ -1752,36 +1754,63 @@ fn weighted_solve(tables: &Tables, len: usize, channels: std::ops::Range<usize>,
             }
         }
         let ok = linalg::cholesky_lanes(&mut s.lane_m, k);
-        for ch in channels.clone() {
-            let rhs = &s.rhs[ch * len * k..(ch + 1) * len * k];
-            for (i, dst) in s.lane_coef.iter_mut().enumerate() {
-                let mut v = [0.0; LANES];
+        // The channels that share this factor two at a time, solved side by side
+        // (`linalg::cholesky_solve_lanes_pair`, each bit for bit its own solve).
+        let mut ch = channels.start;
+        while ch < channels.end {
+            let both = ch + 1 < channels.end;
+            gather_lanes(&s.rhs[ch * len * k..], g, used, k, &mut s.lane_coef);
+            if both {
+                gather_lanes(&s.rhs[(ch + 1) * len * k..], g, used, k, &mut s.lane_coef2);
+                linalg::cholesky_solve_lanes_pair(
+                    &s.lane_m,
+                    &s.lane_m,
+                    k,
+                    &mut s.lane_coef,
+                    &mut s.lane_coef2,
+                );
+            } else {
+                linalg::cholesky_solve_lanes(&s.lane_m, k, &mut s.lane_coef);
+            }
+            for (ch, solved) in [(ch, &s.lane_coef), (ch + 1, &s.lane_coef2)]
+                .into_iter()
+                .take(1 + both as usize)
+            {
+                let rhs = &s.rhs[ch * len * k..(ch + 1) * len * k];
                 for l in 0..used {
-                    v[l] = rhs[(g + l) * k + i] as f64;
-                }
-                *dst = v;
-            }
-            linalg::cholesky_solve_lanes(&s.lane_m, k, &mut s.lane_coef);
-            for l in 0..used {
-                let p = g + l;
-                let coef = &mut s.coef[(ch * len + p) * k..(ch * len + p + 1) * k];
-                if ok[l] {
-                    for (dst, v) in coef.iter_mut().zip(&s.lane_coef) {
-                        *dst = v[l];
+                    let p = g + l;
+                    let coef = &mut s.coef[(ch * len + p) * k..(ch * len + p + 1) * k];
+                    if ok[l] {
+                        for (dst, v) in coef.iter_mut().zip(solved) {
+                            *dst = v[l];
+                        }
+                        continue;
                     }
-                    continue;
+                    for (x, &(r, c)) in pairs.iter().enumerate() {
+                        let v = s.packed[p * t + x] as f64;
+                        s.m[r * k + c] = v;
+                        s.m[c * k + r] = v;
+                    }
+                    for (dst, &v) in coef.iter_mut().zip(&rhs[p * k..(p + 1) * k]) {
+                        *dst = v as f64;
+                    }
+                    solve_regularized(design, &mut s.m, coef, lambda, total[l]);
                 }
-                for (x, &(r, c)) in pairs.iter().enumerate() {
-                    let v = s.packed[p * t + x] as f64;
-                    s.m[r * k + c] = v;
-                    s.m[c * k + r] = v;
-                }
-                for (dst, &v) in coef.iter_mut().zip(&rhs[p * k..(p + 1) * k]) {
-                    *dst = v as f64;
-                }
-                solve_regularized(design, &mut s.m, coef, lambda, total[l]);
             }
+            ch += 1 + both as usize;
         }
+    }
+}
+
+/// The right-hand sides of pixels `g..g + used` (pixel-major, `k` each, in `rhs`) as
+/// lanes; unused lanes are zero.
+fn gather_lanes(rhs: &[f32], g: usize, used: usize, k: usize, dst: &mut [linalg::Lanes]) {
+    for (i, d) in dst.iter_mut().enumerate().take(k) {
+        let mut v = [0.0; LANES];
+        for (l, v) in v.iter_mut().enumerate().take(used) {
+            *v = rhs[(g + l) * k + i] as f64;
+        }
+        *d = v;
     }
 }
 

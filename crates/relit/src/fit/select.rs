@@ -30,6 +30,7 @@ use serde::{Deserialize, Serialize};
 pub const VALIDATION_LADDER: [f64; 6] = [1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1];
 
 const LADDER: usize = VALIDATION_LADDER.len();
+const _: () = assert!(LADDER % 2 == 0, "the validation solves its λ in pairs");
 
 /// Per held-out light: squared display errors per λ, summed predictions per λ, the
 /// summed observation (linear radiance) and squared linear errors per λ.
@@ -555,7 +556,9 @@ fn fold_errors(
             // systems, factored and solved side by side (`linalg::cholesky_lanes`).
             let mut m = vec![[0.0; LANES]; k * k];
             let mut f = vec![[0.0; LANES]; k * k];
+            let mut f2 = vec![[0.0; LANES]; k * k];
             let mut coef = vec![[0.0; LANES]; k];
+            let mut coef2 = vec![[0.0; LANES]; k];
             let mut rhs0 = vec![[0.0; LANES]; k];
             let mut held_obs = vec![[(0.0, 0.0); LANES]; lights];
             let (mut preds, mut shown) = (vec![0.0; LANES * lights], vec![0.0; LANES * lights]);
@@ -588,59 +591,64 @@ fn fold_errors(
                         held_obs[h][l] = (o, srgb_on_screen(o));
                     }
                 }
-                for li in 0..LADDER {
-                    let ok = match &shared {
-                        Some(factors) => match &factors[li] {
-                            Some(shared_f) => {
-                                for (dst, &v) in f.iter_mut().zip(shared_f) {
-                                    *dst = [v; LANES];
+                // λ two at a time: their solves run side by side
+                // (`linalg::cholesky_solve_lanes_pair`), each as it would alone.
+                for pair in (0..LADDER).step_by(2) {
+                    let lis = [pair, pair + 1];
+                    let mut oks = [[false; LANES]; 2];
+                    for (slot, &li) in lis.iter().enumerate() {
+                        let f = if slot == 0 { &mut f } else { &mut f2 };
+                        oks[slot] = match &shared {
+                            Some(factors) => match &factors[li] {
+                                Some(shared_f) => {
+                                    for (dst, &v) in f.iter_mut().zip(shared_f) {
+                                        *dst = [v; LANES];
+                                    }
+                                    [true; LANES]
                                 }
-                                [true; LANES]
+                                None => [false; LANES],
+                            },
+                            None => {
+                                factor_lanes(f, &m, &penalty, total, VALIDATION_LADDER[li], k, used)
                             }
-                            None => [false; LANES],
-                        },
-                        None => factor_lanes(
-                            &mut f,
-                            &m,
-                            &penalty,
-                            total,
-                            VALIDATION_LADDER[li],
-                            k,
-                            used,
-                        ),
-                    };
-                    coef.copy_from_slice(&rhs0);
-                    linalg::cholesky_solve_lanes(&f, k, &mut coef);
-                    // Every lane's predictions at the held-out lights, then how a
-                    // screen shows them, a batch at a time.
-                    for l in 0..used {
-                        for h in 0..lights {
-                            let mut pred = 0.0;
-                            for (a, c) in a_held[h * k..(h + 1) * k].iter().zip(&coef) {
-                                pred += a * c[l];
-                            }
-                            preds[l * lights + h] = pred;
-                        }
+                        };
                     }
-                    color::linear_to_srgb_tabulated_batch(
-                        &preds[..used * lights],
-                        &mut shown[..used * lights],
-                    );
-                    for l in 0..used {
-                        if !ok[l] {
-                            acc.iter_mut().for_each(|a| a[li] = f64::INFINITY);
-                            continue;
+                    coef.copy_from_slice(&rhs0);
+                    coef2.copy_from_slice(&rhs0);
+                    linalg::cholesky_solve_lanes_pair(&f, &f2, k, &mut coef, &mut coef2);
+                    for (slot, &li) in lis.iter().enumerate() {
+                        let (ok, coef) = (oks[slot], if slot == 0 { &coef } else { &coef2 });
+                        // Every lane's predictions at the held-out lights, then how a
+                        // screen shows them, a batch at a time.
+                        for l in 0..used {
+                            for h in 0..lights {
+                                let mut pred = 0.0;
+                                for (a, c) in a_held[h * k..(h + 1) * k].iter().zip(coef) {
+                                    pred += a * c[l];
+                                }
+                                preds[l * lights + h] = pred;
+                            }
                         }
-                        for (h, obs) in held_obs.iter().enumerate() {
-                            let (o, o_shown) = obs[l];
-                            let pred = preds[l * lights + h];
-                            let d = shown[l * lights + h] - o_shown;
-                            acc[h][li] += d * d;
-                            let d = pred - o;
-                            acc[h][LINEAR + li] += d * d;
-                            acc[h][LADDER + li] += pred;
-                            if li == 0 {
-                                acc[h][2 * LADDER] += o;
+                        color::linear_to_srgb_tabulated_batch(
+                            &preds[..used * lights],
+                            &mut shown[..used * lights],
+                        );
+                        for l in 0..used {
+                            if !ok[l] {
+                                acc.iter_mut().for_each(|a| a[li] = f64::INFINITY);
+                                continue;
+                            }
+                            for (h, obs) in held_obs.iter().enumerate() {
+                                let (o, o_shown) = obs[l];
+                                let pred = preds[l * lights + h];
+                                let d = shown[l * lights + h] - o_shown;
+                                acc[h][li] += d * d;
+                                let d = pred - o;
+                                acc[h][LINEAR + li] += d * d;
+                                acc[h][LADDER + li] += pred;
+                                if li == 0 {
+                                    acc[h][2 * LADDER] += o;
+                                }
                             }
                         }
                     }
