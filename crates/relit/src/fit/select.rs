@@ -30,7 +30,7 @@ use serde::{Deserialize, Serialize};
 pub const VALIDATION_LADDER: [f64; 6] = [1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1];
 
 const LADDER: usize = VALIDATION_LADDER.len();
-const _: () = assert!(LADDER % 2 == 0, "the validation solves its λ in pairs");
+const _: () = assert!(LADDER.is_multiple_of(2), "the validation solves its λ in pairs");
 
 /// Per held-out light: squared display errors per λ, summed predictions per λ, the
 /// summed observation (linear radiance) and squared linear errors per λ.
