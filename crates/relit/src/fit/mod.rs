@@ -617,8 +617,12 @@ fn choose_basis(
         Objective::Perceptual => &[Objective::Perceptual],
         Objective::Linear => &[Objective::Linear],
     };
-    // Each candidate's best score over the objectives, with the objective behind it.
-    let judge = |choice: &BasisChoice, view: &select::Subsample, folds: usize| {
+    // Each candidate's best score over the objectives, with the objective behind it, and
+    // the λ each objective scored best at.
+    let judge = |choice: &BasisChoice,
+                 view: &select::Subsample,
+                 folds: usize,
+                 ladders: &[std::ops::Range<usize>]| {
         let scores = select::validate(
             choice,
             objectives,
@@ -628,35 +632,61 @@ fn choose_basis(
             &q,
             view,
             folds,
+            ladders,
         )?;
+        let best_lambdas: Vec<usize> = scores
+            .iter()
+            .map(|s| {
+                select::VALIDATION_LADDER
+                    .iter()
+                    .position(|&l| l == s.lambda)
+                    .unwrap_or(0)
+            })
+            .collect();
         let mut own: Option<(Objective, CandidateScore)> = None;
         for (&o, score) in objectives.iter().zip(scores) {
             if !matches!(&own, Some((_, b)) if !score.beats(b)) {
                 own = Some((o, score));
             }
         }
-        Ok::<_, Error>(own.expect("at least one objective"))
+        let (o, score) = own.expect("at least one objective");
+        Ok::<_, Error>((o, score, best_lambdas))
     };
-    // Successive halving: every candidate on a few pixels, the best few on all of them.
-    let mut finalists: Vec<usize> = (0..choices.len()).collect();
+    let whole = vec![select::WHOLE_LADDER; objectives.len()];
+    // Successive halving: every candidate on a few pixels, the best few on all of them,
+    // each finalist at the λ around those its screening found best.
+    let mut finalists: Vec<(usize, Vec<std::ops::Range<usize>>)> =
+        (0..choices.len()).map(|i| (i, whole.clone())).collect();
     let mut scores = Vec::new();
     if choices.len() > FINALISTS && screen_keep < keep {
         let max_k = choices.iter().map(|c| c.k).max().unwrap_or(0);
         let folds = select::screening_folds(n, max_k);
-        let mut screening: Vec<(usize, CandidateScore)> = choices
+        let mut screening: Vec<(usize, CandidateScore, Vec<usize>)> = choices
             .iter()
             .enumerate()
-            .map(|(i, choice)| Ok((i, judge(choice, &screen_view, folds)?.1)))
+            .map(|(i, choice)| {
+                let (_, score, lambdas) = judge(choice, &screen_view, folds, &whole)?;
+                Ok((i, score, lambdas))
+            })
             .collect::<Result<_>>()?;
         screening.sort_by(|a, b| order(&a.1, &b.1));
-        finalists = screening.iter().take(FINALISTS).map(|(i, _)| *i).collect();
-        scores.extend(screening.into_iter().skip(FINALISTS).map(|(_, s)| s));
+        finalists = screening
+            .iter()
+            .take(FINALISTS)
+            .map(|(i, _, lambdas)| {
+                (
+                    *i,
+                    lambdas.iter().map(|&b| select::ladder_around(b)).collect(),
+                )
+            })
+            .collect();
+        scores.extend(screening.into_iter().skip(FINALISTS).map(|(_, s, _)| s));
     }
     let mut best: Option<(usize, Objective, CandidateScore)> = None;
-    for &i in &finalists {
-        let (o, score) = judge(&choices[i], &view, select::folds(n))?;
+    for (i, ladders) in &finalists {
+        let (o, score, _) = judge(&choices[*i], &view, select::folds(n), ladders)?;
         if !matches!(&best, Some((_, _, b)) if !score.beats(b)) {
-            best = Some((i, o, score.clone()));
+            best = Some((*i, o, score.clone()));
         }
         scores.push(score);
     }

@@ -25,12 +25,16 @@ use crate::sphere::Vec3;
 use crate::Result;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use std::ops::Range;
 
 /// The λ values each candidate is validated at.
 pub const VALIDATION_LADDER: [f64; 6] = [1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1];
 
 const LADDER: usize = VALIDATION_LADDER.len();
-const _: () = assert!(LADDER.is_multiple_of(2), "the validation solves its λ in pairs");
+const _: () = assert!(
+    LADDER.is_multiple_of(2),
+    "the validation solves its λ in pairs"
+);
 
 /// Per held-out light: squared display errors per λ, summed predictions per λ, the
 /// summed observation (linear radiance) and squared linear errors per λ.
@@ -237,7 +241,9 @@ pub(super) fn validate(
     q: &[f64],
     sub: &Subsample,
     folds: usize,
+    ladders: &[Range<usize>],
 ) -> Result<Vec<CandidateScore>> {
+    assert_eq!(ladders.len(), objectives.len());
     let n = sub.n;
     let keeps: Vec<usize> = objectives
         .iter()
@@ -254,7 +260,10 @@ pub(super) fn validate(
         let group: Vec<usize> = (0..objectives.len())
             .filter(|&i| keeps[i] == keep)
             .collect();
-        let grouped: Vec<Objective> = group.iter().map(|&i| objectives[i]).collect();
+        let grouped: Vec<(Objective, Range<usize>)> = group
+            .iter()
+            .map(|&i| (objectives[i], ladders[i].clone()))
+            .collect();
         let thinned: Vec<f32>;
         let thin;
         let sub = if keep < sub.count {
@@ -303,7 +312,7 @@ type FoldErrors = (Vec<usize>, Vec<Vec<[f64; SLOTS]>>);
 #[allow(clippy::too_many_arguments)]
 fn fold_result(
     choice: &BasisChoice,
-    objectives: &[Objective],
+    objectives: &[(Objective, Range<usize>)],
     regularizer: Regularizer,
     dirs: &[Vec3],
     q: &[f64],
@@ -333,10 +342,11 @@ fn fold_result(
     let q_train: Vec<f64> = train.iter().map(|&j| q[j]).collect();
     let errors = objectives
         .iter()
-        .map(|&objective| {
+        .map(|(objective, ladder)| {
             fold_errors(
                 basis.as_ref(),
-                objective,
+                *objective,
+                ladder.clone(),
                 regularizer,
                 &train_dirs,
                 &held_dirs,
@@ -455,6 +465,7 @@ fn factor_lanes(
 fn fold_errors(
     basis: &dyn Basis,
     objective: Objective,
+    ladder: Range<usize>,
     regularizer: Regularizer,
     train_dirs: &[Vec3],
     held_dirs: &[Vec3],
@@ -593,7 +604,7 @@ fn fold_errors(
                 }
                 // λ two at a time: their solves run side by side
                 // (`linalg::cholesky_solve_lanes_pair`), each as it would alone.
-                for pair in (0..LADDER).step_by(2) {
+                for pair in ladder.clone().step_by(2) {
                     let lis = [pair, pair + 1];
                     let mut oks = [[false; LANES]; 2];
                     for (slot, &li) in lis.iter().enumerate() {
@@ -646,7 +657,7 @@ fn fold_errors(
                                 let d = pred - o;
                                 acc[h][LINEAR + li] += d * d;
                                 acc[h][LADDER + li] += pred;
-                                if li == 0 {
+                                if li == ladder.start {
                                     acc[h][2 * LADDER] += o;
                                 }
                             }
@@ -666,4 +677,46 @@ fn fold_errors(
             }
             a
         })
+        .into_iter()
+        // λ left out of the ladder score nothing (an infinite error).
+        .map(|mut e| {
+            for li in (0..LADDER).filter(|li| !ladder.contains(li)) {
+                e[li] = f64::INFINITY;
+                e[LINEAR + li] = f64::INFINITY;
+            }
+            e
+        })
+        .collect()
+}
+
+/// The whole λ ladder.
+pub(super) const WHOLE_LADDER: Range<usize> = 0..LADDER;
+
+/// The part of the ladder a finalist is validated on, after a screening that found the
+/// λ at `best` (an index of [`VALIDATION_LADDER`]): four steps around it, in the pairs
+/// the validation solves together, so that `best` and both its neighbours are in.
+pub(super) fn ladder_around(best: usize) -> Range<usize> {
+    let start = best.saturating_sub(if best.is_multiple_of(2) { 2 } else { 1 });
+    let start = start.min(LADDER - 4);
+    start..start + 4
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_finalists_ladder_holds_the_screenings_lambda_and_both_neighbours() {
+        for best in 0..LADDER {
+            let ladder = ladder_around(best);
+            assert_eq!(ladder.len(), 4, "λ {best}");
+            assert!(
+                ladder.end <= LADDER && ladder.start.is_multiple_of(2),
+                "λ {best}: {ladder:?}"
+            );
+            for li in best.saturating_sub(1)..(best + 2).min(LADDER) {
+                assert!(ladder.contains(&li), "λ {best}: {ladder:?} lacks {li}");
+            }
+        }
+    }
 }
