@@ -54,7 +54,7 @@ pub fn srgb_slope(v: f64) -> f64 {
 }
 
 /// The linear value where the sRGB curve's linear segment meets its power law.
-pub const SRGB_KNEE: f64 = 0.003_130_8;
+const SRGB_KNEE: f64 = 0.003_130_8;
 
 /// Intervals of the table behind [`linear_to_srgb_tabulated`], over `√v ∈ [0, 1]`.
 const ENCODE_INTERVALS: usize = 4096;
@@ -159,8 +159,16 @@ unsafe fn encode_quads_avx2(table: &[f32], src: &[f64], dst: &mut [f64]) {
 #[inline]
 pub fn srgb_slope_tabulated(v: f64) -> f64 {
     let v = v.clamp(0.0, 1.0);
+    srgb_slope_of_encoded(v, linear_to_srgb_tabulated(v as f32) as f64)
+}
+
+/// [`srgb_slope_tabulated`] of `v` in `[0, 1]` (or NaN) given its tabulated encoding
+/// `encoded`, for callers that have encoded `v` already (the fit encodes its samples a
+/// batch at a time).
+#[inline]
+pub fn srgb_slope_of_encoded(v: f64, encoded: f64) -> f64 {
     if v > SRGB_KNEE {
-        (linear_to_srgb_tabulated(v as f32) as f64 + 0.055) / (2.4 * v)
+        (encoded + 0.055) / (2.4 * v)
     } else {
         12.92
     }

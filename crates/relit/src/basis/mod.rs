@@ -203,7 +203,7 @@ pub fn roughness_penalty<B: Basis + ?Sized>(basis: &B, points: usize) -> Vec<f64
 
 /// `GᵀG / points` for the gradient rows `g` (any number of rows of `k`), made exactly
 /// symmetric: the roughness penalty from sampled gradients.
-pub(crate) fn gram_mean(g: &[f64], k: usize, points: usize) -> Vec<f64> {
+fn gram_mean(g: &[f64], k: usize, points: usize) -> Vec<f64> {
     let rows = g.len() / k.max(1);
     let mut p = vec![0.0; k * k];
     crate::linalg::matmul_at(k, rows, k, g, g, &mut p);

@@ -728,13 +728,8 @@ fn perceptual_weight_encoded(v: f64, encoded: f64) -> f64 {
     if v > 1.0 {
         return perceptual_weight(v); // the slope at white, not the extended line's value
     }
-    // Above the knee `srgb_slope_tabulated` is (srgb(v) + 0.055) / (2.4 v); below it
-    // (and for NaN) the linear segment's slope.
-    let s = if v > color::SRGB_KNEE {
-        (encoded + 0.055) / (2.4 * v)
-    } else {
-        12.92
-    };
+    // Below 0 the encoding is not read: the slope is the linear segment's.
+    let s = color::srgb_slope_of_encoded(v, encoded);
     s * s
 }
 

@@ -541,13 +541,13 @@ fn fold_errors(
             let len = SERIES_BLOCK.min(series - first);
             // Each sample's weight, computed once for the normal matrix and the sums
             // (the perceptual weights from the block's encodings, a batch at a time).
-            let values: Vec<f64> = train_values[first * nt..(first + len) * nt]
-                .iter()
-                .map(|&v| v as f64)
-                .collect();
             let weights: Vec<f64> = match objective {
                 Objective::Linear => (0..len).flat_map(|_| q_train.iter().copied()).collect(),
                 _ => {
+                    let values: Vec<f64> = train_values[first * nt..(first + len) * nt]
+                        .iter()
+                        .map(|&v| v as f64)
+                        .collect();
                     let mut encoded = vec![0.0; values.len()];
                     color::linear_to_srgb_tabulated_batch(&values, &mut encoded);
                     values
