@@ -134,20 +134,12 @@ extern "C" {
 /// its peak grew with the panorama's width (40 MiB for a 2048-pixel-wide part, 49 MiB
 /// for an 8192-wide one of the same pixels); with the threshold fixed, freed rows go
 /// back to the system (34 and 36 MiB), in the same time.
-///
-/// The heaps' top padding is raised from 128 KiB to 16 MiB: the fit's small working
-/// buffers (a task's scratch, a fold's tables) otherwise grew and trimmed the heap
-/// top over and over, each time faulting fresh pages in. Measured with `MALLOC_TOP_PAD_`
-/// (2026-12-05, two runs each): RealRTI item3's default fit 0.62–0.65 → 0.15–0.20 s of
-/// system time, wall 2.85–3.05 → 2.58–2.61 s, peak 30 → 32 MiB; the 2048×512 capture
-/// 1.9 → 0.8 s of system time, wall −5 %, peak +0.7 MiB.
 fn return_freed_buffers() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
-    // SAFETY: mallopt(M_MMAP_THRESHOLD = -3 / M_TOP_PAD = -2, bytes) only sets glibc
-    // allocator parameters; called before any thread exists.
+    // SAFETY: mallopt(M_MMAP_THRESHOLD = -3, bytes) only sets a glibc allocator
+    // parameter; called before any thread exists.
     unsafe {
         glibc_mallopt(-3, 256 << 10);
-        glibc_mallopt(-2, 16 << 20);
     }
 }
 
