@@ -82,7 +82,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(path) = &args.plan {
         let plan = crate::cmd_plan::read_plan(path)?;
         // The plan's settings are the fit's: its colour space, regulariser, reweighting.
-        options.color_space = plan.color_space;
+        options.color_space = Some(plan.color_space);
         options.regularizer = plan.regularizer;
         options.reweights = plan.reweights;
         options.plan = Some(plan);

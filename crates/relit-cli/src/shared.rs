@@ -30,6 +30,20 @@ pub enum SpaceArg {
     Srgb,
 }
 
+/// The space a fit stores its maps in.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum FitSpaceArg {
+    /// For photographs with the automatic objective, linear radiance or display values,
+    /// whichever validates better on the capture's own lights (with the basis); linear
+    /// radiance otherwise.
+    Auto,
+    /// Linear radiance: lights add up physically.
+    Linear,
+    /// Display-referred sRGB values, fitted with plain least squares (each light's
+    /// contribution is decoded to radiance before lights add up).
+    Srgb,
+}
+
 /// The regulariser.
 #[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum RegularizerArg {
@@ -87,8 +101,8 @@ pub struct FitArgs {
     #[arg(long, value_enum, default_value_t = ObjectiveArg::Auto)]
     pub objective: ObjectiveArg,
     /// Space of the stored maps (srgb fits display values with plain least squares).
-    #[arg(long, value_enum, default_value_t = SpaceArg::Linear)]
-    pub space: SpaceArg,
+    #[arg(long, value_enum, default_value_t = FitSpaceArg::Auto)]
+    pub space: FitSpaceArg,
     /// Regulariser of the fit.
     #[arg(long, value_enum, default_value_t = RegularizerArg::Roughness)]
     pub regularizer: RegularizerArg,
@@ -147,8 +161,9 @@ impl FitArgs {
                 ObjectiveArg::Linear => Objective::Linear,
             },
             color_space: match self.space {
-                SpaceArg::Linear => MapSpace::Linear,
-                SpaceArg::Srgb => MapSpace::Srgb,
+                FitSpaceArg::Auto => None,
+                FitSpaceArg::Linear => Some(MapSpace::Linear),
+                FitSpaceArg::Srgb => Some(MapSpace::Srgb),
             },
             regularizer: match self.regularizer {
                 RegularizerArg::Roughness => Regularizer::Roughness,

@@ -210,6 +210,7 @@ pub fn evaluate_with(
     let mut results = Vec::new();
     let mut fit_seconds = Vec::new();
     let mut chosen: Vec<&'static str> = Vec::new();
+    let mut spaces: Vec<&'static str> = Vec::new();
     let mut bases: Vec<String> = Vec::new();
     let mut coefficients = 0;
     let mut candidates = Vec::new();
@@ -244,6 +245,9 @@ pub fn evaluate_with(
         }
         if !chosen.contains(&fitted.report.objective.name()) {
             chosen.push(fitted.report.objective.name());
+        }
+        if !spaces.contains(&fitted.report.color_space.name()) {
+            spaces.push(fitted.report.color_space.name());
         }
         let (image, bytes) = if let Some((choice, _)) = budgeted {
             if !chosen_settings.contains(&choice.settings.describe()) {
@@ -295,12 +299,17 @@ pub fn evaluate_with(
         coefficients,
         candidates,
         objective: match options.fit.objective {
-            fit::Objective::Auto if options.fit.color_space == crate::maps::MapSpace::Linear => {
+            fit::Objective::Auto
+                if options.fit.color_space != Some(crate::maps::MapSpace::Srgb) =>
+            {
                 format!("auto ({})", chosen.join(", "))
             }
             _ => chosen.join(", "),
         },
-        color_space: options.fit.color_space.name().into(),
+        color_space: match options.fit.color_space {
+            Some(space) => space.name().into(),
+            None => format!("auto ({})", spaces.join(", ")),
+        },
         storage: match (&options.compress, options.budget) {
             (_, Some(budget)) => format!("rlz ≤ {budget} bits/px: {}", chosen_settings.join("; ")),
             (Some(settings), None) => format!("rlz {}", settings.describe()),

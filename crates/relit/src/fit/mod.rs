@@ -202,7 +202,10 @@ pub struct FitOptions {
     /// ladder up to `max_coefficients` ([`select::candidates`]).
     pub candidates: Vec<BasisChoice>,
     pub objective: Objective,
-    pub color_space: MapSpace,
+    /// The space the maps store; `None`: chosen per capture with the basis — display
+    /// values or linear radiance for photographs with the automatic objective (whichever
+    /// validates better), linear radiance otherwise.
+    pub color_space: Option<MapSpace>,
     pub regularizer: Regularizer,
     pub lambda: Lambda,
     /// Reweighting passes of the perceptual objective after the first solve.
@@ -279,8 +282,8 @@ impl Plan {
                 capture.height
             )));
         }
-        if (self.color_space, self.regularizer, self.reweights)
-            != (options.color_space, options.regularizer, options.reweights)
+        if options.color_space.is_some_and(|s| s != self.color_space)
+            || (self.regularizer, self.reweights) != (options.regularizer, options.reweights)
         {
             return Err(Error::invalid(
                 "the plan was made with another colour space, regulariser or reweighting",
@@ -314,7 +317,7 @@ pub fn plan(capture: &Capture, options: &FitOptions, progress: &dyn Progress) ->
         basis: out.image.meta.basis,
         objective: out.report.objective,
         lambda: out.report.lambda,
-        color_space: options.color_space,
+        color_space: out.report.color_space,
         regularizer: options.regularizer,
         reweights: options.reweights,
         candidates: out.report.candidates,
@@ -328,7 +331,7 @@ impl Default for FitOptions {
             max_coefficients: DEFAULT_MAX_COEFFICIENTS,
             candidates: Vec::new(),
             objective: Objective::default(),
-            color_space: MapSpace::Linear,
+            color_space: None,
             regularizer: Regularizer::default(),
             lambda: Lambda::Auto,
             reweights: 1,
@@ -539,18 +542,21 @@ const FINALISTS: usize = 6;
 /// and the candidates' scores.
 type ChosenBasis = (
     Box<dyn Basis>,
-    Option<(Objective, f64)>,
+    Option<(Objective, MapSpace, f64)>,
     Vec<CandidateScore>,
 );
 
 /// The basis `request` names for `capture`, built (data-driven families from the
-/// subsample `sub`), with the objective and λ its validation chose where it was
-/// validated.
+/// subsample `sub`), with the objective, the maps' space and λ its validation chose
+/// where it was validated. `sub` holds linear radiance where `spaces` offers more than
+/// one space, the one space's values otherwise.
+#[allow(clippy::too_many_arguments)]
 fn choose_basis(
     request: &BasisRequest,
     options: &FitOptions,
     criterion: Criterion,
     objective: Objective,
+    spaces: &[MapSpace],
     dirs: &[Vec3],
     sub: Option<&[f32]>,
     sub_count: usize,
@@ -566,26 +572,40 @@ fn choose_basis(
         };
         return Ok((choice.build(dirs, None)?, None, Vec::new()));
     };
-    // Validate on a thinner, evenly spread part of the subsample.
+    let given = if spaces.len() > 1 {
+        MapSpace::Linear
+    } else {
+        spaces[0]
+    };
+    // Validate on a thinner, evenly spread part of the subsample, in each space.
     let whole = select::Subsample {
         values: sub,
         count: sub_count,
         n,
     };
     let keep = SELECTION_PIXELS.min(sub_count).max(1);
-    let picked = whole.thinned(keep);
-    let view = select::Subsample {
-        values: &picked,
-        count: keep,
-        n,
-    };
     let screen_keep = SCREENING_PIXELS.min(keep);
-    let screened = view.thinned(screen_keep);
-    let screen_view = select::Subsample {
-        values: &screened,
-        count: screen_keep,
-        n,
+    let in_space = |values: &[f32], space: MapSpace| {
+        let mut v = values.to_vec();
+        if space != given {
+            to_target_values(&mut v, space);
+        }
+        v
     };
+    let picked = whole.thinned(keep);
+    let views: Vec<(MapSpace, Vec<f32>, Vec<f32>)> = spaces
+        .iter()
+        .map(|&space| {
+            let values = in_space(&picked, space);
+            let view = select::Subsample {
+                values: &values,
+                count: keep,
+                n,
+            };
+            let screened = view.thinned(screen_keep);
+            (space, values, screened)
+        })
+        .collect();
     let q = quadrature(dirs);
     let train = select::training_lights(n);
     let choices = match request {
@@ -612,28 +632,51 @@ fn choose_basis(
             options.max_coefficients
         )));
     }
-    let objectives: &[Objective] = match objective {
+    // What is validated: each space with its objectives (display-referred maps only
+    // with the plain one), in order.
+    let linear_objectives: &[Objective] = match objective {
         Objective::Auto => &[Objective::Perceptual, Objective::Linear],
         Objective::Perceptual => &[Objective::Perceptual],
         Objective::Linear => &[Objective::Linear],
     };
-    // Each candidate's best score over the objectives, with the objective behind it, and
-    // the λ each objective scored best at.
+    let objectives_of = |space: MapSpace| match space {
+        MapSpace::Linear => linear_objectives,
+        MapSpace::Srgb => &[Objective::Linear][..],
+    };
+    let variants: Vec<(MapSpace, Objective)> = spaces
+        .iter()
+        .flat_map(|&s| objectives_of(s).iter().map(move |&o| (s, o)))
+        .collect();
+    // Each candidate's best score over the variants, with the variant behind it, and
+    // the λ each variant scored best at.
     let judge = |choice: &BasisChoice,
-                 view: &select::Subsample,
+                 screening: bool,
                  folds: usize,
                  ladders: &[std::ops::Range<usize>]| {
-        let scores = select::validate(
-            choice,
-            objectives,
-            options.regularizer,
-            criterion,
-            dirs,
-            &q,
-            view,
-            folds,
-            ladders,
-        )?;
+        let mut scores = Vec::with_capacity(variants.len());
+        let mut at = 0;
+        for (space, values, screened) in &views {
+            let objectives = objectives_of(*space);
+            let (values, count) = if screening {
+                (screened, screen_keep)
+            } else {
+                (values, keep)
+            };
+            let view = select::Subsample { values, count, n };
+            scores.extend(select::validate(
+                choice,
+                *space,
+                objectives,
+                options.regularizer,
+                criterion,
+                dirs,
+                &q,
+                &view,
+                folds,
+                &ladders[at..at + objectives.len()],
+            )?);
+            at += objectives.len();
+        }
         let best_lambdas: Vec<usize> = scores
             .iter()
             .map(|s| {
@@ -643,16 +686,16 @@ fn choose_basis(
                     .unwrap_or(0)
             })
             .collect();
-        let mut own: Option<(Objective, CandidateScore)> = None;
-        for (&o, score) in objectives.iter().zip(scores) {
+        let mut own: Option<((MapSpace, Objective), CandidateScore)> = None;
+        for (&v, score) in variants.iter().zip(scores) {
             if !matches!(&own, Some((_, b)) if !score.beats(b)) {
-                own = Some((o, score));
+                own = Some((v, score));
             }
         }
-        let (o, score) = own.expect("at least one objective");
-        Ok::<_, Error>((o, score, best_lambdas))
+        let (v, score) = own.expect("at least one objective");
+        Ok::<_, Error>((v, score, best_lambdas))
     };
-    let whole = vec![select::WHOLE_LADDER; objectives.len()];
+    let whole = vec![select::WHOLE_LADDER; variants.len()];
     // Successive halving: every candidate on a few pixels, the best few on all of them,
     // each finalist at the λ around those its screening found best.
     let mut finalists: Vec<(usize, Vec<std::ops::Range<usize>>)> =
@@ -665,7 +708,7 @@ fn choose_basis(
             .iter()
             .enumerate()
             .map(|(i, choice)| {
-                let (_, score, lambdas) = judge(choice, &screen_view, folds, &whole)?;
+                let (_, score, lambdas) = judge(choice, true, folds, &whole)?;
                 Ok((i, score, lambdas))
             })
             .collect::<Result<_>>()?;
@@ -682,20 +725,23 @@ fn choose_basis(
             .collect();
         scores.extend(screening.into_iter().skip(FINALISTS).map(|(_, s, _)| s));
     }
-    let mut best: Option<(usize, Objective, CandidateScore)> = None;
+    let mut best: Option<(usize, (MapSpace, Objective), CandidateScore)> = None;
     for (i, ladders) in &finalists {
-        let (o, score, _) = judge(&choices[*i], &view, select::folds(n), ladders)?;
+        let (v, score, _) = judge(&choices[*i], false, select::folds(n), ladders)?;
         if !matches!(&best, Some((_, _, b)) if !score.beats(b)) {
-            best = Some((*i, o, score.clone()));
+            best = Some((*i, v, score.clone()));
         }
         scores.push(score);
     }
     // Finalists first (they were judged on more pixels), each group best first.
     scores.sort_by(|a, b| b.pixels.cmp(&a.pixels).then(order(a, b)));
-    let (i, chosen_objective, score) = best.expect("at least one candidate");
-    let samples: Vec<f32> = (0..sub_count * 3)
+    let (i, (space, chosen_objective), score) = best.expect("at least one candidate");
+    let mut samples: Vec<f32> = (0..sub_count * 3)
         .flat_map(|s| (0..n).map(move |j| sub[((s / 3) * n + j) * 3 + s % 3]))
         .collect();
+    if space != given {
+        to_target_values(&mut samples, space);
+    }
     let basis = choices[i].build(
         dirs,
         Some(Samples {
@@ -703,7 +749,7 @@ fn choose_basis(
             n,
         }),
     )?;
-    Ok((basis, Some((chosen_objective, score.lambda)), scores))
+    Ok((basis, Some((chosen_objective, space, score.lambda)), scores))
 }
 
 /// Candidates best first: unbiased ones, then by validation PSNR.
@@ -954,8 +1000,23 @@ fn fit_into(
     // of the whole image); the subsample and every choice stay those of the whole image.
     let rows = shard.map_or(0..h, |s| s.rows());
     let band = rows.start * w..rows.end * w;
+    let criterion = options
+        .criterion
+        .unwrap_or_else(|| Criterion::for_capture(capture));
+    // The spaces the maps may be stored in: the one asked for (or the plan's), or, for
+    // photographs with the automatic objective, linear radiance or display values,
+    // whichever validates better on the capture's own lights.
+    let spaces: Vec<MapSpace> = match (&options.plan, options.color_space) {
+        (Some(plan), _) => vec![plan.color_space],
+        (None, Some(space)) => vec![space],
+        (None, None) if options.objective == Objective::Auto && criterion == Criterion::Display => {
+            vec![MapSpace::Linear, MapSpace::Srgb]
+        }
+        (None, None) => vec![MapSpace::Linear],
+    };
+    let mut space = spaces[0];
     // Display-referred maps are fitted to display values, so only the plain objective applies.
-    let mut objective = match options.color_space {
+    let mut objective = match space {
         MapSpace::Srgb => Objective::Linear,
         MapSpace::Linear => options.objective,
     };
@@ -974,26 +1035,18 @@ fn fit_into(
                 BasisRequest::Auto => true,
                 BasisRequest::Fixed(choice) => choice.needs_samples(),
             });
-    let early_sub = if early {
-        Some(read_subsample(
-            capture,
-            &sub_idx,
-            options.color_space,
-            progress,
-        )?)
+    let mut early_sub = if early {
+        Some(read_subsample(capture, &sub_idx, space, progress)?)
     } else {
         None
     };
     if early {
         stages.end("subsample");
     }
-    let criterion = options
-        .criterion
-        .unwrap_or_else(|| Criterion::for_capture(capture));
     let (basis, validated, basis_scores) = match &options.plan {
         Some(plan) => (
             plan.basis.build()?,
-            Some((plan.objective, plan.lambda)),
+            Some((plan.objective, plan.color_space, plan.lambda)),
             Vec::new(),
         ),
         None => choose_basis(
@@ -1001,13 +1054,20 @@ fn fit_into(
             options,
             criterion,
             objective,
+            &spaces,
             &dirs,
             early_sub.as_deref(),
             sub_idx.len(),
         )?,
     };
-    if let Some((chosen, lambda)) = validated {
+    if let Some((chosen, chosen_space, lambda)) = validated {
         objective = chosen;
+        if chosen_space != space {
+            if let Some(sub) = early_sub.as_mut() {
+                to_target_values(sub, chosen_space);
+            }
+            space = chosen_space;
+        }
         if matches!(lambda_option, Lambda::Auto) || options.plan.is_some() {
             lambda_option = Lambda::Fixed(lambda);
         }
@@ -1099,7 +1159,7 @@ fn fit_into(
                         let mut writer = spill.image_rows(j);
                         let samples =
                             capture.read_parts(j, rows.clone(), wanted, &mut |_, values| {
-                                to_target_values(values, options.color_space);
+                                to_target_values(values, space);
                                 writer.push(values)
                             })?;
                         writer.finish()?;
@@ -1107,14 +1167,14 @@ fn fit_into(
                     }
                     _ => {
                         let (mut img, samples) = capture.load_parts(j, rows.clone(), wanted)?;
-                        to_target_values(&mut img, options.color_space);
+                        to_target_values(&mut img, space);
                         if let Some(spill) = &spill {
                             spill.write_image(j, &img)?;
                         }
                         (img, samples)
                     }
                 };
-                to_target_values(&mut samples, options.color_space);
+                to_target_values(&mut samples, space);
                 progress.advance(1);
                 Ok((img, samples))
             })
@@ -1223,15 +1283,10 @@ fn fit_into(
     };
 
     stages.end("solve");
-    let (rmse_linear, psnr_srgb8) =
-        training_residual(&design, &sub_coefs, &sub, options.color_space);
+    let (rmse_linear, psnr_srgb8) = training_residual(&design, &sub_coefs, &sub, space);
     stages.end("residual");
     let seconds = start.elapsed().as_secs_f64();
-    let mut meta = Metadata::new(
-        design.basis.spec(),
-        options.color_space,
-        capture.projection.clone(),
-    );
+    let mut meta = Metadata::new(design.basis.spec(), space, capture.projection.clone());
     meta.camera = capture.camera.clone();
     meta.fit = Some(FitInfo {
         objective: objective.name().into(),
@@ -1261,7 +1316,7 @@ fn fit_into(
         height: h,
         coefficients: design.k,
         objective,
-        color_space: options.color_space,
+        color_space: space,
         lambda,
         lambda_scores,
         seconds,

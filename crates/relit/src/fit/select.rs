@@ -21,6 +21,7 @@ use super::{
 use crate::basis::{Basis, BasisChoice, Family, Samples, FAMILIES};
 use crate::color;
 use crate::linalg::{self, Lanes, LANES};
+use crate::maps::MapSpace;
 use crate::sphere::Vec3;
 use crate::Result;
 use rayon::prelude::*;
@@ -93,6 +94,9 @@ pub struct CandidateScore {
     pub display_rmse: f64,
     /// What `psnr` measures.
     pub criterion: Criterion,
+    /// The space the candidate's maps would store (and were fitted in).
+    #[serde(default)]
+    pub space: MapSpace,
     /// The mean over the captured lights of each light's PSNR (peak 1) when held out,
     /// in display values or linear radiance as `criterion` says: what the choice
     /// maximises, comparable to `relit eval`'s figures.
@@ -226,7 +230,11 @@ impl Subsample<'_> {
 
 /// Validate `choice` under each of `objectives` (linear or perceptual) on `sub`, lit
 /// from `dirs` with quadrature weights `q`: for each, in order, the best λ of
-/// [`VALIDATION_LADDER`] by `criterion` and its error.
+/// [`VALIDATION_LADDER`] by `criterion` and its error. `space` is what `sub` holds and
+/// the candidate's maps would store: linear radiance, or sRGB-encoded display values
+/// (then only the plain objective applies, and predictions are shown as they are,
+/// clipped to `[0, 1]`, and decoded for the linear error), so that both kinds of maps
+/// are judged on one scale.
 ///
 /// Objectives that validate on the same pixels share each fold's basis: building a
 /// data-driven basis (its principal components, its roughness penalty) is a good part
@@ -234,6 +242,7 @@ impl Subsample<'_> {
 #[allow(clippy::too_many_arguments)]
 pub(super) fn validate(
     choice: &BasisChoice,
+    space: MapSpace,
     objectives: &[Objective],
     regularizer: Regularizer,
     criterion: Criterion,
@@ -244,6 +253,10 @@ pub(super) fn validate(
     ladders: &[Range<usize>],
 ) -> Result<Vec<CandidateScore>> {
     assert_eq!(ladders.len(), objectives.len());
+    assert!(
+        space == MapSpace::Linear || objectives.iter().all(|&o| o == Objective::Linear),
+        "display-referred maps are fitted with the plain objective"
+    );
     let n = sub.n;
     let keeps: Vec<usize> = objectives
         .iter()
@@ -278,12 +291,35 @@ pub(super) fn validate(
             sub
         };
         let series = sub.count * 3;
-        let relevance = light_relevance(sub.values, sub.count, n);
+        // Which lights reach the scene, judged on radiance in either space.
+        let relevance = match space {
+            MapSpace::Linear => light_relevance(sub.values, sub.count, n),
+            MapSpace::Srgb => {
+                let radiance: Vec<f32> = sub
+                    .values
+                    .iter()
+                    .map(|&v| color::srgb_to_linear(v))
+                    .collect();
+                light_relevance(&radiance, sub.count, n)
+            }
+        };
         // Folds in parallel too: a fold's basis is built on one thread, and two folds
         // keep both cores of a small machine busy where one fold's blocks would not.
         let fold_results = (0..folds)
             .into_par_iter()
-            .map(|fold| fold_result(choice, &grouped, regularizer, dirs, q, sub, folds, fold))
+            .map(|fold| {
+                fold_result(
+                    choice,
+                    space,
+                    &grouped,
+                    regularizer,
+                    dirs,
+                    q,
+                    sub,
+                    folds,
+                    fold,
+                )
+            })
             .collect::<Result<Vec<_>>>()?;
         for (g, &i) in group.iter().enumerate() {
             // Squared display errors per captured light (each is held out once) and λ.
@@ -294,7 +330,7 @@ pub(super) fn validate(
                 }
             }
             scores[i] = Some(score_lights(
-                choice, criterion, q, &relevance, &per_light, series,
+                choice, space, criterion, q, &relevance, &per_light, series,
             )?);
         }
     }
@@ -312,6 +348,7 @@ type FoldErrors = (Vec<usize>, Vec<Vec<[f64; SLOTS]>>);
 #[allow(clippy::too_many_arguments)]
 fn fold_result(
     choice: &BasisChoice,
+    space: MapSpace,
     objectives: &[(Objective, Range<usize>)],
     regularizer: Regularizer,
     dirs: &[Vec3],
@@ -345,6 +382,7 @@ fn fold_result(
         .map(|(objective, ladder)| {
             fold_errors(
                 basis.as_ref(),
+                space,
                 *objective,
                 ladder.clone(),
                 regularizer,
@@ -363,6 +401,7 @@ fn fold_result(
 /// The score of a candidate from its errors per held-out light.
 fn score_lights(
     choice: &BasisChoice,
+    space: MapSpace,
     criterion: Criterion,
     q: &[f64],
     relevance: &[f64],
@@ -422,6 +461,7 @@ fn score_lights(
         lambda: VALIDATION_LADDER[best],
         display_rmse: rmse,
         criterion,
+        space,
         psnr,
         mean_bias: bias,
         pixels: series / 3,
@@ -464,6 +504,7 @@ fn factor_lanes(
 #[allow(clippy::too_many_arguments)]
 fn fold_errors(
     basis: &dyn Basis,
+    space: MapSpace,
     objective: Objective,
     ladder: Range<usize>,
     regularizer: Regularizer,
@@ -598,8 +639,11 @@ fn fold_errors(
                     // The held-out observations and how a screen shows them, the
                     // same at every λ.
                     for (h, &j) in held.iter().enumerate() {
-                        let o = sub.values[(p * sub.n + j) * 3 + c] as f64;
-                        held_obs[h][l] = (o, srgb_on_screen(o));
+                        let v = sub.values[(p * sub.n + j) * 3 + c];
+                        held_obs[h][l] = match space {
+                            MapSpace::Linear => (v as f64, srgb_on_screen(v as f64)),
+                            MapSpace::Srgb => (color::srgb_to_linear(v) as f64, v as f64),
+                        };
                     }
                 }
                 // λ two at a time: their solves run side by side
@@ -640,10 +684,23 @@ fn fold_errors(
                                 preds[l * lights + h] = pred;
                             }
                         }
-                        color::linear_to_srgb_tabulated_batch(
-                            &preds[..used * lights],
-                            &mut shown[..used * lights],
-                        );
+                        match space {
+                            MapSpace::Linear => color::linear_to_srgb_tabulated_batch(
+                                &preds[..used * lights],
+                                &mut shown[..used * lights],
+                            ),
+                            // Display values are shown as they are; the linear error
+                            // and the brightness judge their decoding.
+                            MapSpace::Srgb => {
+                                for (s, p) in shown[..used * lights]
+                                    .iter_mut()
+                                    .zip(&mut preds[..used * lights])
+                                {
+                                    *s = p.clamp(0.0, 1.0);
+                                    *p = color::srgb_to_linear(*s as f32) as f64;
+                                }
+                            }
+                        }
                         for l in 0..used {
                             if !ok[l] {
                                 acc.iter_mut().for_each(|a| a[li] = f64::INFINITY);
