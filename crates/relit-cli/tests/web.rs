@@ -332,7 +332,7 @@ fn openlime_shows_what_relit_relights_for_each_type_relit_writes() {
         let capture = &captures[usize::from(layout != "image")];
         let options = relit::fit::FitOptions {
             basis: relit::fit::BasisRequest::parse(basis).unwrap(),
-            color_space: space,
+            color_space: Some(space),
             lambda: relit::fit::Lambda::Fixed(1e-3),
             ..Default::default()
         };

@@ -84,7 +84,7 @@ struct Area {
 struct Frame {
     // passes, point and spot lights, projectors, area lights
     counts: vec4<u32>,
-    passes: array<Pass, 16>,
+    passes: array<Pass, 96>,
     lights: array<PosLight, 32>,
     projectors: array<Projector, 8>,
     areas: array<Area, 8>,

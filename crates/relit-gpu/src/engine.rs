@@ -587,15 +587,28 @@ impl GpuRelighter {
             let prepared = light
                 .prepare(Path::new(""))
                 .map_err(|e| invalid(format!("lights[{i}] ({}): {e}", light.kind())))?;
-            match &prepared {
-                PreparedLight::Directional { direction, rgb } => {
-                    let y = self.basis.values(*direction);
-                    lighting.add_uniform([y.clone(), y.clone(), y], rgb.map(|v| v * scale))?;
-                }
-                positional => lighting.add_positional(positional, scale)?,
-            }
+            self.add_prepared(&mut lighting, &prepared, scale)?;
         }
         Ok(lighting)
+    }
+
+    /// Add a light prepared by the CPU engine ([`relit::engine::Relighter::prepare`],
+    /// which loads environments: their weights on linear maps, their median-cut lights
+    /// on display-referred ones) to `lighting`, its colour times `scale`.
+    pub fn add_prepared(
+        &self,
+        lighting: &mut Lighting,
+        light: &PreparedLight,
+        scale: f64,
+    ) -> Result<()> {
+        match light {
+            PreparedLight::Directional { direction, rgb } => {
+                let y = self.basis.values(*direction);
+                lighting.add_uniform([y.clone(), y.clone(), y], rgb.map(|v| v * scale))
+            }
+            PreparedLight::Weights(w) => lighting.add_uniform(w.clone(), [scale; 3]),
+            positional => lighting.add_positional(positional, scale),
+        }
     }
 
     /// A slide file, linearised (as `ProjectorLight::prepare` loads it), cached.

@@ -18,8 +18,9 @@ use std::sync::Arc;
 
 /// The most coefficients per colour channel (the shader's arrays hold 64).
 pub const MAX_K: usize = 64;
-/// The most uniform passes per frame (only display-referred maps need more than one).
-pub const MAX_PASSES: usize = 16;
+/// The most uniform passes per frame (only display-referred maps need more than one):
+/// an environment's lights on such maps and 32 more.
+pub const MAX_PASSES: usize = relit::engine::DISPLAY_ENVIRONMENT_LIGHTS + 32;
 /// The most positional lights per frame.
 pub const MAX_POSITIONAL: usize = 32;
 /// The most projectors per frame.
@@ -421,6 +422,21 @@ fn attenuation_code(a: Attenuation) -> (f32, f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The shader's `Frame` declares the arrays `FrameGpu` holds, size for size.
+    #[test]
+    fn the_shaders_frame_holds_what_the_engine_sends() {
+        let wgsl = include_str!("../shaders/relight.wgsl");
+        for decl in [
+            format!("passes: array<Pass, {MAX_PASSES}>"),
+            format!("lights: array<PosLight, {MAX_POSITIONAL}>"),
+            format!("projectors: array<Projector, {MAX_PROJECTORS}>"),
+            format!("areas: array<Area, {MAX_AREAS}>"),
+            format!("w: array<vec4<f32>, {MAX_K}>"),
+        ] {
+            assert!(wgsl.contains(&decl), "relight.wgsl lacks `{decl}`");
+        }
+    }
 
     #[test]
     fn linear_maps_fold_uniform_lights_into_one_pass() {

@@ -716,7 +716,29 @@ fn environment_lights_match_the_cpu_engine() {
             };
             let mut lighting: Lighting = gpu.empty_lighting();
             let scale = 2f64.powf(0.5);
-            lighting.add_uniform(weights, [scale; 3]).unwrap();
+            // The weights on linear maps, the median-cut lights (a pass each) on
+            // display-referred ones, as the CPU engine prepares the environment.
+            let options = RelightOptions {
+                resource_dir: dir.clone(),
+                ..Default::default()
+            };
+            let prepared = Relighter::new(&img)
+                .unwrap()
+                .prepare(&Light::Environment(env.clone()), &options)
+                .unwrap();
+            assert_eq!(
+                prepared.len(),
+                match space {
+                    MapSpace::Linear => 1,
+                    MapSpace::Srgb => relit::engine::DISPLAY_ENVIRONMENT_LIGHTS,
+                }
+            );
+            if space == MapSpace::Linear {
+                assert!(matches!(&prepared[0], PreparedLight::Weights(w) if *w == weights));
+            }
+            for light in &prepared {
+                gpu.add_prepared(&mut lighting, light, scale).unwrap();
+            }
             assert_close(
                 &format!("{name} {space:?}, environment"),
                 &gpu.render(&lighting, None).unwrap(),
@@ -1039,12 +1061,18 @@ fn codebook_frames_match_the_cpu_lookup() {
                     let mut lighting = gpu.entries().empty_lighting();
                     let mut rest = Vec::new();
                     for light in &rig.lights {
-                        if let Light::Environment(e) = light {
-                            let weights = Relighter::new(&indexed.entries)
+                        if let Light::Environment(_) = light {
+                            let options = RelightOptions {
+                                resource_dir: dir.clone(),
+                                ..Default::default()
+                            };
+                            for l in Relighter::new(&indexed.entries)
                                 .unwrap()
-                                .environment_weights(e, &dir)
-                                .unwrap();
-                            lighting.add_uniform(weights, [1.0; 3]).unwrap();
+                                .prepare(light, &options)
+                                .unwrap()
+                            {
+                                plain.add_prepared(&mut lighting, &l, 1.0).unwrap();
+                            }
                         } else {
                             rest.push(light.clone());
                         }

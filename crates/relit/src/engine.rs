@@ -57,6 +57,16 @@ use tiles::{Frame, PositionalLight, Scratch, UniformPass, TILE};
 /// slower for f16 and u8, so small frames are written as usual.
 const STREAM_BYTES: usize = 64 << 20;
 
+/// Directional lights an environment is lumped into on display-referred maps
+/// ([`Relighter::environment_lights`]): each costs one pass per frame, so a few must
+/// stand for the map. Measured on a display-referred fit of RealRTI item2 (sh:16) under
+/// the seven shared maps turned by (30°, −10°, 5°), 8-bit sRGB PSNR of a 96×96 crop
+/// against 4096 lights (the 64×64 quadrature, each decoded on its own): 16 lights
+/// 27.5–49.0 dB, 32 lights 35.6–58.4, 64 lights 52.9–65.5 (every map above an 8-bit
+/// step's 48 dB but one, 52.9); `display_environment_lumps_measurement`. The GPU
+/// engine's frame holds these passes and 32 more.
+pub const DISPLAY_ENVIRONMENT_LIGHTS: usize = 64;
+
 /// Options of [`relight`].
 #[derive(Clone, Debug, Default)]
 pub struct RelightOptions {
@@ -172,6 +182,8 @@ pub struct Relighter<'a> {
     slides: Mutex<HashMap<PathBuf, Arc<ImageRgb>>>,
     /// Environment maps made ready for the basis, by file.
     environments: Mutex<HashMap<PathBuf, Arc<BasisEnvironment>>>,
+    /// Environment maps as a few directional lights (display-referred maps), by file.
+    environment_lumps: Mutex<HashMap<PathBuf, Arc<Vec<(Vec3, [f64; 3])>>>>,
 }
 
 impl<'a> Relighter<'a> {
@@ -216,6 +228,7 @@ impl<'a> Relighter<'a> {
             point_rows: OnceLock::new(),
             slides: Mutex::new(HashMap::new()),
             environments: Mutex::new(HashMap::new()),
+            environment_lumps: Mutex::new(HashMap::new()),
         }
     }
 
@@ -373,12 +386,61 @@ impl<'a> Relighter<'a> {
         Ok(weights)
     }
 
-    /// Prepare one light for this file (environment weights, cached slides).
-    pub fn prepare(&self, light: &Light, options: &RelightOptions) -> Result<PreparedLight> {
+    /// The directional lights an environment stands for on display-referred maps, where
+    /// each light is decoded to radiance on its own before lights add up (so no one
+    /// weight vector can stand for the map): the map's quadrature lumped into
+    /// [`DISPLAY_ENVIRONMENT_LIGHTS`] lights by median cut ([`crate::envmap::median_cut`],
+    /// once per file), turned by the light's rotation, times its colour. A window has no
+    /// part in it (it attenuates a basis' bands of a projection).
+    pub fn environment_lights(
+        &self,
+        light: &crate::light::EnvironmentMapLight,
+        resource_dir: &std::path::Path,
+    ) -> Result<Vec<PreparedLight>> {
+        light.validate()?;
+        let path = resource_dir.join(&light.map);
+        let lumps = {
+            let mut cache = self.environment_lumps.lock().expect("environment cache");
+            match cache.get(&path) {
+                Some(l) => l.clone(),
+                None => {
+                    let env = EnvironmentLight::load(&path)?;
+                    let quadrature = crate::envmap::environment_quadrature(
+                        env.map(),
+                        crate::envmap::QUADRATURE_WIDTH,
+                        crate::envmap::QUADRATURE_HEIGHT,
+                    );
+                    let l = Arc::new(crate::envmap::median_cut(
+                        &quadrature,
+                        DISPLAY_ENVIRONMENT_LIGHTS,
+                    ));
+                    cache.insert(path, l.clone());
+                    l
+                }
+            }
+        };
+        let rotation = light.rotation()?;
+        let rgb = Light::Environment(light.clone()).rgb();
+        Ok(lumps
+            .iter()
+            .map(|(d, i)| PreparedLight::Directional {
+                direction: crate::basis::mat3_apply(&rotation, *d),
+                rgb: std::array::from_fn(|c| i[c] * rgb[c]),
+            })
+            .collect())
+    }
+
+    /// Prepare one light for this file (environment weights, cached slides): one
+    /// prepared light, or several where an environment lights display-referred maps
+    /// ([`Relighter::environment_lights`]).
+    pub fn prepare(&self, light: &Light, options: &RelightOptions) -> Result<Vec<PreparedLight>> {
         if let Light::Environment(env) = light {
-            return Ok(PreparedLight::Weights(
+            if self.image.meta.color_space == MapSpace::Srgb {
+                return self.environment_lights(env, &options.resource_dir);
+            }
+            return Ok(vec![PreparedLight::Weights(
                 self.environment_weights(env, &options.resource_dir)?,
-            ));
+            )]);
         }
         if let Light::Projector(p) = light {
             p.validate()?;
@@ -392,12 +454,25 @@ impl<'a> Relighter<'a> {
                     s
                 }
             };
-            return Ok(PreparedLight::Projector(
+            return Ok(vec![PreparedLight::Projector(
                 Box::new(p.with_slide(slide)),
                 light.rgb(),
-            ));
+            )]);
         }
-        light.prepare(&options.resource_dir)
+        Ok(vec![light.prepare(&options.resource_dir)?])
+    }
+
+    /// Prepare every light of `rig` ([`Relighter::prepare`]), in order.
+    pub fn prepare_rig(
+        &self,
+        rig: &LightRig,
+        options: &RelightOptions,
+    ) -> Result<Vec<PreparedLight>> {
+        let mut out = Vec::with_capacity(rig.lights.len());
+        for light in &rig.lights {
+            out.extend(self.prepare(light, options)?);
+        }
+        Ok(out)
     }
 
     /// Relight with `rig`.
@@ -413,11 +488,7 @@ impl<'a> Relighter<'a> {
         options: &RelightOptions,
         roi: Roi,
     ) -> Result<ImageRgb> {
-        let lights: Vec<PreparedLight> = rig
-            .lights
-            .iter()
-            .map(|l| self.prepare(l, options))
-            .collect::<Result<_>>()?;
+        let lights = self.prepare_rig(rig, options)?;
         self.relight_prepared_roi(&lights, options.exposure, roi)
     }
 
@@ -1327,6 +1398,139 @@ mod tests {
             .environment_weights(&hann, &dir)
             .is_ok());
         std::fs::remove_dir_all(&dir).ok();
+    }
+
+    /// On display-referred maps an environment is its median-cut lights, each decoded on
+    /// its own: the frame equals those directional lights', and differs from folding
+    /// the map into one weight vector (which decodes the sum of display values).
+    #[test]
+    fn environments_on_display_maps_are_their_median_cut_lights() {
+        use crate::envmap::{environment_quadrature, median_cut};
+        let dir = std::env::temp_dir().join(format!("relit-engine-envd-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let (w, h) = (64, 32);
+        let mut sky = ImageRgb::new(w, h);
+        for (i, v) in sky.data.iter_mut().enumerate() {
+            let (x, y) = ((i / 3) % w, (i / 3) / w);
+            let sun = (x as i64 - 20).abs() <= 1 && (y as i64 - 9).abs() <= 1;
+            *v = if sun {
+                4.0
+            } else {
+                0.02 + 0.03 * (y as f32 / h as f32)
+            };
+        }
+        crate::image::save(&dir.join("sky.exr"), &sky, 0.0).unwrap();
+        let light: crate::light::EnvironmentMapLight = serde_json::from_str(
+            r#"{ "map": "sky.exr", "yaw_deg": 40, "pitch_deg": -15, "intensity": 0.2 }"#,
+        )
+        .unwrap();
+        let rotation = light.rotation().unwrap();
+        let img = random_image(37, 23, 3, MapSpace::Srgb);
+        let r = Relighter::new(&img).unwrap();
+        let options = RelightOptions {
+            exposure: 0.0,
+            resource_dir: dir.clone(),
+        };
+        let rig = LightRig::new(vec![Light::Environment(light.clone())]);
+        let got = r.relight(&rig, &options).unwrap();
+        let map = crate::image::load_linear(&dir.join("sky.exr"), None).unwrap();
+        let lumps = median_cut(
+            &environment_quadrature(&map, 128, 64),
+            DISPLAY_ENVIRONMENT_LIGHTS,
+        );
+        assert_eq!(lumps.len(), DISPLAY_ENVIRONMENT_LIGHTS);
+        let directional: Vec<PreparedLight> = lumps
+            .iter()
+            .map(|(d, i)| PreparedLight::Directional {
+                direction: crate::basis::mat3_apply(&rotation, *d),
+                rgb: i.map(|v| v * 0.2),
+            })
+            .collect();
+        let want = r.relight_prepared(&directional, 0.0).unwrap();
+        let (diff, peak) = max_abs(&got, &want);
+        assert!(peak > 0.0 && diff <= 1e-5 * peak, "{diff} vs peak {peak}");
+        let folded = r
+            .relight_prepared(
+                &[PreparedLight::Weights(
+                    r.environment_weights(&light, &dir).unwrap(),
+                )],
+                0.0,
+            )
+            .unwrap();
+        let (apart, _) = max_abs(&got, &folded);
+        assert!(apart > 1e-2 * peak, "{apart} vs peak {peak}");
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    /// How many median-cut lights an environment needs on display-referred maps: the
+    /// frame of 4–64 lights against 4096 (the map's 64×... quadrature, each decoded on
+    /// its own), 8-bit sRGB PSNR over a crop, for every shared environment map. Needs a
+    /// display-referred fit in `RELIT_MEASURE_FILE` (e.g. `relit fit item2/dirs.lp`).
+    /// `RELIT_MEASURE_FILE=… cargo test -p relit --release lumps_measurement -- --ignored --nocapture`
+    #[test]
+    #[ignore]
+    fn display_environment_lumps_measurement() {
+        use crate::envmap::{environment_quadrature, median_cut};
+        let Ok(file) = std::env::var("RELIT_MEASURE_FILE") else {
+            return;
+        };
+        let img = crate::codec::read(std::path::Path::new(&file)).unwrap();
+        assert_eq!(img.meta.color_space, MapSpace::Srgb);
+        let r = Relighter::new(&img).unwrap();
+        let (w, h) = (img.width(), img.height());
+        let roi = Roi {
+            x: w / 2 - 48,
+            y: h / 2 - 48,
+            width: 96,
+            height: 96,
+        };
+        let envs =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/envmaps");
+        let mut names: Vec<_> = std::fs::read_dir(&envs)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .collect();
+        names.sort();
+        let rotation = crate::basis::rotation_from_yaw_pitch_roll(30.0, -10.0, 5.0).unwrap();
+        for path in names {
+            let map = crate::image::load_linear(&path, None).unwrap();
+            let fine = environment_quadrature(&map, 64, 64);
+            // Scaled so that the frame's mean is about mid-grey.
+            let frame = |lights: &[(Vec3, [f64; 3])], scale: f64| {
+                let prepared: Vec<PreparedLight> = lights
+                    .iter()
+                    .map(|(d, i)| PreparedLight::Directional {
+                        direction: crate::basis::mat3_apply(&rotation, *d),
+                        rgb: i.map(|v| v * scale),
+                    })
+                    .collect();
+                let mut out = ImageRgb::new(0, 0);
+                r.relight_prepared_into(&prepared, 0.0, roi, &mut out)
+                    .unwrap();
+                out
+            };
+            let probe = frame(&fine, 1.0);
+            let mean = probe.data.iter().map(|&v| v as f64).sum::<f64>() / probe.data.len() as f64;
+            let scale = 0.18 / mean.max(1e-12);
+            let reference = frame(&fine, scale);
+            let mut line = format!("{}:", path.file_name().unwrap().to_string_lossy());
+            for count in [4, 8, 16, 32, 64] {
+                let got = frame(&median_cut(&fine, count), scale);
+                let mse = got
+                    .data
+                    .iter()
+                    .zip(&reference.data)
+                    .map(|(&a, &b)| {
+                        let d = crate::color::linear_to_srgb(a) as f64
+                            - crate::color::linear_to_srgb(b) as f64;
+                        d * d
+                    })
+                    .sum::<f64>()
+                    / got.data.len() as f64;
+                line += &format!(" {count}: {:.1} dB", crate::metrics::psnr(mse, 1.0));
+            }
+            println!("{line}");
+        }
     }
 
     #[test]

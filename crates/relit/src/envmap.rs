@@ -79,7 +79,7 @@ use crate::image::{load_linear, ImageRgb};
 use crate::sphere::Vec3;
 use crate::{Error, Result};
 pub use quadrature::{
-    environment_quadrature, quadrature_weights, QUADRATURE_HEIGHT, QUADRATURE_WIDTH,
+    environment_quadrature, median_cut, quadrature_weights, QUADRATURE_HEIGHT, QUADRATURE_WIDTH,
 };
 use rayon::prelude::*;
 use std::f64::consts::PI;

@@ -627,7 +627,7 @@ mod tests {
             "{err}"
         );
         let srgb = FitOptions {
-            color_space: crate::maps::MapSpace::Srgb,
+            color_space: Some(crate::maps::MapSpace::Srgb),
             ..options.clone()
         };
         assert!(fit(&capture, &with(plan.clone(), &srgb), &Silent).is_err());

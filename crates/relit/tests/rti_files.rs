@@ -223,7 +223,7 @@ fn files_relight_like_their_fits_against_real_photographs() {
     for basis in ["ptm:6", "hsh:9"] {
         let options = FitOptions {
             basis: BasisRequest::Fixed(BasisChoice::parse(basis).unwrap()),
-            color_space: MapSpace::Srgb,
+            color_space: Some(MapSpace::Srgb),
             ..FitOptions::default()
         };
         let fitted = relit::fit::fit(&capture, &options, &relit::progress::Silent)

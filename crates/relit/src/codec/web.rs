@@ -1861,7 +1861,7 @@ mod tests {
         let dirs = crate::sphere::hemisphere_fibonacci(30);
         let options = crate::fit::FitOptions {
             basis: crate::fit::BasisRequest::parse(basis).unwrap(),
-            color_space: space,
+            color_space: Some(space),
             lambda: crate::fit::Lambda::Fixed(1e-3),
             ..Default::default()
         };

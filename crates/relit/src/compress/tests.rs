@@ -340,9 +340,9 @@ fn a_codebook_file_reads_back_and_relights_by_look_up() {
         let lookup = crate::engine::lookup::LookupRelighter::new(&indexed).unwrap();
         let light = Light::directional([0.2, 0.5, 0.8], [1.0, 0.7, 0.4]);
         let relighter = Relighter::new(&expanded).unwrap();
-        let prepared = vec![relighter
+        let prepared = relighter
             .prepare(&light, &RelightOptions::default())
-            .unwrap()];
+            .unwrap();
         let want = relighter.relight_prepared(&prepared, 0.0).unwrap();
         let mut got = crate::image::ImageRgb::new(0, 0);
         lookup

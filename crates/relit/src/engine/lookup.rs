@@ -98,11 +98,7 @@ impl<'a> LookupRelighter<'a> {
 
     /// Relight under `rig` (see [`LookupRelighter::draws`]).
     pub fn relight(&self, rig: &LightRig, options: &RelightOptions) -> Result<ImageRgb> {
-        let lights: Vec<PreparedLight> = rig
-            .lights
-            .iter()
-            .map(|l| self.entries.prepare(l, options))
-            .collect::<Result<_>>()?;
+        let lights = self.entries.prepare_rig(rig, options)?;
         let mut out = ImageRgb::new(0, 0);
         self.relight_prepared_into(&lights, options.exposure, &mut out)?;
         Ok(out)

@@ -113,6 +113,82 @@ pub fn quadrature_weights(
     weights
 }
 
+/// The quadrature `lights` lumped into at most `count` directional lights by median cut
+/// (Debevec, "A median cut algorithm for light probe sampling", 2005): the set is split
+/// in two along the axis of its widest spread of directions, at the light whose energy
+/// (`Σ_c |I_c|`) brings the first part to half, and again in each part, the part of
+/// most energy first, until there are `count` parts or no part has two lights. Each
+/// part becomes one light: its summed intensity (so `∫ E dω` is kept exactly) at its
+/// energy's centroid.
+///
+/// This is how an environment lights display-referred maps
+/// ([`crate::maps::MapSpace::Srgb`]): there each light's contribution is decoded to
+/// radiance before lights add up, so an environment costs one pass per light, not one
+/// dot product, and a few lights must stand for the whole map.
+pub fn median_cut(lights: &[(Vec3, [f64; 3])], count: usize) -> Vec<(Vec3, [f64; 3])> {
+    let coordinate = |d: Vec3, axis: usize| [d.x, d.y, d.z][axis];
+    let energy = |l: &(Vec3, [f64; 3])| l.1.iter().map(|v| v.abs()).sum::<f64>();
+    let mut parts: Vec<Vec<(Vec3, [f64; 3])>> =
+        vec![lights.iter().filter(|l| energy(l) > 0.0).copied().collect()];
+    while parts.len() < count.max(1) {
+        // The part of most energy that can still be split.
+        let Some((at, _)) = parts
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| p.len() > 1)
+            .map(|(i, p)| (i, p.iter().map(energy).sum::<f64>()))
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+        else {
+            break;
+        };
+        let mut part = parts.swap_remove(at);
+        let spread = |axis: usize| {
+            let (lo, hi) = part
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), l| {
+                    let v = coordinate(l.0, axis);
+                    (lo.min(v), hi.max(v))
+                });
+            hi - lo
+        };
+        let axis = (0..3)
+            .max_by(|&a, &b| spread(a).total_cmp(&spread(b)))
+            .expect("three axes");
+        part.sort_by(|a, b| coordinate(a.0, axis).total_cmp(&coordinate(b.0, axis)));
+        let total: f64 = part.iter().map(energy).sum();
+        let mut running = 0.0;
+        let mut cut = part.len() - 1;
+        for (i, l) in part.iter().enumerate() {
+            running += energy(l);
+            if running >= 0.5 * total {
+                cut = i + 1;
+                break;
+            }
+        }
+        let cut = cut.clamp(1, part.len() - 1);
+        let rest = part.split_off(cut);
+        parts.push(part);
+        parts.push(rest);
+    }
+    parts
+        .into_iter()
+        .map(|part| {
+            let mut sum = [0.0; 3];
+            let mut centroid = Vec3::new(0.0, 0.0, 0.0);
+            for l in &part {
+                for (s, v) in sum.iter_mut().zip(l.1) {
+                    *s += v;
+                }
+                centroid = centroid + l.0 * energy(l);
+            }
+            let direction = centroid
+                .normalized()
+                .unwrap_or_else(|| part.first().map_or(Vec3::new(0.0, 0.0, 1.0), |l| l.0));
+            (direction, sum)
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

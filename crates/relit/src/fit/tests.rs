@@ -180,7 +180,7 @@ fn display_maps_reproduce_srgb_values() {
     let dirs = hemisphere_fibonacci(60);
     let capture = plane.capture(&dirs);
     let opts = FitOptions {
-        color_space: MapSpace::Srgb,
+        color_space: Some(MapSpace::Srgb),
         ..Default::default()
     };
     let out = fit(&capture, &opts, &Silent).unwrap();
