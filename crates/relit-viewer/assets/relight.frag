@@ -42,6 +42,9 @@ uniform bool uSmooth;           // bilinear coefficients (and depth where it is 
 uniform float uMaxLod;          // mip levels − 1 when the view shrinks the image, else 0
 uniform vec2 uPlanesSize;       // the planes texture's size: the image's, or a tiled bundle's overview
 uniform float uPlanesLod;       // the level of the image the planes texture holds (0, or the overview's)
+// Display-referred maps: an environment's lights, row 0 the directions, row 1 the RGB.
+uniform highp sampler2D uEnvLights;
+uniform int uNumEnv;
 
 #if TILED
 // A tiled bundle (renderer.js setupTiles): tiles of level uLevel held in the atlas's
@@ -353,6 +356,20 @@ void main() {
     }
     if (uDisplay) u = vec3(srgbToLinear(clamp(u.r, 0.0, 1.0)), srgbToLinear(clamp(u.g, 0.0, 1.0)), srgbToLinear(clamp(u.b, 0.0, 1.0)));
     col += u;
+  }
+  if (uNumEnv > 0) {
+    // An environment on display-referred maps: each of its lights decoded on its own.
+    vec4 Y[N_LAYERS];
+    for (int e = 0; e < uNumEnv; e++) {
+      basisWeights(texelFetch(uEnvLights, ivec2(e, 0), 0).xyz, Y);
+      vec3 v = vec3(0.0);
+      for (int j = 0; j < N_LAYERS; j++) {
+        v.r += dot(C[j], Y[j]);
+        v.g += dot(C[N_LAYERS + j], Y[j]);
+        v.b += dot(C[2 * N_LAYERS + j], Y[j]);
+      }
+      col += texelFetch(uEnvLights, ivec2(e, 1), 0).xyz * vec3(srgbToLinear(clamp(v.r, 0.0, 1.0)), srgbToLinear(clamp(v.g, 0.0, 1.0)), srgbToLinear(clamp(v.b, 0.0, 1.0)));
+    }
   }
   if (uNumLights > 0) {
     vec2 at;

@@ -13,6 +13,9 @@ const TABLE_UNIT = 2 + MAX_SLIDES;
 const INDEX_UNIT = TABLE_UNIT + 1;
 // A tiled bundle's atlas of resident tiles and the page table of the level drawn.
 const ATLAS_UNIT = INDEX_UNIT + 1, PAGES_UNIT = ATLAS_UNIT + 1;
+// Environment lights of display-referred maps: a float texture of two rows (directions,
+// RGB), as many columns as lights (four environments of the 64 lights a bundle ships).
+const ENV_UNIT = PAGES_UNIT + 1, MAX_ENV_LIGHTS = 256;
 /** Tiles fetched at once. */
 const TILE_FETCHES = 6;
 /** Most GPU memory the atlas of tiles takes. */
@@ -551,6 +554,8 @@ export class Renderer {
     const w = [new Float64Array(k), new Float64Array(k), new Float64Array(k)];
     let hasUniform = false;
     const pos = [];
+    // Display-referred maps: environment lights as [direction, rgb] pairs.
+    const envLights = [];
     const warnings = [];
     rig.lights.forEach((light, idx) => {
       const rgb = lightRgb(light);
@@ -561,6 +566,17 @@ export class Renderer {
         const y = sample(this.table, L);
         for (let c = 0; c < 3; c++) for (let i = 0; i < k; i++) w[c][i] += rgb[c] * y[i];
         hasUniform = true;
+      } else if (light.type === 'environment' && display) {
+        // Display-referred maps: the bundle ships the environment's median-cut lights,
+        // each decoded on its own in the shader (no window: it weighs a projection's bands).
+        const env = this.environments.get(light.map);
+        if (!env) { warnings.push(`light ${idx + 1}: environment map “${light.map}” is not in this bundle`); return; }
+        const R = rotationYawPitchRoll(light.yaw_deg || 0, light.pitch_deg || 0, light.roll_deg || 0);
+        for (let o = 0; o < env.length; o += 6) {
+          const x = env[o], y = env[o + 1], z = env[o + 2];
+          envLights.push([R[0][0] * x + R[0][1] * y + R[0][2] * z, R[1][0] * x + R[1][1] * y + R[1][2] * z, R[2][0] * x + R[2][1] * y + R[2][2] * z],
+            [rgb[0] * env[o + 3], rgb[1] * env[o + 4], rgb[2] * env[o + 5]]);
+        }
       } else if (light.type === 'environment') {
         let window;
         try { window = windowFactors(info.basis.windows, light.window, info.basis.name); } catch (err) { warnings.push(`light ${idx + 1}: ${err.message}`); return; }
@@ -604,7 +620,8 @@ export class Renderer {
     if (pos.length > MAX_LIGHTS) { warnings.push(`only the first ${MAX_LIGHTS} lights with a position are shown`); pos.length = MAX_LIGHTS; }
     const uw = new Float32Array(4 * 3 * n);
     for (let c = 0; c < 3; c++) for (let i = 0; i < k; i++) uw[4 * (c * n) + i] = w[c][i];
-    this.prepared = { uw, hasUniform, pos, display };
+    if (envLights.length / 2 > MAX_ENV_LIGHTS) { warnings.push(`only the first ${MAX_ENV_LIGHTS} environment lights are shown`); envLights.length = 2 * MAX_ENV_LIGHTS; }
+    this.prepared = { uw, hasUniform, pos, display, envLights };
     this.warnings = warnings;
     return warnings;
   }
@@ -718,6 +735,15 @@ export class Renderer {
     set('uBackground', 'uniform3f', ...background);
     const L = p.pos, N = L.length;
     set('uNumLights', 'uniform1i', N);
+    const E = p.envLights.length / 2;
+    set('uNumEnv', 'uniform1i', E);
+    gl.activeTexture(gl.TEXTURE0 + ENV_UNIT);
+    if (!this.envTex) { this.envTex = gl.createTexture(); gl.bindTexture(gl.TEXTURE_2D, this.envTex); this.setNearest(gl.TEXTURE_2D); }
+    gl.bindTexture(gl.TEXTURE_2D, this.envTex);
+    const texels = new Float32Array(4 * 2 * Math.max(E, 1));
+    for (let e = 0; e < E; e++) { texels.set(p.envLights[2 * e], 4 * e); texels.set(p.envLights[2 * e + 1], 4 * (E + e)); }
+    gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA32F, Math.max(E, 1), 2, 0, gl.RGBA, gl.FLOAT, texels);
+    set('uEnvLights', 'uniform1i', ENV_UNIT);
     if (N > 0) {
       const f3 = (key) => new Float32Array(L.flatMap(e => e[key]));
       set('uLType', 'uniform1iv', new Int32Array(L.map(e => e.type)));

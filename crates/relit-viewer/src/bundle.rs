@@ -54,7 +54,11 @@
 //! six little-endian `f32` per light: its unit direction (light frame, unrotated) and
 //! its RGB intensity; a small sRGB preview is `data/env/N.png`. The viewer turns the
 //! directions and sums `I_t b(R ω_t)` with the weights from the table, for every basis
-//! (SH included: it has no SH rotation).
+//! (SH included: it has no SH rotation). For display-referred maps the file holds the
+//! quadrature's [`relit::engine::DISPLAY_ENVIRONMENT_LIGHTS`] median-cut lights
+//! (`relit::envmap::median_cut`), the lights the CPU engine relights such maps with:
+//! there each light is decoded from sRGB on its own, so the viewer passes them to the
+//! shader one by one (a float texture) instead of folding them into weights.
 
 use crate::tiles::{TileSource, Tiling, DEFAULT_TILE_SIDE, OVERVIEW_BYTES, WHOLE_BYTES};
 use crate::{invalid, Result};
@@ -62,7 +66,7 @@ use relit::basis::{Basis, WeightTable};
 use relit::camera::CameraSpec;
 use relit::engine::lookup::IndexedImage;
 use relit::envmap::{EnvironmentLight, Window};
-use relit::maps::{CoefficientMaps, Metadata, RelightableImage};
+use relit::maps::{CoefficientMaps, MapSpace, Metadata, RelightableImage};
 use relit::storage::{PlaneCoding, Precision};
 use serde::Serialize;
 use serde_json::json;
@@ -287,7 +291,7 @@ impl WebBundle {
             .environments
             .iter()
             .enumerate()
-            .map(|(i, p)| load_environment(p, i))
+            .map(|(i, p)| load_environment(p, i, shape.meta.color_space))
             .collect::<Result<Vec<_>>>()?;
         let (table, _) = WeightTable::for_basis(basis.as_ref());
         let table = shipped_table(&table);
@@ -678,15 +682,20 @@ fn encode_png(w: usize, h: usize, color: image::ExtendedColorType, data: &[u8]) 
     Ok(out)
 }
 
-/// Load environment map `index`: its quadrature and its preview.
-fn load_environment(path: &Path, index: usize) -> Result<Environment> {
+/// Load environment map `index`: its quadrature (for display-referred maps its
+/// median-cut lights, which the viewer decodes one by one as the CPU engine does) and
+/// its preview.
+fn load_environment(path: &Path, index: usize, space: MapSpace) -> Result<Environment> {
     let env = EnvironmentLight::load(path)?;
     let map = env.map();
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| path.display().to_string());
-    let lights = environment_quadrature(map, QUADRATURE_WIDTH, QUADRATURE_HEIGHT);
+    let mut lights = environment_quadrature(map, QUADRATURE_WIDTH, QUADRATURE_HEIGHT);
+    if space == MapSpace::Srgb {
+        lights = relit::envmap::median_cut(&lights, relit::engine::DISPLAY_ENVIRONMENT_LIGHTS);
+    }
     // A 128×64 preview, nearest texel, clipped and sRGB encoded.
     let (pw, ph) = (128usize, 64usize);
     let mut rgb = Vec::with_capacity(pw * ph * 3);

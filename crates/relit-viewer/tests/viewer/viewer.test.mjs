@@ -883,6 +883,16 @@ try {
       const hint = await card(0).locator('[data-hint="window"]').textContent().catch(() => '');
       expect(`no band windows for ${basis} (no bands), and the panel says why`, await win.isDisabled() && hint.includes(basis), hint);
     }
+    // Display-referred maps: each light decoded from sRGB on its own, an environment as
+    // the median-cut lights the bundle ships for such maps, as `relit relight` does.
+    const display = path.join(work, 'other-display.exr');
+    run('fit', path.join(work, 'cap-pl', 'capture.json'), '--basis', 'hsh:16', '--space', 'srgb', '-o', display);
+    await open(display, ENVS, [192, 128]);
+    expect('the viewer reads display-referred maps', current.info.color_space === 'srgb', current.info.color_space);
+    for (const [name, lights] of Object.entries(rigs)) {
+      await setRig({ lights });
+      await check(`display-referred ${name}`);
+    }
   });
 
   await section('compressed', async () => {
