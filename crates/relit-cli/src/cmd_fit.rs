@@ -215,16 +215,26 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ),
             _ => println!("basis: {}", r.basis),
         }
+        let chosen = if r.candidates.is_empty() {
+            " (chosen by leave-one-out)"
+        } else {
+            " (chosen with the basis, by validation)"
+        };
         println!(
-            "fit: {:.2} s, {:.1} images/s, peak memory {}, {} objective{}, λ = {:.0e}{}",
+            "fit: {:.2} s, {:.1} images/s, peak memory {}, {}{}, λ = {:.0e}{}",
             r.seconds,
             r.images_per_second,
             mib(r.peak_rss_bytes),
-            r.objective.name(),
-            if options.objective == relit::fit::Objective::Auto {
-                " (chosen by leave-one-out)"
-            } else {
-                ""
+            match r.color_space {
+                // Display-referred maps are fitted with the plain objective only.
+                relit::maps::MapSpace::Srgb =>
+                    "display-referred maps (sRGB values, plain least squares)".to_string(),
+                relit::maps::MapSpace::Linear =>
+                    format!("linear maps, {} objective", r.objective.name()),
+            },
+            match (options.objective, options.color_space) {
+                (relit::fit::Objective::Auto, None) => chosen,
+                _ => "",
             },
             r.lambda,
             if !r.lambda_scores.is_empty() {
