@@ -21,8 +21,8 @@ for line in (shared / "reference/peer_baseline.md").read_text().splitlines():
     if m:
         peer.setdefault(m.group(1), {})[m.group(2)] = float(m.group(3))
 
-print("| item | images | size | basis | relit sRGB8 dB (a) | relit linear dB (b) | bytes/px | fit s (each) | peak MiB | peer PTM 18 | peer best (basis) |")
-print("|---|---|---|---|---|---|---|---|---|---|---|")
+print("| item | images | size | basis | maps | relit sRGB8 dB (a) | relit linear dB (b) | bytes/px | fit s (each) | peak MiB | peer PTM 18 | peer best (basis) |")
+print("|---|---|---|---|---|---|---|---|---|---|---|---|")
 gains = []
 for lp in sorted((shared / "data/realrti").glob("item*/dirs.lp"), key=lambda p: int(p.parent.name[4:])):
     item = lp.parent.name
@@ -32,7 +32,7 @@ for lp in sorted((shared / "data/realrti").glob("item*/dirs.lp"), key=lambda p: 
     p = peer.get(item, {})
     best = max(p.items(), key=lambda kv: kv[1]) if p else ("-", float("nan"))
     gains.append(r["psnr_srgb8_mean"] - best[1])
-    print(f"| {item} | {r['images']} | {r['width']}×{r['height']} | {r['basis']} | {r['psnr_srgb8_mean']:.2f} | {r['psnr_linear_mean']:.2f} "
+    print(f"| {item} | {r['images']} | {r['width']}×{r['height']} | {r['basis']} | {r['color_space']} | {r['psnr_srgb8_mean']:.2f} | {r['psnr_linear_mean']:.2f} "
           f"| {r['bytes_per_pixel']:.1f} | {r['fit_seconds']:.2f} | {r['peak_rss_bytes'] / 2**20:.0f} "
           f"| {p.get('ptm 18', float('nan')):.2f} | {best[1]:.2f} ({best[0]}) |", flush=True)
 print(f"\nmean gain over the peer's best basis per item: {sum(gains) / len(gains):+.2f} dB")
