@@ -121,7 +121,8 @@ impl Engine<'_> {
 }
 
 /// A GPU frame's lighting: `lights` builds the rig's lights other than environments,
-/// whose weights the CPU engine `cpu` computes (with the frame's exposure).
+/// which the CPU engine `cpu` prepares (their weights on linear maps, their median-cut
+/// lights on display-referred ones), with the frame's exposure.
 fn gpu_lighting(
     rig: &LightRig,
     options: &RelightOptions,
@@ -135,11 +136,9 @@ fn gpu_lighting(
     let mut lighting = lights(&LightRig::new(rest.into_iter().cloned().collect()))?;
     let scale = 2f64.powf(options.exposure);
     for light in env {
-        let Light::Environment(e) = light else {
-            unreachable!()
-        };
-        let weights = cpu.environment_weights(e, &options.resource_dir)?;
-        lighting.add_uniform(weights, [scale; 3])?;
+        for prepared in cpu.prepare(light, options)? {
+            lighting.add_prepared(cpu.basis(), &prepared, scale)?;
+        }
     }
     Ok(lighting)
 }

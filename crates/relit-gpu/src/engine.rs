@@ -601,14 +601,7 @@ impl GpuRelighter {
         light: &PreparedLight,
         scale: f64,
     ) -> Result<()> {
-        match light {
-            PreparedLight::Directional { direction, rgb } => {
-                let y = self.basis.values(*direction);
-                lighting.add_uniform([y.clone(), y.clone(), y], rgb.map(|v| v * scale))
-            }
-            PreparedLight::Weights(w) => lighting.add_uniform(w.clone(), [scale; 3]),
-            positional => lighting.add_positional(positional, scale),
-        }
+        lighting.add_prepared(self.basis.as_ref(), light, scale)
     }
 
     /// A slide file, linearised (as `ProjectorLight::prepare` loads it), cached.

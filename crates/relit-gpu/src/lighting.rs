@@ -195,6 +195,25 @@ impl Lighting {
     }
 
     /// Add a prepared point, spot or area light, its RGB scaled by `scale` (2^exposure).
+    /// Add a light prepared by the CPU engine for maps of `basis` (the GPU engine's):
+    /// directional lights and environment weights as uniform passes, the rest as
+    /// positional lights; its colour times `scale`.
+    pub fn add_prepared(
+        &mut self,
+        basis: &dyn relit::basis::Basis,
+        light: &PreparedLight,
+        scale: f64,
+    ) -> Result<()> {
+        match light {
+            PreparedLight::Directional { direction, rgb } => {
+                let y = basis.values(*direction);
+                self.add_uniform([y.clone(), y.clone(), y], rgb.map(|v| v * scale))
+            }
+            PreparedLight::Weights(w) => self.add_uniform(w.clone(), [scale; 3]),
+            positional => self.add_positional(positional, scale),
+        }
+    }
+
     pub(crate) fn add_positional(&mut self, light: &PreparedLight, scale: f64) -> Result<()> {
         let entry = match light {
             PreparedLight::Point(l, rgb) => Positional {
