@@ -647,91 +647,126 @@ fn choose_basis(
         .iter()
         .flat_map(|&s| objectives_of(s).iter().map(move |&o| (s, o)))
         .collect();
-    // Each candidate's best score over the variants, with the variant behind it, and
-    // the λ each variant scored best at.
+    // A candidate's scores under `which` of the variants (indices into `variants`), in
+    // that order, each at the λ of its ladder.
     let judge = |choice: &BasisChoice,
+                 which: &[usize],
                  screening: bool,
                  folds: usize,
-                 ladders: &[std::ops::Range<usize>]| {
-        let mut scores = Vec::with_capacity(variants.len());
-        let mut at = 0;
+                 ladders: &[std::ops::Range<usize>]|
+     -> Result<Vec<CandidateScore>> {
+        let mut scores: Vec<Option<CandidateScore>> = vec![None; which.len()];
         for (space, values, screened) in &views {
-            let objectives = objectives_of(*space);
+            let picked: Vec<usize> = (0..which.len())
+                .filter(|&w| variants[which[w]].0 == *space)
+                .collect();
+            if picked.is_empty() {
+                continue;
+            }
+            let objectives: Vec<Objective> = picked.iter().map(|&w| variants[which[w]].1).collect();
+            let own_ladders: Vec<_> = picked.iter().map(|&w| ladders[w].clone()).collect();
             let (values, count) = if screening {
                 (screened, screen_keep)
             } else {
                 (values, keep)
             };
             let view = select::Subsample { values, count, n };
-            scores.extend(select::validate(
+            let got = select::validate(
                 choice,
                 *space,
-                objectives,
+                &objectives,
                 options.regularizer,
                 criterion,
                 dirs,
                 &q,
                 &view,
                 folds,
-                &ladders[at..at + objectives.len()],
-            )?);
-            at += objectives.len();
-        }
-        let best_lambdas: Vec<usize> = scores
-            .iter()
-            .map(|s| {
-                select::VALIDATION_LADDER
-                    .iter()
-                    .position(|&l| l == s.lambda)
-                    .unwrap_or(0)
-            })
-            .collect();
-        let mut own: Option<((MapSpace, Objective), CandidateScore)> = None;
-        for (&v, score) in variants.iter().zip(scores) {
-            if !matches!(&own, Some((_, b)) if !score.beats(b)) {
-                own = Some((v, score));
+                &own_ladders,
+            )?;
+            for (&w, score) in picked.iter().zip(got) {
+                scores[w] = Some(score);
             }
         }
-        let (v, score) = own.expect("at least one objective");
-        Ok::<_, Error>((v, score, best_lambdas))
+        Ok(scores
+            .into_iter()
+            .map(|s| s.expect("every variant has its space"))
+            .collect())
     };
+    let lambda_index = |score: &CandidateScore| {
+        select::VALIDATION_LADDER
+            .iter()
+            .position(|&l| l == score.lambda)
+            .unwrap_or(0)
+    };
+    let every: Vec<usize> = (0..variants.len()).collect();
     let whole = vec![select::WHOLE_LADDER; variants.len()];
-    // Successive halving: every candidate on a few pixels, the best few on all of them,
-    // each finalist at the λ around those its screening found best.
-    let mut finalists: Vec<(usize, Vec<std::ops::Range<usize>>)> =
-        (0..choices.len()).map(|i| (i, whole.clone())).collect();
+    // Successive halving: every candidate under every variant on a few pixels, then the
+    // best few (candidate, variant) pairs on all of them, each at the λ around the one
+    // its screening found best. A finalist is judged only as the variant that brought it
+    // there: on display-referred maps the validation needs no per-pixel systems, so a
+    // capture whose best candidates are display-referred costs less to choose for.
+    let mut finalists: Vec<(usize, usize, std::ops::Range<usize>)> = (0..choices.len())
+        .flat_map(|i| (0..variants.len()).map(move |v| (i, v, select::WHOLE_LADDER)))
+        .collect();
     let mut scores = Vec::new();
     if choices.len() > FINALISTS && screen_keep < keep {
         let max_k = choices.iter().map(|c| c.k).max().unwrap_or(0);
         let folds = select::screening_folds(n, max_k);
-        let mut screening: Vec<(usize, CandidateScore, Vec<usize>)> = choices
-            .iter()
-            .enumerate()
-            .map(|(i, choice)| {
-                let (_, score, lambdas) = judge(choice, true, folds, &whole)?;
-                Ok((i, score, lambdas))
-            })
-            .collect::<Result<_>>()?;
-        screening.sort_by(|a, b| order(&a.1, &b.1));
+        let mut screening: Vec<(usize, usize, CandidateScore)> = Vec::new();
+        for (i, choice) in choices.iter().enumerate() {
+            for (v, score) in judge(choice, &every, true, folds, &whole)?
+                .into_iter()
+                .enumerate()
+            {
+                screening.push((i, v, score));
+            }
+        }
+        screening.sort_by(|a, b| order(&a.2, &b.2));
         finalists = screening
             .iter()
             .take(FINALISTS)
-            .map(|(i, _, lambdas)| {
-                (
-                    *i,
-                    lambdas.iter().map(|&b| select::ladder_around(b)).collect(),
-                )
-            })
+            .map(|(i, v, score)| (*i, *v, select::ladder_around(lambda_index(score))))
             .collect();
-        scores.extend(screening.into_iter().skip(FINALISTS).map(|(_, s, _)| s));
+        // The set-aside candidates, each by its best variant in the screening.
+        let mut seen = vec![false; choices.len()];
+        finalists.iter().for_each(|f| seen[f.0] = true);
+        for (i, _, score) in screening.into_iter().skip(FINALISTS) {
+            if !std::mem::replace(&mut seen[i], true) {
+                scores.push(score);
+            }
+        }
     }
     let mut best: Option<(usize, (MapSpace, Objective), CandidateScore)> = None;
-    for (i, ladders) in &finalists {
-        let (v, score, _) = judge(&choices[*i], false, select::folds(n), ladders)?;
-        if !matches!(&best, Some((_, _, b)) if !score.beats(b)) {
-            best = Some((*i, v, score.clone()));
+    let mut judged: Vec<(usize, CandidateScore)> = Vec::new();
+    // A candidate's finalist variants are judged together (variants of one space share
+    // each fold's basis), candidates in the order they became finalists.
+    let mut order_of: Vec<usize> = Vec::new();
+    for f in &finalists {
+        if !order_of.contains(&f.0) {
+            order_of.push(f.0);
         }
-        scores.push(score);
+    }
+    for i in order_of {
+        let (which, ladders): (Vec<usize>, Vec<_>) = finalists
+            .iter()
+            .filter(|f| f.0 == i)
+            .map(|f| (f.1, f.2.clone()))
+            .unzip();
+        let got = judge(&choices[i], &which, false, select::folds(n), &ladders)?;
+        for (&v, score) in which.iter().zip(got) {
+            if !matches!(&best, Some((_, _, b)) if !score.beats(b)) {
+                best = Some((i, variants[v], score.clone()));
+            }
+            judged.push((i, score));
+        }
+    }
+    // Each finalist candidate once, by its best variant.
+    judged.sort_by(|a, b| order(&a.1, &b.1));
+    let mut listed = vec![false; choices.len()];
+    for (i, score) in judged {
+        if !std::mem::replace(&mut listed[i], true) {
+            scores.push(score);
+        }
     }
     // Finalists first (they were judged on more pixels), each group best first.
     scores.sort_by(|a, b| b.pixels.cmp(&a.pixels).then(order(a, b)));
