@@ -69,6 +69,9 @@ const STREAM_BYTES: usize = 64 << 20;
 /// holds these passes and 32 more.
 pub const DISPLAY_ENVIRONMENT_LIGHTS: usize = 64;
 
+/// An environment's median-cut lights: direction (light frame, unrotated) and RGB.
+type EnvironmentLumps = Vec<(Vec3, [f64; 3])>;
+
 /// Options of [`relight`].
 #[derive(Clone, Debug, Default)]
 pub struct RelightOptions {
@@ -185,7 +188,7 @@ pub struct Relighter<'a> {
     /// Environment maps made ready for the basis, by file.
     environments: Mutex<HashMap<PathBuf, Arc<BasisEnvironment>>>,
     /// Environment maps as a few directional lights (display-referred maps), by file.
-    environment_lumps: Mutex<HashMap<PathBuf, Arc<Vec<(Vec3, [f64; 3])>>>>,
+    environment_lumps: Mutex<HashMap<PathBuf, Arc<EnvironmentLumps>>>,
 }
 
 impl<'a> Relighter<'a> {
