@@ -1339,6 +1339,26 @@ mod tests {
         }
     }
 
+    /// A fresh directory holding `sky.exr`: a 64×32 lat-long map of radiance
+    /// `sky(row fraction, channel)` with a 3×3-texel sun of radiance `sun`.
+    fn sky_in(tag: &str, sun: f32, sky: impl Fn(f32, usize) -> f32) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("relit-engine-{tag}-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let (w, h) = (64, 32);
+        let mut map = ImageRgb::new(w, h);
+        for (i, v) in map.data.iter_mut().enumerate() {
+            let (x, y) = ((i / 3) % w, (i / 3) / w);
+            let in_sun = (x as i64 - 20).abs() <= 1 && (y as i64 - 9).abs() <= 1;
+            *v = if in_sun {
+                sun
+            } else {
+                sky(y as f32 / h as f32, i % 3)
+            };
+        }
+        crate::image::save(&dir.join("sky.exr"), &map, 0.0).unwrap();
+        dir
+    }
+
     /// An environment light on a basis without bands is the sum of directional lights
     /// over the map's quadrature, their directions turned by the light's rotation and
     /// their intensities times its colour; band windows are refused there (and taken on
@@ -1346,20 +1366,7 @@ mod tests {
     #[test]
     fn environments_on_other_bases_are_their_quadrature() {
         use crate::envmap::{environment_quadrature, QUADRATURE_HEIGHT, QUADRATURE_WIDTH};
-        let dir = std::env::temp_dir().join(format!("relit-engine-env-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let (w, h) = (64, 32);
-        let mut sky = ImageRgb::new(w, h);
-        for (i, v) in sky.data.iter_mut().enumerate() {
-            let (x, y) = ((i / 3) % w, (i / 3) / w);
-            let sun = (x as i64 - 20).abs() <= 1 && (y as i64 - 9).abs() <= 1;
-            *v = if sun {
-                8.0
-            } else {
-                0.2 + 0.3 * (y as f32 / h as f32) + 0.1 * (i % 3) as f32
-            };
-        }
-        crate::image::save(&dir.join("sky.exr"), &sky, 0.0).unwrap();
+        let dir = sky_in("env", 8.0, |up, c| 0.2 + 0.3 * up + 0.1 * c as f32);
         let light: crate::light::EnvironmentMapLight = serde_json::from_str(
             r#"{ "map": "sky.exr", "yaw_deg": 40, "pitch_deg": -15, "roll_deg": 10, "color": [1, 0.8, 0.6], "intensity": 0.7 }"#,
         )
@@ -1411,20 +1418,7 @@ mod tests {
     #[test]
     fn environments_on_display_maps_are_their_median_cut_lights() {
         use crate::envmap::{environment_quadrature, median_cut};
-        let dir = std::env::temp_dir().join(format!("relit-engine-envd-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let (w, h) = (64, 32);
-        let mut sky = ImageRgb::new(w, h);
-        for (i, v) in sky.data.iter_mut().enumerate() {
-            let (x, y) = ((i / 3) % w, (i / 3) / w);
-            let sun = (x as i64 - 20).abs() <= 1 && (y as i64 - 9).abs() <= 1;
-            *v = if sun {
-                4.0
-            } else {
-                0.02 + 0.03 * (y as f32 / h as f32)
-            };
-        }
-        crate::image::save(&dir.join("sky.exr"), &sky, 0.0).unwrap();
+        let dir = sky_in("envd", 4.0, |up, _| 0.02 + 0.03 * up);
         let light: crate::light::EnvironmentMapLight = serde_json::from_str(
             r#"{ "map": "sky.exr", "yaw_deg": 40, "pitch_deg": -15, "intensity": 0.2 }"#,
         )
