@@ -69,6 +69,21 @@ const STREAM_BYTES: usize = 64 << 20;
 /// holds these passes and 32 more.
 pub const DISPLAY_ENVIRONMENT_LIGHTS: usize = 64;
 
+/// What `make` builds from the file at `path`, built once per file and kept in `cache`.
+fn cached<T>(
+    cache: &Mutex<HashMap<PathBuf, Arc<T>>>,
+    path: &std::path::Path,
+    make: impl FnOnce() -> Result<T>,
+) -> Result<Arc<T>> {
+    let mut cache = cache.lock().expect("file cache");
+    if let Some(v) = cache.get(path) {
+        return Ok(v.clone());
+    }
+    let v = Arc::new(make()?);
+    cache.insert(path.to_path_buf(), v.clone());
+    Ok(v)
+}
+
 /// An environment's median-cut lights: direction (light frame, unrotated) and RGB.
 type EnvironmentLumps = Vec<(Vec3, [f64; 3])>;
 
@@ -369,18 +384,9 @@ impl<'a> Relighter<'a> {
     ) -> Result<[Vec<f64>; 3]> {
         light.validate()?;
         let path = resource_dir.join(&light.map);
-        let entry = {
-            let mut cache = self.environments.lock().expect("environment cache");
-            match cache.get(&path) {
-                Some(e) => e.clone(),
-                None => {
-                    let env = EnvironmentLight::load(&path)?;
-                    let e = Arc::new(env.for_basis(self.basis.as_ref())?);
-                    cache.insert(path, e.clone());
-                    e
-                }
-            }
-        };
+        let entry = cached(&self.environments, &path, || {
+            EnvironmentLight::load(&path)?.for_basis(self.basis.as_ref())
+        })?;
         let mut weights = entry
             .weights(self.basis.as_ref(), light.rotation()?, light.window)
             .map_err(|e| Error::invalid(format!("environment light {}: {e}", light.map)))?;
@@ -404,26 +410,18 @@ impl<'a> Relighter<'a> {
     ) -> Result<Vec<PreparedLight>> {
         light.validate()?;
         let path = resource_dir.join(&light.map);
-        let lumps = {
-            let mut cache = self.environment_lumps.lock().expect("environment cache");
-            match cache.get(&path) {
-                Some(l) => l.clone(),
-                None => {
-                    let env = EnvironmentLight::load(&path)?;
-                    let quadrature = crate::envmap::environment_quadrature(
-                        env.map(),
-                        crate::envmap::QUADRATURE_WIDTH,
-                        crate::envmap::QUADRATURE_HEIGHT,
-                    );
-                    let l = Arc::new(crate::envmap::median_cut(
-                        &quadrature,
-                        DISPLAY_ENVIRONMENT_LIGHTS,
-                    ));
-                    cache.insert(path, l.clone());
-                    l
-                }
-            }
-        };
+        let lumps = cached(&self.environment_lumps, &path, || {
+            let env = EnvironmentLight::load(&path)?;
+            let quadrature = crate::envmap::environment_quadrature(
+                env.map(),
+                crate::envmap::QUADRATURE_WIDTH,
+                crate::envmap::QUADRATURE_HEIGHT,
+            );
+            Ok(crate::envmap::median_cut(
+                &quadrature,
+                DISPLAY_ENVIRONMENT_LIGHTS,
+            ))
+        })?;
         let rotation = light.rotation()?;
         let rgb = Light::Environment(light.clone()).rgb();
         Ok(lumps
@@ -450,15 +448,9 @@ impl<'a> Relighter<'a> {
         if let Light::Projector(p) = light {
             p.validate()?;
             let path = options.resource_dir.join(&p.slide);
-            let mut cache = self.slides.lock().expect("slide cache");
-            let slide = match cache.get(&path) {
-                Some(s) => s.clone(),
-                None => {
-                    let s = Arc::new(crate::image::load_linear(&path, None)?);
-                    cache.insert(path, s.clone());
-                    s
-                }
-            };
+            let slide = cached(&self.slides, &path, || {
+                crate::image::load_linear(&path, None)
+            })?;
             return Ok(vec![PreparedLight::Projector(
                 Box::new(p.with_slide(slide)),
                 light.rgb(),
