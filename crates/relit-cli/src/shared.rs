@@ -219,6 +219,11 @@ pub struct CompressArgs {
     /// with --codebook).
     #[arg(long)]
     pub gain: bool,
+    /// Find the principal components (--components) per block of N×N pixels instead of
+    /// once for the file: each block keeps the K′ functions that suit it, for K′ × K
+    /// numbers a block (not with --codebook).
+    #[arg(long = "pca-block", value_parser = clap::value_parser!(u32).range(16..=4096))]
+    pub pca_block: Option<u32>,
 }
 
 impl CompressArgs {
@@ -234,6 +239,7 @@ impl CompressArgs {
             jpeg_range: self.jpeg_range,
             directions: None,
             gain: self.gain,
+            pca_block: self.pca_block.map(|b| b as usize),
         }
     }
 }

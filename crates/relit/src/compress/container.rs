@@ -9,15 +9,17 @@ use std::io::{Read, Seek, SeekFrom};
 pub const MAGIC: [u8; 8] = *b"\x89RLZ\r\n\x1a\n";
 
 /// The newest layout version this build writes and reads. Version 2 added the codebook
-/// (vector quantisation) and WebP tiles, version 3 the perceptual gain; a file is
-/// written with the oldest version that holds it, so that older readers keep reading
-/// what they can.
-pub const VERSION: u32 = 3;
+/// (vector quantisation) and WebP tiles, version 3 the perceptual gain, version 4
+/// principal components per block; a file is written with the oldest version that
+/// holds it, so that older readers keep reading what they can.
+pub const VERSION: u32 = 4;
 
 /// The version a header needs.
 fn version_of(header: &Header) -> u32 {
     let webp = matches!(header.codec, super::TileCodec::Webp { .. });
-    if header.gain {
+    if header.pca_block.is_some() {
+        4
+    } else if header.gain {
         3
     } else if header.codebook.is_some() || webp {
         2
@@ -114,7 +116,7 @@ pub fn read_from<R: Read + Seek>(
     let header: Header = serde_json::from_slice(&json).map_err(|e| bad(format!("header: {e}")))?;
     if version < version_of(&header) {
         return Err(bad(format!(
-            "a version {version} file cannot hold a codebook, WebP tiles (version 2 added them) or a gain plane (version 3)"
+            "a version {version} file cannot hold a codebook, WebP tiles (version 2 added them), a gain plane (version 3) or principal components per block (version 4)"
         )));
     }
     let sections = u32_at(&take(&mut file, 4, "section count")?) as usize;

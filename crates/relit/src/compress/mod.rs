@@ -71,6 +71,9 @@ pub struct Settings {
     pub directions: Option<Vec<Vec3>>,
     /// Divide the function planes by a stored per-pixel perceptual gain ([`gain`]).
     pub gain: bool,
+    /// Find the principal components per block of this many pixels a side instead of
+    /// once for the file ([`Header::pca_block`]); `None`: once.
+    pub pca_block: Option<usize>,
 }
 
 impl Default for Settings {
@@ -87,6 +90,7 @@ impl Default for Settings {
             jpeg_range: JpegRange::Shared,
             directions: None,
             gain: false,
+            pca_block: None,
         }
     }
 }
@@ -106,8 +110,9 @@ impl Settings {
         };
         let vq = self.codebook.map_or(String::new(), |c| format!(" vq{c}"));
         let gain = if self.gain { " gain" } else { "" };
+        let block = self.pca_block.map_or(String::new(), |b| format!(" pca{b}"));
         format!(
-            "{} k{k}{chroma}{bits}{vq}{gain} {}",
+            "{} k{k}{chroma}{bits}{vq}{gain}{block} {}",
             self.layout.name(),
             self.codec.name()
         )
@@ -169,6 +174,14 @@ pub struct Header {
     /// ([`gain`]), the last of the planes.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub gain: bool,
+    /// Principal components found per block of this many pixels a side (blocks in
+    /// raster order from the top left, smaller at the right and bottom edges) instead
+    /// of once for the file. The planes then hold each block's own `K′` coordinates;
+    /// `meta.basis` is the basis they decode into (`K` functions, not a projection),
+    /// and the last section holds every block's `K′ × K` map onto it
+    /// ([`block_maps`]): a pixel's coefficients are `c = Pᵀ c′`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pca_block: Option<usize>,
     /// Whether depth follows the planes (f32, lossless).
     pub depth: bool,
 }
@@ -196,16 +209,30 @@ impl Header {
         names
     }
 
-    /// The sections the tiles take: every plane's tiles (or the codebook and the index
-    /// plane's tiles), then depth's.
+    /// The sections the file holds: every plane's tiles (or the codebook and the index
+    /// plane's tiles), then depth's, then the blocks' principal components when they
+    /// are found per block.
     pub fn sections(&self) -> usize {
         let (a, d) = self.tiles();
+        self.plane_sections() + self.depth as usize * a * d + self.pca_block.is_some() as usize
+    }
+
+    /// The sections of the planes (or of the codebook and the index plane): the first.
+    fn plane_sections(&self) -> usize {
+        let (a, d) = self.tiles();
         let tiles = a * d;
-        let planes = match self.codebook {
+        match self.codebook {
             Some(_) => 1 + tiles,
             None => self.planes.len() * tiles,
-        };
-        planes + self.depth as usize * tiles
+        }
+    }
+
+    /// Blocks of [`Header::pca_block`] across and down (none without it).
+    pub fn pca_blocks(&self) -> (usize, usize) {
+        match self.pca_block {
+            Some(b) => (self.width.div_ceil(b), self.height.div_ceil(b)),
+            None => (0, 0),
+        }
     }
 
     /// Bytes per index of a codebook file.
@@ -236,6 +263,16 @@ impl Header {
             }
             if self.gain {
                 return Err(bad("a codebook file has no gain plane".into()));
+            }
+            if self.pca_block.is_some() {
+                return Err(bad(
+                    "a codebook file has one projection, not one a block".into()
+                ));
+            }
+        }
+        if let Some(b) = self.pca_block {
+            if !TILE_SIDES.contains(&b) {
+                return Err(bad(format!("bad block side {b}")));
             }
         }
         let functions = self.layout.channels().0;
@@ -366,6 +403,20 @@ pub fn pack_with_gain(
             "a codebook and the perceptual gain do not combine: choose one",
         ));
     }
+    if let Some(b) = settings.pca_block {
+        if settings.codebook.is_some() {
+            return Err(Error::invalid(
+                "a codebook needs one projection for the whole file: principal components per block do not combine with it",
+            ));
+        }
+        if !TILE_SIDES.contains(&b) {
+            return Err(Error::invalid(format!(
+                "block side must be {}–{}, not {b}",
+                TILE_SIDES.start(),
+                TILE_SIDES.end()
+            )));
+        }
+    }
     let layout = settings.layout;
     let (functions, per_pixel) = layout.channels();
     let max_levels = settings.codec.max_levels();
@@ -424,17 +475,6 @@ pub fn pack_with_gain(
             None => undivided_value(i, f, p),
         }
     };
-    // Principal components of the first function channel (R, G and B alike for rgb).
-    let step = (n / PCA_PIXELS).max(1);
-    let sampled: Vec<usize> = (0..n).step_by(step).collect();
-    let pca_channels = if layout == Layout::Rgb { 3 } else { 1 };
-    let vectors: Vec<f64> = sampled
-        .par_iter()
-        .flat_map_iter(|&p| {
-            (0..pca_channels).flat_map(move |f| (0..k).map(move |i| function_value(i, f, p) as f64))
-        })
-        .collect();
-    let principal = projection::principal(&gram, &vectors, k, components)?;
     let counts: Vec<usize> = (0..fcount)
         .map(|f| {
             if layout == Layout::Ycc && f > 0 {
@@ -444,6 +484,66 @@ pub fn pack_with_gain(
             }
         })
         .collect();
+    // Principal components of the first function channel (R, G and B alike for rgb),
+    // once for the file; or once a block for each group of function channels that
+    // share a projection (ycc's chroma has its own there: the luma's leading
+    // directions hold a block's chroma poorly).
+    let groups = projection_groups(layout, settings.pca_block.is_some());
+    let principal_of = |pixels: &[usize], group: usize| {
+        let channels = &groups[group];
+        let step = (pixels.len() / PCA_PIXELS).max(1);
+        let vectors: Vec<f64> = pixels
+            .par_iter()
+            .step_by(step)
+            .flat_map_iter(|&p| {
+                channels
+                    .iter()
+                    .flat_map(move |&f| (0..k).map(move |i| function_value(i, f, p) as f64))
+            })
+            .collect();
+        projection::principal(&gram, &vectors, k, counts[channels[0]])
+    };
+    let width = maps.width;
+    let all: Vec<usize> = (0..n).collect();
+    let whole: Vec<projection::Principal> = (0..groups.len())
+        .map(|g| principal_of(&all, g))
+        .collect::<Result<_>>()?;
+    drop(all);
+    let principals: Vec<Vec<projection::Principal>> = match settings.pca_block {
+        None => vec![whole],
+        // Each block's directions turned to point the way the file's do (a direction's
+        // sign is arbitrary): otherwise a plane changes sign from block to block, its
+        // range doubles and so does the quantiser's step.
+        Some(b) => (0..maps.width.div_ceil(b) * maps.height.div_ceil(b))
+            .into_par_iter()
+            .map(|block| {
+                let (x0, y0, w, h) = tile_rect(maps.width, maps.height, b, block);
+                let pixels: Vec<usize> = (y0..y0 + h)
+                    .flat_map(|y| y * width + x0..y * width + x0 + w)
+                    .collect();
+                (0..groups.len())
+                    .map(|g| {
+                        let mut own = principal_of(&pixels, g)?;
+                        own.orient_like(&whole[g]);
+                        Ok(own)
+                    })
+                    .collect::<Result<Vec<_>>>()
+            })
+            .collect::<Result<_>>()?,
+    };
+    let group_of: Vec<usize> = (0..fcount)
+        .map(|f| groups.iter().position(|g| g.contains(&f)).unwrap_or(0))
+        .collect();
+    let principal_at = |p: usize, f: usize| -> &projection::Principal {
+        let block = match settings.pca_block {
+            None => 0,
+            Some(b) => {
+                let (x, y) = (p % width, p / width);
+                (y / b) * width.div_ceil(b) + x / b
+            }
+        };
+        &principals[block][group_of[f]]
+    };
 
     // Project every pixel: plane (f, j) of components.
     let mut projected: Vec<Vec<f32>> = counts
@@ -482,7 +582,7 @@ pub fn pack_with_gain(
                         for (i, ci) in c.iter_mut().enumerate() {
                             *ci = function_value(i, f, p);
                         }
-                        principal.apply(&c, &mut y[..count]);
+                        principal_at(p, f).apply(&c, &mut y[..count]);
                         for j in 0..count {
                             outs[starts[f] + j][local] = y[j];
                         }
@@ -603,23 +703,30 @@ pub fn pack_with_gain(
     };
 
     // The basis the planes relight with: P of the components composed with the map
-    // the input basis already had.
-    let (inner, prior) = inner_and_map(&image.meta.basis)?;
-    let inner_k = inner.len();
-    let mut matrix = vec![0.0; components * inner_k];
-    for j in 0..components {
-        for i in 0..inner_k {
-            matrix[j * inner_k + i] = (0..k)
-                .map(|m| principal.basis_map[j * k + m] * prior[m * inner_k + i])
-                .sum();
+    // the input basis already had. Blocks' planes decode into the input basis instead,
+    // each by its own P (the last section).
+    let stored_basis = match settings.pca_block {
+        Some(_) => image.meta.basis.clone(),
+        None => {
+            let principal = &principals[0][0];
+            let (inner, prior) = inner_and_map(&image.meta.basis)?;
+            let inner_k = inner.len();
+            let mut matrix = vec![0.0; components * inner_k];
+            for j in 0..components {
+                for i in 0..inner_k {
+                    matrix[j * inner_k + i] = (0..k)
+                        .map(|m| principal.basis_map[j * k + m] * prior[m * inner_k + i])
+                        .sum();
+                }
+            }
+            Projected::new(inner, matrix)?.spec()
         }
-    }
-    let projected_basis = Projected::new(inner, matrix)?;
+    };
 
     let header = Header {
         meta: Metadata {
             format_version: crate::maps::FORMAT_VERSION,
-            basis: projected_basis.spec(),
+            basis: stored_basis,
             ..image.meta.clone()
         },
         width: maps.width,
@@ -630,6 +737,7 @@ pub fn pack_with_gain(
         planes: entries.iter().map(|(e, _)| e.clone()).collect(),
         codebook: quantized.as_ref().map(|(book, _)| book.entries()),
         gain: settings.gain,
+        pca_block: settings.pca_block,
         depth: image.depth.is_some(),
     };
     let (across, down) = header.tiles();
@@ -697,7 +805,29 @@ pub fn pack_with_gain(
             .collect::<Result<_>>()?;
         sections.extend(more);
     }
+    if settings.pca_block.is_some() {
+        // Each block's P as the reader uses it: f32, rounded once here.
+        sections.push(
+            principals
+                .iter()
+                .flatten()
+                .flat_map(|p| p.basis_map.iter().map(|&v| v as f32))
+                .flat_map(f32::to_le_bytes)
+                .collect(),
+        );
+    }
     Ok(Packed { header, sections })
+}
+
+/// The function channels that share one projection, group by group: every channel of
+/// the layout in one group, except that with a projection a block, `ycc`'s chroma
+/// channels are a group of their own.
+fn projection_groups(layout: Layout, per_block: bool) -> Vec<Vec<usize>> {
+    match (layout, per_block) {
+        (Layout::Rgb, _) => vec![vec![0, 1, 2]],
+        (Layout::Ycc, true) => vec![vec![0], vec![1, 2]],
+        (Layout::Ycc, false) | (Layout::Lrgb, _) => vec![vec![0]],
+    }
 }
 
 /// The codes of the pixels of the rectangle `(x0, y0, w, h)` of a plane `width` pixels
@@ -915,7 +1045,11 @@ fn region_maps(
             decode_codes(packed, p * tiles + t, t, q.width(), q.levels)
         })
         .collect::<Result<_>>()?;
-    Ok(assemble(header, kp, w, h, |p, out| {
+    let blocks = match header.pca_block {
+        Some(_) => Some(BlockDecoder::new(packed, kp, (x, y))?),
+        None => None,
+    };
+    Ok(assemble(header, kp, w, h, blocks.as_ref(), |p, out| {
         let coding = header.planes[p].quantizer.coding;
         for (i, &t) in touched.iter().enumerate() {
             let (tx, ty, tw, _) = header.tile_rect(t);
@@ -932,11 +1066,114 @@ fn region_maps(
     }))
 }
 
+/// Rows of each projection group's map in a file with a projection a block
+/// ([`projection_groups`]): `K′` for the first, the chroma's components for `ycc`'s
+/// second.
+fn block_rows(header: &Header, kp: usize) -> Vec<usize> {
+    let chroma = header.planes.iter().filter(|p| p.channel == "Co").count();
+    match header.layout {
+        Layout::Ycc => vec![kp, chroma],
+        Layout::Rgb | Layout::Lrgb => vec![kp],
+    }
+}
+
+/// Every block's maps from its stored coordinates onto the header's basis of `K`
+/// functions, read from the last section and checked: per block, per projection group
+/// ([`block_rows`]), a `rows × K` matrix, row-major.
+pub fn block_maps(packed: &Packed) -> Result<Vec<f32>> {
+    let header = &packed.header;
+    let kp = checked(packed)?;
+    let k = header.meta.basis.build()?.len();
+    let (across, down) = header.pca_blocks();
+    let per_block: usize = block_rows(header, kp).iter().map(|r| r * k).sum();
+    let want = across * down * per_block * 4;
+    let bytes = &packed.sections[header.sections() - 1];
+    if header.pca_block.is_none() || bytes.len() != want {
+        return Err(Error::parse(format!(
+            "compressed file: the blocks' projections take {} bytes, not {want}",
+            bytes.len(),
+        )));
+    }
+    let values: Vec<f32> = bytes
+        .chunks_exact(4)
+        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .collect();
+    if values.iter().any(|v| !v.is_finite()) {
+        return Err(Error::parse(
+            "compressed file: a block's projection is not finite",
+        ));
+    }
+    Ok(values)
+}
+
+/// Decodes a region's stored coordinates of a file with a projection a block into the
+/// header's basis: `c = Pᵀ c′` with the pixel's block's `P` for the channel's group.
+struct BlockDecoder {
+    maps: Vec<f32>,
+    rows: Vec<usize>,
+    k: usize,
+    block: usize,
+    across: usize,
+    /// The region's top-left pixel.
+    origin: (usize, usize),
+}
+
+impl BlockDecoder {
+    fn new(packed: &Packed, kp: usize, origin: (usize, usize)) -> Result<Self> {
+        let header = &packed.header;
+        Ok(BlockDecoder {
+            maps: block_maps(packed)?,
+            rows: block_rows(header, kp),
+            k: header.meta.basis.build()?.len(),
+            block: header.pca_block.expect("a file with blocks"),
+            across: header.pca_blocks().0,
+            origin,
+        })
+    }
+
+    /// The `K` coefficient planes (`w` pixels a row) of the coordinates `coords` of
+    /// projection group `group` (fewer planes than its rows: the rest are 0).
+    fn decode(&self, coords: &[&[f32]], group: usize, w: usize) -> Vec<Vec<f32>> {
+        let (k, block, (x, y)) = (self.k, self.block, self.origin);
+        let per_block: usize = self.rows.iter().map(|r| r * k).sum();
+        let offset: usize = self.rows[..group].iter().map(|r| r * k).sum();
+        let n = coords.first().map_or(0, |c| c.len());
+        let h = n.checked_div(w).unwrap_or(0);
+        (0..k)
+            .into_par_iter()
+            .map(|i| {
+                let mut out = vec![0.0f32; n];
+                for row in 0..h {
+                    let by = (y + row) / block;
+                    let mut col = 0;
+                    while col < w {
+                        // A run of the row inside one block.
+                        let bx = (x + col) / block;
+                        let end = ((bx + 1) * block - x).min(w);
+                        let p = &self.maps[(by * self.across + bx) * per_block + offset..];
+                        let dst = &mut out[row * w + col..row * w + end];
+                        for (j, plane) in coords.iter().enumerate().take(self.rows[group]) {
+                            let weight = p[j * k + i];
+                            let src = &plane[row * w + col..row * w + end];
+                            dst.iter_mut().zip(src).for_each(|(o, &c)| *o += weight * c);
+                        }
+                        col = end;
+                    }
+                }
+                out
+            })
+            .collect()
+    }
+}
+
 /// Whether [`unpack_region`] needs section `s` of a file for the region `(x, y, w, h)`:
 /// a plane's tile that the region touches (depth is not read). A codebook file's
 /// sections are all needed (its index tiles decode into the whole index plane).
 pub fn section_needed(header: &Header, s: usize, region: (usize, usize, usize, usize)) -> bool {
     if header.codebook.is_some() {
+        return true;
+    }
+    if header.pca_block.is_some() && s + 1 == header.sections() {
         return true;
     }
     let (across, down) = header.tiles();
@@ -1045,7 +1282,7 @@ fn indexed_checked(packed: &Packed, kp: usize) -> Result<crate::engine::lookup::
             return Err(Error::parse("a codebook value is past its plane's codes"));
         }
     }
-    let maps = assemble(header, kp, entries, 1, |j, out| {
+    let maps = assemble(header, kp, entries, 1, None, |j, out| {
         let coding = header.planes[j].quantizer.coding;
         for (e, o) in out.iter_mut().enumerate() {
             *o = coding.decode(code(j, e) as f32);
@@ -1083,7 +1320,12 @@ fn checked(packed: &Packed) -> Result<usize> {
     let header = &packed.header;
     let kp = header.check()?;
     let basis = header.meta.basis.build()?;
-    if basis.len() != kp {
+    // Blocks' planes hold K′ ≤ K coordinates of the basis; others are the basis' own.
+    let fits = match header.pca_block {
+        Some(_) => basis.len() >= kp,
+        None => basis.len() == kp,
+    };
+    if !fits {
         return Err(Error::parse(format!(
             "compressed file: the basis has {} functions, the planes {kp}",
             basis.len()
@@ -1118,10 +1360,11 @@ fn decode_codes(
     Ok(codes)
 }
 
-/// Whether section `s` holds part of the depth map (its tiles are the last sections).
+/// Whether section `s` holds part of the depth map (its tiles follow the planes').
 pub fn depth_section(header: &Header, s: usize) -> bool {
     let (across, down) = header.tiles();
-    header.depth && s >= header.sections() - across * down
+    let base = header.plane_sections();
+    header.depth && (base..base + across * down).contains(&s)
 }
 
 /// The depth map of a file whose depth sections ([`depth_section`]) were read, when it
@@ -1133,7 +1376,7 @@ pub fn unpack_depth(packed: &Packed) -> Result<Option<Vec<f32>>> {
     depth(packed)
 }
 
-/// The depth map, when the file has one (its tiles are the last sections).
+/// The depth map, when the file has one (its tiles follow the planes').
 fn depth(packed: &Packed) -> Result<Option<Vec<f32>>> {
     let header = &packed.header;
     if !header.depth {
@@ -1141,7 +1384,7 @@ fn depth(packed: &Packed) -> Result<Option<Vec<f32>>> {
     }
     let (w, h) = (header.width, header.height);
     let tiles = header.tiles().0 * header.tiles().1;
-    let base = header.sections() - tiles;
+    let base = header.plane_sections();
     let parts: Vec<Vec<f32>> = (0..tiles)
         .into_par_iter()
         .map(|t| {
@@ -1167,10 +1410,13 @@ fn assemble(
     kp: usize,
     w: usize,
     h: usize,
+    blocks: Option<&BlockDecoder>,
     plane_values: impl Fn(usize, &mut [f32]),
 ) -> CoefficientMaps {
     let n = w * h;
     let mut maps = CoefficientMaps::zeros(w, h, kp);
+    let groups = projection_groups(header.layout, blocks.is_some());
+    let group_of = |f: usize| groups.iter().position(|g| g.contains(&f)).unwrap_or(0);
     let (functions, _) = header.layout.channels();
     let index_of = |channel: &str, j: usize| {
         header
@@ -1186,6 +1432,22 @@ fn assemble(
                         plane_values(p, maps.plane_mut(j, f));
                     }
                 }
+            }
+            // A projection a block decodes each function channel into the basis before
+            // the layout is undone (ycc's luma and chroma have their own).
+            if let Some(decoder) = blocks {
+                let mut decoded = CoefficientMaps::zeros(w, h, decoder.k);
+                for f in 0..functions.len() {
+                    let coords: Vec<&[f32]> = (0..kp).map(|j| maps.plane(j, f)).collect();
+                    for (i, plane) in decoder
+                        .decode(&coords, group_of(f), w)
+                        .into_iter()
+                        .enumerate()
+                    {
+                        decoded.plane_mut(i, f).copy_from_slice(&plane);
+                    }
+                }
+                maps = decoded;
             }
             if header.layout == Layout::Ycc {
                 let (pixels, data) = (n, &mut maps.data);
@@ -1205,13 +1467,23 @@ fn assemble(
                 let p = index_of(["aR", "aG", "aB"][c], 0).expect("checked");
                 plane_values(p, a);
             }
-            let mut l = vec![0.0f32; n];
-            for j in 0..kp {
-                plane_values(index_of("L", j).expect("checked"), &mut l);
+            let mut luminance: Vec<Vec<f32>> = (0..kp)
+                .map(|j| {
+                    let mut l = vec![0.0f32; n];
+                    plane_values(index_of("L", j).expect("checked"), &mut l);
+                    l
+                })
+                .collect();
+            if let Some(decoder) = blocks {
+                let coords: Vec<&[f32]> = luminance.iter().map(Vec::as_slice).collect();
+                luminance = decoder.decode(&coords, 0, w);
+                maps = CoefficientMaps::zeros(w, h, decoder.k);
+            }
+            for (j, l) in luminance.iter().enumerate() {
                 for (c, a) in albedo.iter().enumerate() {
                     maps.plane_mut(j, c)
                         .iter_mut()
-                        .zip(&l)
+                        .zip(l)
                         .zip(a)
                         .for_each(|((o, &l), &a)| *o = l * a);
                 }

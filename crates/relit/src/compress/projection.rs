@@ -107,6 +107,29 @@ pub fn principal(gram: &[f64], vectors: &[f64], k: usize, components: usize) -> 
 }
 
 impl Principal {
+    /// Flip each direction whose angle to `other`'s direction of the same rank is
+    /// obtuse (`v·u < 0`; with `E = V Rᵀ` and `P = V R⁻¹` of one metric, `v·u` is the
+    /// dot product of a row of `E` with the row of `other`'s `P`). The projection is the
+    /// same; its coordinates keep their signs from one projection to the next.
+    pub fn orient_like(&mut self, other: &Principal) {
+        let k = self.k;
+        for j in 0..self.components.min(other.components) {
+            let along: f64 = self.encode[j * k..(j + 1) * k]
+                .iter()
+                .zip(&other.basis_map[j * k..(j + 1) * k])
+                .map(|(a, b)| a * b)
+                .sum();
+            if along < 0.0 {
+                self.encode[j * k..(j + 1) * k]
+                    .iter_mut()
+                    .for_each(|v| *v = -*v);
+                self.basis_map[j * k..(j + 1) * k]
+                    .iter_mut()
+                    .for_each(|v| *v = -*v);
+            }
+        }
+    }
+
     /// `out[j] = Σ_i E_ji c[i]` for the first `out.len()` components.
     #[inline]
     pub fn apply(&self, c: &[f32], out: &mut [f32]) {
@@ -153,6 +176,33 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn oriented_directions_keep_the_projection_and_take_the_others_signs() {
+        let basis = BasisChoice::parse("sh:9")
+            .unwrap()
+            .build(&[], None)
+            .unwrap();
+        let k = basis.len();
+        let g = gram(basis.as_ref(), None);
+        let vectors: Vec<f64> = (0..60 * k)
+            .map(|i| ((i * 7919) % 97) as f64 / 40.0 - 1.0)
+            .collect();
+        let reference = principal(&g, &vectors, k, 4).unwrap();
+        let mut flipped = principal(&g, &vectors, k, 4).unwrap();
+        for j in [0, 2] {
+            flipped.encode[j * k..(j + 1) * k]
+                .iter_mut()
+                .for_each(|v| *v = -*v);
+            flipped.basis_map[j * k..(j + 1) * k]
+                .iter_mut()
+                .for_each(|v| *v = -*v);
+        }
+        assert!(flipped.encode != reference.encode);
+        flipped.orient_like(&reference);
+        assert_eq!(flipped.encode, reference.encode);
+        assert_eq!(flipped.basis_map, reference.basis_map);
     }
 
     #[test]

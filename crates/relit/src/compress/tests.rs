@@ -379,7 +379,7 @@ fn codebook_files_refuse_jpeg_and_version_1() {
         .unwrap_err()
         .to_string();
     assert!(err.contains("codebook"), "{err}");
-    bytes[8..12].copy_from_slice(&4u32.to_le_bytes());
+    bytes[8..12].copy_from_slice(&(container::VERSION + 1).to_le_bytes());
     assert!(packed::from_bytes(&bytes, "new.rlz").is_err());
 }
 
@@ -457,20 +457,25 @@ fn the_budget_keeps_the_best_candidate_that_fits_and_more_bits_never_score_less(
 fn a_region_reads_only_its_tiles_and_equals_that_crop_of_the_whole_file() {
     let img = image("sh:9", 70, 45);
     let jpeg = TileCodec::parse("jpeg:90").unwrap();
+    let zstd = TileCodec::Zstd { level: 12 };
     let layouts = [
-        (Layout::Rgb, TileCodec::Zstd { level: 12 }, None, false),
-        (Layout::Ycc, jpeg, None, false),
-        (Layout::Lrgb, TileCodec::Zstd { level: 12 }, None, false),
-        (Layout::Rgb, TileCodec::Zstd { level: 12 }, Some(32), false),
-        (Layout::Ycc, jpeg, None, true),
-        (Layout::Lrgb, jpeg, None, true),
+        (Layout::Rgb, zstd, None, false, None),
+        (Layout::Ycc, jpeg, None, false, None),
+        (Layout::Lrgb, zstd, None, false, None),
+        (Layout::Rgb, zstd, Some(32), false, None),
+        (Layout::Ycc, jpeg, None, true, None),
+        (Layout::Lrgb, jpeg, None, true, None),
+        // Blocks that do not line up with the tiles.
+        (Layout::Ycc, jpeg, None, false, Some(24)),
+        (Layout::Lrgb, zstd, None, true, Some(16)),
     ];
-    for (layout, codec, codebook, gain) in layouts {
+    for (layout, codec, codebook, gain, pca_block) in layouts {
         let settings = Settings {
             layout,
             codec,
             codebook,
             gain,
+            pca_block,
             components: Some(5),
             tile: 16,
             ..Settings::default()
@@ -478,13 +483,16 @@ fn a_region_reads_only_its_tiles_and_equals_that_crop_of_the_whole_file() {
         let packed_image = pack(&img, &settings).unwrap();
         let bytes = packed::to_bytes(&packed_image).unwrap();
         let whole = unpack(&packed::from_bytes(&bytes, "test").unwrap()).unwrap();
-        // A region read leaves the depth tiles (the last sections) unread.
+        // A region read leaves the depth tiles unread.
         let (across, down) = packed_image.header.tiles();
-        let sections = &packed_image.sections;
-        let depth_bytes: usize = sections[sections.len() - across * down..]
+        let base = packed_image.header.plane_sections();
+        let depth_bytes: usize = packed_image.sections[base..base + across * down]
             .iter()
             .map(Vec::len)
             .sum();
+        assert!((0..packed_image.sections.len())
+            .all(|s| depth_section(&packed_image.header, s)
+                == (base..base + across * down).contains(&s)));
         // Inside one tile, across tile borders, along the image's edges, the whole image.
         for region in [
             (3, 2, 5, 4),
@@ -686,4 +694,129 @@ fn a_gain_refuses_a_codebook_in_settings_and_in_a_file() {
     no_plane.header.planes.pop();
     let err = unpack(&no_plane).unwrap_err().to_string();
     assert!(err.contains("gain"), "{err}");
+}
+
+/// An image whose left half mixes two atoms and whose right half two others: two
+/// components a block hold it, where one projection for the file needs four.
+fn halves(basis: &str, w: usize, h: usize) -> RelightableImage {
+    let mut img = image(basis, w, h);
+    let k = img.maps.k;
+    let atom =
+        |a: usize, i: usize| (((i + 5 * a) * 7919 % 29) as f32 / 29.0 - 0.4) / (1.0 + i as f32);
+    for p in 0..w * h {
+        let (x, y) = (p % w, p / w);
+        let base = if x < w / 2 { 0 } else { 2 };
+        let (s, t) = (1.0 + 0.5 * (y as f32 / h as f32), (x as f32 * 0.7).sin());
+        for c in 0..3 {
+            let tint = [1.0, 0.7, 0.5][c];
+            for i in 0..k {
+                img.maps.plane_mut(i, c)[p] = tint * (s * atom(base, i) + t * atom(base + 1, i));
+            }
+        }
+    }
+    img
+}
+
+#[test]
+fn principal_components_per_block_decode_into_the_input_basis() {
+    for basis in ["sh:16", "sg:9"] {
+        let img = halves(basis, 48, 20);
+        for layout in Layout::ALL {
+            let settings = |pca_block| Settings {
+                layout,
+                components: Some(2),
+                chroma: Some(2),
+                bits: 16,
+                tile: 16,
+                pca_block,
+                ..Settings::default()
+            };
+            let packed_image = pack(&img, &settings(Some(24))).unwrap();
+            let bytes = packed::to_bytes(&packed_image).unwrap();
+            assert_eq!(&bytes[8..12], &4u32.to_le_bytes(), "a version 4 file");
+            let back = unpack(&packed::from_bytes(&bytes, "test").unwrap()).unwrap();
+            assert_eq!(
+                back.meta.basis, img.meta.basis,
+                "decoded into the input basis"
+            );
+            assert_eq!(back.maps.k, img.maps.k);
+            assert_eq!(back.depth, img.depth);
+            let blocks = relit_error(&img, &back);
+            let (once, _) = round_trip(&img, &settings(None));
+            assert_eq!(once.maps.k, 2);
+            let file = relit_error(&img, &once);
+            assert!(blocks < 1e-3, "{basis} {layout:?}: per block {blocks}");
+            assert!(
+                file > 20.0 * blocks,
+                "{basis} {layout:?}: once {file}, per block {blocks}"
+            );
+        }
+    }
+}
+
+#[test]
+fn principal_components_per_block_refuse_a_codebook_and_damaged_maps() {
+    let img = halves("sh:9", 40, 20);
+    let with = |codebook| Settings {
+        codebook,
+        components: Some(3),
+        pca_block: Some(16),
+        ..Settings::default()
+    };
+    assert!(
+        pack(&img, &with(Some(16))).is_err(),
+        "a codebook and blocks"
+    );
+    assert!(
+        pack(
+            &img,
+            &Settings {
+                pca_block: Some(8),
+                ..with(None)
+            }
+        )
+        .is_err(),
+        "a block of 8"
+    );
+    let good = pack(&img, &with(None)).unwrap();
+    assert!(unpack(&good).is_ok());
+    let mut claims_codebook = pack(
+        &img,
+        &Settings {
+            codebook: Some(16),
+            ..Settings::default()
+        },
+    )
+    .unwrap();
+    claims_codebook.header.pca_block = Some(16);
+    assert!(
+        unpack(&claims_codebook).is_err(),
+        "a codebook file claiming blocks"
+    );
+    let last = good.sections.len() - 1;
+    let mut short = good.clone();
+    short.sections[last].truncate(12);
+    let err = unpack(&short).unwrap_err().to_string();
+    assert!(err.contains("projections"), "{err}");
+    let mut nan = good.clone();
+    nan.sections[last][..4].copy_from_slice(&f32::NAN.to_le_bytes());
+    let err = unpack(&nan).unwrap_err().to_string();
+    assert!(err.contains("not finite"), "{err}");
+    let mut missing = good.clone();
+    missing.sections.pop();
+    assert!(unpack(&missing).is_err(), "no projections section");
+    let mut more_planes_than_functions = good.clone();
+    more_planes_than_functions.header.meta.basis = BasisChoice::parse("sh:1")
+        .unwrap()
+        .build(&[], None)
+        .unwrap()
+        .spec();
+    assert!(unpack(&more_planes_than_functions).is_err(), "K′ > K");
+    // A reader of version 3 files cannot hold blocks: the file says version 4.
+    let mut bytes = packed::to_bytes(&good).unwrap();
+    bytes[8..12].copy_from_slice(&3u32.to_le_bytes());
+    assert!(
+        packed::from_bytes(&bytes, "test").is_err(),
+        "blocks in a version 3 file"
+    );
 }
