@@ -116,8 +116,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             } else {
                 ""
             };
+            let blocks = match header.pca_block {
+                Some(b) => {
+                    let (across, down) = header.pca_blocks();
+                    format!(" per block of {b}² ({across}×{down} blocks)")
+                }
+                None => String::new(),
+            };
             format!(
-                "compressed: {} layout, {} components{gain}, {pixels}",
+                "compressed: {} layout, {} components{blocks}{gain}, {pixels}",
                 header.layout.name(),
                 counts.join("/"),
             )

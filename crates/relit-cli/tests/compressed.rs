@@ -84,6 +84,80 @@ fn convert_goes_both_ways_and_every_reader_reads_it() {
 }
 
 #[test]
+fn principal_components_per_block_reach_every_reader() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    common::capture_and_fit(d); // 24×16, 4 coefficients
+    let convert = |name: &str, block: &[&str]| {
+        let args = [
+            &["convert", "scene.exr", "-o", name, "--layout", "ycc"][..],
+            &["--components", "2", "--bits", "14", "--tile-size", "16"],
+            block,
+        ]
+        .concat();
+        relit(d, &args);
+    };
+    convert("blocks.rlz", &["--pca-block", "16"]);
+    convert("once.rlz", &[]);
+    let info = relit(d, &["info", "blocks.rlz", "--json"]);
+    let info: serde_json::Value = serde_json::from_str(&info).unwrap();
+    let storage = info["storage"].as_str().unwrap();
+    assert!(
+        storage.contains("per block of 16² (2×1 blocks)"),
+        "{storage}"
+    );
+    // The file decodes into the fit's basis, all four coefficients.
+    assert_eq!(info["coefficients"], 4, "{info}");
+    let exr = frame(d, "scene.exr", "a");
+    let error = |f: &[f32]| {
+        exr.iter()
+            .zip(f)
+            .map(|(a, b)| ((a - b) as f64).powi(2))
+            .sum::<f64>()
+    };
+    let blocks = frame(d, "blocks.rlz", "b");
+    let once = frame(d, "once.rlz", "c");
+    assert!(
+        error(&blocks) < error(&once),
+        "two components a block {} against two for the file {}",
+        error(&blocks),
+        error(&once)
+    );
+    // A region across the blocks' border relights as that crop of the whole frame.
+    relit(
+        d,
+        &[
+            "relight",
+            "blocks.rlz",
+            "--roi",
+            "10,2,12,9",
+            "--light",
+            "dir:0.3,0.2,0.93",
+            "-o",
+            "part.exr",
+        ],
+    );
+    let part = relit::image::load_linear(&d.join("part.exr"), None).unwrap();
+    for y in 0..9 {
+        for x in 0..12 {
+            for c in 0..3 {
+                let a = part.data[3 * (y * 12 + x) + c];
+                let b = blocks[3 * ((y + 2) * 24 + x + 10) + c];
+                assert!(
+                    (a - b).abs() <= 1e-6 * b.abs().max(1e-3),
+                    "({x},{y}) {a} {b}"
+                );
+            }
+        }
+    }
+    relit(
+        d,
+        &["export-web", "blocks.rlz", "site", "--viewer", "relit"],
+    );
+    assert!(d.join("site/index.html").exists());
+}
+
+#[test]
 fn a_region_is_read_tile_by_tile_and_relights_as_that_crop() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
