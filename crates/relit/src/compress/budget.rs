@@ -23,6 +23,13 @@ pub const SCORING_LIGHTS: usize = 8;
 /// Codebook sizes tried.
 const VQ_ENTRIES: [usize; 2] = [1024, 4096];
 
+/// Block sides of the candidates with principal components per block. On items 1 and
+/// 3 of the shared RTI set (ycc, K′ 6–12, JPEG q90, peer protocol) 128 and 256 were
+/// within 0.1 dB of each other and 0.7–1.0 dB above one projection for the file at
+/// equal bits; on item9 (279×289, where 256 leaves one whole block) 128 was 0.2–0.4 dB
+/// above 256. So both are candidates and the capture's own lights choose.
+pub const PCA_BLOCKS: [usize; 2] = [128, 256];
+
 /// The candidates for a basis of `k` functions.
 pub fn grid(k: usize) -> Vec<Settings> {
     let mut components: Vec<usize> = [k, 16, 12, 9, 6, 4]
@@ -87,6 +94,28 @@ pub fn grid(k: usize) -> Vec<Settings> {
                         gain: true,
                         ..plain.clone()
                     });
+                }
+                // Principal components per block where the budgets of the web are won
+                // (ycc with the shared JPEG step, q80 and above): each block's own
+                // functions, and its own chroma projection, at a few hundred bytes a
+                // block (item1, K′ 6: 34.58 → 35.60 dB at 8 bits/px).
+                let per_block = layout == Layout::Ycc
+                    && jpeg_range == JpegRange::Shared
+                    && matches!(codec, TileCodec::Jpeg { quality } if quality >= 80);
+                if per_block {
+                    for block in PCA_BLOCKS {
+                        for gain in [false, true] {
+                            // The gain where it helps one projection (q90 and q80).
+                            if gain && matches!(codec, TileCodec::Jpeg { quality: 95 }) {
+                                continue;
+                            }
+                            out.push(Settings {
+                                gain,
+                                pca_block: Some(block),
+                                ..plain.clone()
+                            });
+                        }
+                    }
                 }
                 out.push(plain);
             }
