@@ -121,10 +121,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let seconds = start.elapsed().as_secs_f64();
     let bytes_in = crate::shared::size_on_disk(&args.input)?;
     let bytes_out = crate::shared::size_on_disk(&args.output)?;
-    // What was written, read back: from its header alone when it was streamed.
+    // What was written, read back: from its header alone when it was streamed or is
+    // compressed (decoding a large .rlz whole would hold all its maps again).
+    let compressed = codec::packed::is_packed(&args.output)?;
     let (written_basis, written_k) = if streamed {
         let shape = codec::exr::read_shape(&args.output)?;
         (shape.meta.basis, shape.k)
+    } else if compressed {
+        let basis = codec::packed::read_header(&args.output)?.meta.basis;
+        let k = basis.build()?.len();
+        (basis, k)
     } else {
         let written = codec::read(&args.output)?;
         (written.meta.basis, written.maps.k)
