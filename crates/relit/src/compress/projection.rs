@@ -120,13 +120,19 @@ impl Principal {
                 .map(|(a, b)| a * b)
                 .sum();
             if along < 0.0 {
-                self.encode[j * k..(j + 1) * k]
-                    .iter_mut()
-                    .for_each(|v| *v = -*v);
-                self.basis_map[j * k..(j + 1) * k]
-                    .iter_mut()
-                    .for_each(|v| *v = -*v);
+                self.negate(j);
             }
+        }
+    }
+
+    /// Direction `j` the other way round (the same projection).
+    fn negate(&mut self, j: usize) {
+        let k = self.k;
+        for v in self.encode[j * k..(j + 1) * k]
+            .iter_mut()
+            .chain(&mut self.basis_map[j * k..(j + 1) * k])
+        {
+            *v = -*v;
         }
     }
 
@@ -144,18 +150,22 @@ mod tests {
     use super::*;
     use crate::basis::BasisChoice;
 
+    /// A basis, its Gram matrix over its domain, and `rows` scattered coefficient
+    /// vectors.
+    fn fixture(name: &str, rows: usize) -> (Box<dyn Basis>, Vec<f64>, Vec<f64>) {
+        let basis = BasisChoice::parse(name).unwrap().build(&[], None).unwrap();
+        let g = gram(basis.as_ref(), None);
+        let vectors: Vec<f64> = (0..rows * basis.len())
+            .map(|i| ((i * 7919) % 101) as f64 / 50.0 - 1.0)
+            .collect();
+        (basis, g, vectors)
+    }
+
     #[test]
     fn all_components_reproduce_every_relit_value() {
         // A non-orthogonal basis (SG lobes overlap): the metric matters.
-        let basis = BasisChoice::parse("sg:9")
-            .unwrap()
-            .build(&[], None)
-            .unwrap();
+        let (basis, g, vectors) = fixture("sg:9", 40);
         let k = basis.len();
-        let g = gram(basis.as_ref(), None);
-        let vectors: Vec<f64> = (0..40 * k)
-            .map(|i| ((i * 7919) % 101) as f64 / 50.0 - 1.0)
-            .collect();
         let p = principal(&g, &vectors, k, k).unwrap();
         for c in vectors.chunks_exact(k).take(5) {
             let c32: Vec<f32> = c.iter().map(|&v| v as f32).collect();
@@ -180,25 +190,12 @@ mod tests {
 
     #[test]
     fn oriented_directions_keep_the_projection_and_take_the_others_signs() {
-        let basis = BasisChoice::parse("sh:9")
-            .unwrap()
-            .build(&[], None)
-            .unwrap();
+        let (basis, g, vectors) = fixture("sh:9", 60);
         let k = basis.len();
-        let g = gram(basis.as_ref(), None);
-        let vectors: Vec<f64> = (0..60 * k)
-            .map(|i| ((i * 7919) % 97) as f64 / 40.0 - 1.0)
-            .collect();
         let reference = principal(&g, &vectors, k, 4).unwrap();
         let mut flipped = principal(&g, &vectors, k, 4).unwrap();
-        for j in [0, 2] {
-            flipped.encode[j * k..(j + 1) * k]
-                .iter_mut()
-                .for_each(|v| *v = -*v);
-            flipped.basis_map[j * k..(j + 1) * k]
-                .iter_mut()
-                .for_each(|v| *v = -*v);
-        }
+        flipped.negate(0);
+        flipped.negate(2);
         assert!(flipped.encode != reference.encode);
         flipped.orient_like(&reference);
         assert_eq!(flipped.encode, reference.encode);
