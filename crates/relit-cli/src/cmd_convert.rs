@@ -123,7 +123,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let bytes_out = crate::shared::size_on_disk(&args.output)?;
     // What was written, read back: from its header alone when it was streamed or is
     // compressed (decoding a large .rlz whole would hold all its maps again).
-    let compressed = codec::packed::is_packed(&args.output)?;
+    let compressed = args.output.is_file() && codec::packed::is_packed(&args.output)?;
     let (written_basis, written_k) = if streamed {
         let shape = codec::exr::read_shape(&args.output)?;
         (shape.meta.basis, shape.k)
