@@ -43,6 +43,11 @@ use rayon::prelude::*;
 /// Pixels the principal components are found on (a regular subsample beyond).
 const PCA_PIXELS: usize = 1 << 16;
 
+/// Pixels a block's principal components are found on: 160 or more a function for
+/// K ≤ 25, and a quarter or a sixteenth of the work of all the pixels of a block of 128
+/// or 256.
+const BLOCK_PCA_PIXELS: usize = 1 << 12;
+
 /// Tile sides a file may use.
 pub const TILE_SIDES: std::ops::RangeInclusive<usize> = 16..=4096;
 
@@ -489,9 +494,9 @@ pub fn pack_with_gain(
     // share a projection (ycc's chroma has its own there: the luma's leading
     // directions hold a block's chroma poorly).
     let groups = projection_groups(layout, settings.pca_block.is_some());
-    let principal_of = |pixels: &[usize], group: usize| {
+    let principal_of = |pixels: &[usize], group: usize, most: usize| {
         let channels = &groups[group];
-        let step = (pixels.len() / PCA_PIXELS).max(1);
+        let step = (pixels.len() / most).max(1);
         let vectors: Vec<f64> = pixels
             .par_iter()
             .step_by(step)
@@ -506,7 +511,7 @@ pub fn pack_with_gain(
     let width = maps.width;
     let all: Vec<usize> = (0..n).collect();
     let whole: Vec<projection::Principal> = (0..groups.len())
-        .map(|g| principal_of(&all, g))
+        .map(|g| principal_of(&all, g, PCA_PIXELS))
         .collect::<Result<_>>()?;
     drop(all);
     let principals: Vec<Vec<projection::Principal>> = match settings.pca_block {
@@ -523,7 +528,7 @@ pub fn pack_with_gain(
                     .collect();
                 (0..groups.len())
                     .map(|g| {
-                        let mut own = principal_of(&pixels, g)?;
+                        let mut own = principal_of(&pixels, g, BLOCK_PCA_PIXELS)?;
                         own.orient_like(&whole[g]);
                         Ok(own)
                     })
