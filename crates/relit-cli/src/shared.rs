@@ -220,8 +220,8 @@ pub struct CompressArgs {
     #[arg(long)]
     pub gain: bool,
     /// Find the principal components (--components) per block of N×N pixels instead of
-    /// once for the file: each block keeps the K′ functions that suit it, for K′ × K
-    /// numbers a block (not with --codebook).
+    /// once for the file: each block keeps the K′ functions that suit it (and ycc's
+    /// chroma its own), for (K′ + chroma) × K numbers a block (not with --codebook).
     #[arg(long = "pca-block", value_parser = clap::value_parser!(u32).range(16..=4096))]
     pub pca_block: Option<u32>,
 }
