@@ -183,8 +183,8 @@ pub struct Header {
     /// raster order from the top left, smaller at the right and bottom edges) instead
     /// of once for the file. The planes then hold each block's own `K′` coordinates;
     /// `meta.basis` is the basis they decode into (`K` functions, not a projection),
-    /// and the last section holds every block's `K′ × K` map onto it
-    /// ([`block_maps`]): a pixel's coefficients are `c = Pᵀ c′`.
+    /// and the last section holds every block's `rows × K` maps onto it
+    /// (docs/format.md): a pixel's coefficients are `c = Pᵀ c′`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pca_block: Option<usize>,
     /// Whether depth follows the planes (f32, lossless).
@@ -536,9 +536,7 @@ pub fn pack_with_gain(
             })
             .collect::<Result<_>>()?,
     };
-    let group_of: Vec<usize> = (0..fcount)
-        .map(|f| groups.iter().position(|g| g.contains(&f)).unwrap_or(0))
-        .collect();
+    let group_of: Vec<usize> = (0..fcount).map(|f| group_of(&groups, f)).collect();
     let principal_at = |p: usize, f: usize| -> &projection::Principal {
         let block = match settings.pca_block {
             None => 0,
@@ -835,6 +833,11 @@ fn projection_groups(layout: Layout, per_block: bool) -> Vec<Vec<usize>> {
     }
 }
 
+/// The projection group ([`projection_groups`]) of function channel `f`.
+fn group_of(groups: &[Vec<usize>], f: usize) -> usize {
+    groups.iter().position(|g| g.contains(&f)).unwrap_or(0)
+}
+
 /// The codes of the pixels of the rectangle `(x0, y0, w, h)` of a plane `width` pixels
 /// wide, row by row: `code(i)` of each pixel index `i`.
 fn tile_codes(
@@ -1082,13 +1085,11 @@ fn block_rows(header: &Header, kp: usize) -> Vec<usize> {
     }
 }
 
-/// Every block's maps from its stored coordinates onto the header's basis of `K`
-/// functions, read from the last section and checked: per block, per projection group
-/// ([`block_rows`]), a `rows × K` matrix, row-major.
-pub fn block_maps(packed: &Packed) -> Result<Vec<f32>> {
+/// Every block's maps from its `kp` stored coordinates onto the header's basis of `k`
+/// functions, read from the last section of a file already [`checked`]: per block, per
+/// projection group ([`block_rows`]), a `rows × K` matrix, row-major.
+fn block_maps(packed: &Packed, kp: usize, k: usize) -> Result<Vec<f32>> {
     let header = &packed.header;
-    let kp = checked(packed)?;
-    let k = header.meta.basis.build()?.len();
     let (across, down) = header.pca_blocks();
     let per_block: usize = block_rows(header, kp).iter().map(|r| r * k).sum();
     let want = across * down * per_block * 4;
@@ -1124,50 +1125,48 @@ struct BlockDecoder {
 }
 
 impl BlockDecoder {
+    /// The decoder of a file already [`checked`], with `kp` stored functions.
     fn new(packed: &Packed, kp: usize, origin: (usize, usize)) -> Result<Self> {
         let header = &packed.header;
+        let k = header.meta.basis.build()?.len();
         Ok(BlockDecoder {
-            maps: block_maps(packed)?,
+            maps: block_maps(packed, kp, k)?,
             rows: block_rows(header, kp),
-            k: header.meta.basis.build()?.len(),
+            k,
             block: header.pca_block.expect("a file with blocks"),
             across: header.pca_blocks().0,
             origin,
         })
     }
 
-    /// The `K` coefficient planes (`w` pixels a row) of the coordinates `coords` of
-    /// projection group `group` (fewer planes than its rows: the rest are 0).
-    fn decode(&self, coords: &[&[f32]], group: usize, w: usize) -> Vec<Vec<f32>> {
+    /// Into `out`, `K` zeroed coefficient planes (`w` pixels a row), the coordinates
+    /// `coords` of projection group `group` (fewer planes than its rows: the rest are 0).
+    fn decode(&self, coords: &[&[f32]], group: usize, w: usize, out: Vec<&mut [f32]>) {
         let (k, block, (x, y)) = (self.k, self.block, self.origin);
         let per_block: usize = self.rows.iter().map(|r| r * k).sum();
         let offset: usize = self.rows[..group].iter().map(|r| r * k).sum();
         let n = coords.first().map_or(0, |c| c.len());
         let h = n.checked_div(w).unwrap_or(0);
-        (0..k)
-            .into_par_iter()
-            .map(|i| {
-                let mut out = vec![0.0f32; n];
-                for row in 0..h {
-                    let by = (y + row) / block;
-                    let mut col = 0;
-                    while col < w {
-                        // A run of the row inside one block.
-                        let bx = (x + col) / block;
-                        let end = ((bx + 1) * block - x).min(w);
-                        let p = &self.maps[(by * self.across + bx) * per_block + offset..];
-                        let dst = &mut out[row * w + col..row * w + end];
-                        for (j, plane) in coords.iter().enumerate().take(self.rows[group]) {
-                            let weight = p[j * k + i];
-                            let src = &plane[row * w + col..row * w + end];
-                            dst.iter_mut().zip(src).for_each(|(o, &c)| *o += weight * c);
-                        }
-                        col = end;
+        debug_assert_eq!(out.len(), k);
+        out.into_par_iter().enumerate().for_each(|(i, out)| {
+            for row in 0..h {
+                let by = (y + row) / block;
+                let mut col = 0;
+                while col < w {
+                    // A run of the row inside one block.
+                    let bx = (x + col) / block;
+                    let end = ((bx + 1) * block - x).min(w);
+                    let p = &self.maps[(by * self.across + bx) * per_block + offset..];
+                    let dst = &mut out[row * w + col..row * w + end];
+                    for (j, plane) in coords.iter().enumerate().take(self.rows[group]) {
+                        let weight = p[j * k + i];
+                        let src = &plane[row * w + col..row * w + end];
+                        dst.iter_mut().zip(src).for_each(|(o, &c)| *o += weight * c);
                     }
+                    col = end;
                 }
-                out
-            })
-            .collect()
+            }
+        });
     }
 }
 
@@ -1421,7 +1420,6 @@ fn assemble(
     let n = w * h;
     let mut maps = CoefficientMaps::zeros(w, h, kp);
     let groups = projection_groups(header.layout, blocks.is_some());
-    let group_of = |f: usize| groups.iter().position(|g| g.contains(&f)).unwrap_or(0);
     let (functions, _) = header.layout.channels();
     let index_of = |channel: &str, j: usize| {
         header
@@ -1444,13 +1442,9 @@ fn assemble(
                 let mut decoded = CoefficientMaps::zeros(w, h, decoder.k);
                 for f in 0..functions.len() {
                     let coords: Vec<&[f32]> = (0..kp).map(|j| maps.plane(j, f)).collect();
-                    for (i, plane) in decoder
-                        .decode(&coords, group_of(f), w)
-                        .into_iter()
-                        .enumerate()
-                    {
-                        decoded.plane_mut(i, f).copy_from_slice(&plane);
-                    }
+                    // Planes (i, f) of the decoded maps, i = 0…K−1.
+                    let out = decoded.data.chunks_mut(n).skip(f).step_by(3).collect();
+                    decoder.decode(&coords, group_of(&groups, f), w, out);
                 }
                 maps = decoded;
             }
@@ -1480,8 +1474,15 @@ fn assemble(
                 })
                 .collect();
             if let Some(decoder) = blocks {
+                let mut decoded = vec![vec![0.0f32; n]; decoder.k];
                 let coords: Vec<&[f32]> = luminance.iter().map(Vec::as_slice).collect();
-                luminance = decoder.decode(&coords, 0, w);
+                decoder.decode(
+                    &coords,
+                    0,
+                    w,
+                    decoded.iter_mut().map(Vec::as_mut_slice).collect(),
+                );
+                luminance = decoded;
                 maps = CoefficientMaps::zeros(w, h, decoder.k);
             }
             for (j, l) in luminance.iter().enumerate() {
