@@ -134,7 +134,7 @@ pub fn load_linear_parts(
 ) -> Result<(usize, usize, Vec<f32>, Vec<f32>)> {
     let mut band = Vec::new();
     let (width, height, picked) =
-        read_linear_parts(path, encoding, rows.clone(), pixels, &mut |_, row| {
+        read_linear_parts(path, encoding, None, rows.clone(), pixels, &mut |_, row| {
             if band.is_empty() {
                 band.reserve_exact(row.len() * rows.len());
             }
@@ -151,18 +151,29 @@ pub fn load_linear_parts(
 /// only down to the last row wanted, so a reader that keeps nothing of a row holds a few
 /// rows of the image, whatever its size; other formats are decoded whole, in their own
 /// type (3 bytes a pixel for 8-bit files instead of 12).
+///
+/// `then`, where given, maps every linear value (rows and pixels) before they are
+/// handed over: for an 8-bit file it is folded into the table of the 256 codes, so a
+/// reader that wants another encoding of the values (the fit's display-referred maps)
+/// pays nothing per sample for it.
 pub fn read_linear_parts(
     path: &Path,
     encoding: Option<Encoding>,
+    then: Option<fn(f32) -> f32>,
     rows: std::ops::Range<usize>,
     pixels: &[usize],
     row: &mut dyn FnMut(usize, &mut [f32]) -> Result<()>,
 ) -> Result<(usize, usize, Vec<f32>)> {
     if jpeg::is_jpeg(path) {
-        if let Some(parts) = jpeg_parts(path, encoding, rows.clone(), pixels, row)? {
+        if let Some(parts) = jpeg_parts(path, encoding, then, rows.clone(), pixels, row)? {
             return Ok(parts);
         }
     }
+    let map = |values: &mut [f32]| {
+        if let Some(f) = then {
+            values.iter_mut().for_each(|v| *v = f(*v));
+        }
+    };
     let decoded = decode(path)?;
     let (width, height) = (decoded.width() as usize, decoded.height() as usize);
     if rows.end > height || pixels.iter().any(|&p| p >= width * height) {
@@ -171,14 +182,16 @@ pub fn read_linear_parts(
     for y in rows {
         let mut values =
             linear_samples(&decoded, path, encoding, 3 * width * y..3 * width * (y + 1));
+        map(&mut values);
         row(y, &mut values)?;
     }
-    let picked = linear_samples(
+    let mut picked = linear_samples(
         &decoded,
         path,
         encoding,
         pixels.iter().flat_map(|&p| 3 * p..3 * p + 3),
     );
+    map(&mut picked);
     Ok((width, height, picked))
 }
 
@@ -187,11 +200,15 @@ pub fn read_linear_parts(
 fn jpeg_parts(
     path: &Path,
     encoding: Option<Encoding>,
+    then: Option<fn(f32) -> f32>,
     rows: std::ops::Range<usize>,
     pixels: &[usize],
     row: &mut dyn FnMut(usize, &mut [f32]) -> Result<()>,
 ) -> Result<Option<(usize, usize, Vec<f32>)>> {
-    let table = eight_bit_table(encoding);
+    let mut table = eight_bit_table(encoding);
+    if let Some(f) = then {
+        table.iter_mut().for_each(|v| *v = f(*v));
+    }
     // The picked pixels in file order, each with where its samples go.
     let mut order: Vec<(usize, usize)> = pixels.iter().copied().zip(0..).collect();
     order.sort_unstable();

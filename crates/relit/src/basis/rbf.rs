@@ -332,38 +332,37 @@ impl Basis for Rbf {
         if self.kernel != Kernel::Gaussian {
             return super::roughness_penalty(self, super::PENALTY_POINTS);
         }
+        // The kernels' own gradient Gram matrix (`c×c`, one matrix product over the
+        // points' gradient rows), then the functions' as `W·G·Wᵀ`: the functions are
+        // fixed combinations of the kernels.
         let (c, k) = (self.centres.len(), self.len());
         let points = super::penalty_points(self.domain(), super::PENALTY_POINTS);
         let inv_sigma2 = 1.0 / (self.sigma * self.sigma);
-        let mut p = vec![0.0; k * k];
-        let mut grad = vec![[0.0f64; 3]; k];
-        for d in &points {
-            grad.iter_mut().for_each(|g| *g = [0.0; 3]);
+        let mut gradients = vec![0.0; 3 * points.len() * c];
+        for (d, rows) in points.iter().zip(gradients.chunks_exact_mut(3 * c)) {
             for (i, m) in self.centres.iter().enumerate() {
                 let v = kernel(*d, *m, self.sigma);
                 if v < 1e-12 {
                     continue;
                 }
                 let t = (*m - *d * d.dot(*m)) * (v * inv_sigma2);
-                for (g, row) in grad.iter_mut().zip(self.weights.chunks_exact(c)) {
-                    let w = row[i];
-                    g[0] += w * t.x;
-                    g[1] += w * t.y;
-                    g[2] += w * t.z;
-                }
-            }
-            for a in 0..k {
-                for b in a..k {
-                    let (ga, gb) = (grad[a], grad[b]);
-                    p[a * k + b] += ga[0] * gb[0] + ga[1] * gb[1] + ga[2] * gb[2];
-                }
+                rows[i] = t.x;
+                rows[c + i] = t.y;
+                rows[2 * c + i] = t.z;
             }
         }
+        let mut gram = vec![0.0; c * c];
+        crate::linalg::matmul_at(c, 3 * points.len(), c, &gradients, &gradients, &mut gram);
+        let mut half = vec![0.0; k * c];
+        crate::linalg::matmul(k, c, c, &self.weights, &gram, &mut half);
+        let mut p = vec![0.0; k * k];
+        crate::linalg::matmul_bt(k, c, k, &half, &self.weights, &mut p);
         let count = points.len() as f64;
         for a in 0..k {
             for b in a..k {
-                p[a * k + b] /= count;
-                p[b * k + a] = p[a * k + b];
+                let v = p[a * k + b] / count;
+                p[a * k + b] = v;
+                p[b * k + a] = v;
             }
         }
         p

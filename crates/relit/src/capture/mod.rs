@@ -238,9 +238,10 @@ impl Capture {
         index: usize,
         rows: std::ops::Range<usize>,
         pixels: &[usize],
+        then: Option<fn(f32) -> f32>,
     ) -> Result<(Vec<f32>, Vec<f32>)> {
         let mut band = Vec::new();
-        let picked = self.read_parts(index, rows.clone(), pixels, &mut |_, row| {
+        let picked = self.read_parts(index, rows.clone(), pixels, then, &mut |_, row| {
             if band.is_empty() {
                 band.reserve_exact(row.len() * rows.len());
             }
@@ -256,22 +257,32 @@ impl Capture {
     /// in the order asked). A JPEG photograph is decoded a few rows at a time, down to
     /// the last row wanted ([`image::read_linear_parts`]), so a caller that keeps no row
     /// holds a few rows of the image, whatever its size.
+    ///
+    /// `then`, where given, maps every value after the intensity is divided out (see
+    /// [`image::read_linear_parts`]: free for 8-bit files of lights of unit intensity).
     pub fn read_parts(
         &self,
         index: usize,
         rows: std::ops::Range<usize>,
         pixels: &[usize],
+        then: Option<fn(f32) -> f32>,
         row: &mut dyn FnMut(usize, &mut [f32]) -> Result<()>,
     ) -> Result<Vec<f32>> {
         let light = &self.lights[index];
         let inv = light.intensity.map(|v| 1.0 / v);
+        let unit = light.intensity == [1.0; 3];
+        // The decoder maps the values itself where nothing is divided out first.
+        let (decoder_then, then) = if unit { (then, None) } else { (None, then) };
         let divide = |values: &mut [f32]| {
-            if light.intensity != [1.0; 3] {
+            if !unit {
                 for px in values.chunks_exact_mut(3) {
                     px[0] *= inv[0];
                     px[1] *= inv[1];
                     px[2] *= inv[2];
                 }
+            }
+            if let Some(f) = then {
+                values.iter_mut().for_each(|v| *v = f(*v));
             }
         };
         let wrong_size = |size: String| {
@@ -286,11 +297,12 @@ impl Capture {
             )
         };
         let w = self.width;
-        let mut picked = match &light.image {
+        match &light.image {
             ImageSource::File { path, encoding } => {
                 let (fw, fh, picked) = image::read_linear_parts(
                     path,
                     *encoding,
+                    decoder_then,
                     rows.clone(),
                     pixels,
                     &mut |y, values| {
@@ -306,23 +318,32 @@ impl Capture {
                 if (fw, fh) != (self.width, self.height) {
                     return Err(wrong_size(format!("{fw}×{fh}")));
                 }
-                picked
+                let mut picked = picked;
+                divide(&mut picked);
+                Ok(picked)
             }
             ImageSource::Memory(_) | ImageSource::Generated(_) => {
+                // No decoder here: what it would map, mapped after the division.
+                let map = |values: &mut [f32]| {
+                    divide(values);
+                    if let Some(f) = decoder_then {
+                        values.iter_mut().for_each(|v| *v = f(*v));
+                    }
+                };
                 let img = self.load_raw(index)?;
                 for y in rows {
                     let mut values = img.data[3 * w * y..3 * w * (y + 1)].to_vec();
-                    divide(&mut values);
+                    map(&mut values);
                     row(y, &mut values)?;
                 }
-                pixels
+                let mut picked: Vec<f32> = pixels
                     .iter()
                     .flat_map(|&p| img.data[3 * p..3 * p + 3].iter().copied())
-                    .collect()
+                    .collect();
+                map(&mut picked);
+                Ok(picked)
             }
-        };
-        divide(&mut picked);
-        Ok(picked)
+        }
     }
 
     /// Image `index` in linear RGB as recorded (intensity not divided out).

@@ -507,8 +507,7 @@ fn read_subsample(
     let rows: Vec<Vec<f32>> = (0..n)
         .into_par_iter()
         .map(|j| {
-            let (_, mut picked) = capture.load_parts(j, 0..0, sub_idx)?;
-            to_target_values(&mut picked, space);
+            let (_, picked) = capture.load_parts(j, 0..0, sub_idx, target_encoding(space))?;
             progress.advance(1);
             Ok(picked)
         })
@@ -608,6 +607,7 @@ fn choose_basis(
         .collect();
     let q = quadrature(dirs);
     let train = select::training_lights(n);
+    let penalties = select::Penalties::default();
     let choices = match request {
         BasisRequest::Auto if options.candidates.is_empty() => {
             candidates(options.max_coefficients, n)
@@ -682,6 +682,7 @@ fn choose_basis(
                 &view,
                 folds,
                 &own_ladders,
+                &penalties,
             )?;
             for (&w, score) in picked.iter().zip(got) {
                 scores[w] = Some(score);
@@ -722,6 +723,7 @@ fn choose_basis(
             }
         }
         screening.sort_by(|a, b| order(&a.2, &b.2));
+
         finalists = screening
             .iter()
             .take(FINALISTS)
@@ -897,6 +899,12 @@ fn subsample_indices(pixels: usize, count: usize) -> Vec<usize> {
 /// sRGB-encoded for display-referred maps (from the table, within 5e-8 of the exact
 /// curve, a ten-thousandth of an 8-bit step: the exact curve's `powf` was a twentieth of
 /// a display-referred fit's time).
+/// What maps each linear value to the values maps in `space` are fitted to, as the
+/// image readers take it ([`Capture::read_parts`]): the same as [`to_target_values`].
+fn target_encoding(space: MapSpace) -> Option<fn(f32) -> f32> {
+    (space == MapSpace::Srgb).then_some(color::linear_to_srgb_tabulated as fn(f32) -> f32)
+}
+
 fn to_target_values(values: &mut [f32], space: MapSpace) {
     if space == MapSpace::Srgb {
         values
@@ -1189,29 +1197,30 @@ fn fit_into(
             .par_iter()
             .map(|&j| {
                 let wanted = wanted.as_slice();
-                let (img, mut samples) = match (&spill, &accum) {
+                let (img, samples) = match (&spill, &accum) {
                     // Only the spill file takes the band: it goes there a row at a
                     // time, as the image is decoded, and is never held whole.
                     (Some(spill), None) => {
                         let mut writer = spill.image_rows(j);
-                        let samples =
-                            capture.read_parts(j, rows.clone(), wanted, &mut |_, values| {
-                                to_target_values(values, space);
-                                writer.push(values)
-                            })?;
+                        let samples = capture.read_parts(
+                            j,
+                            rows.clone(),
+                            wanted,
+                            target_encoding(space),
+                            &mut |_, values| writer.push(values),
+                        )?;
                         writer.finish()?;
                         (Vec::new(), samples)
                     }
                     _ => {
-                        let (mut img, samples) = capture.load_parts(j, rows.clone(), wanted)?;
-                        to_target_values(&mut img, space);
+                        let (img, samples) =
+                            capture.load_parts(j, rows.clone(), wanted, target_encoding(space))?;
                         if let Some(spill) = &spill {
                             spill.write_image(j, &img)?;
                         }
                         (img, samples)
                     }
                 };
-                to_target_values(&mut samples, space);
                 progress.advance(1);
                 Ok((img, samples))
             })

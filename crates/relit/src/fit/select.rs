@@ -18,7 +18,7 @@ use super::{
     brightness_kept, light_relevance, perceptual_weight_encoded, srgb_on_screen, Objective,
     Regularizer,
 };
-use crate::basis::{Basis, BasisChoice, Family, Samples, FAMILIES};
+use crate::basis::{Basis, BasisChoice, BasisSpec, Family, Samples, FAMILIES};
 use crate::color;
 use crate::linalg::{self, Lanes, LANES};
 use crate::maps::MapSpace;
@@ -27,6 +27,7 @@ use crate::Result;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::ops::Range;
+use std::sync::{Arc, Mutex};
 
 /// The λ values each candidate is validated at.
 pub const VALIDATION_LADDER: [f64; 6] = [1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1];
@@ -228,6 +229,50 @@ impl Subsample<'_> {
     }
 }
 
+/// The regularisation matrices of the bases a basis choice validates, kept for bases
+/// that do not depend on the fold's samples: an analytic basis is the same in every
+/// fold, space and objective, and its roughness penalty (numerical for most families)
+/// would otherwise be computed for each of them.
+#[derive(Default)]
+pub(super) struct Penalties(Mutex<Vec<(BasisSpec, Arc<Vec<f64>>)>>);
+
+impl Penalties {
+    /// The penalty of `basis` under `regularizer`, computed once per basis where
+    /// `data_driven` is false.
+    fn of(&self, basis: &dyn Basis, regularizer: Regularizer, data_driven: bool) -> Arc<Vec<f64>> {
+        let k = basis.len();
+        let compute = || match regularizer {
+            Regularizer::Roughness => basis.penalty(),
+            Regularizer::Ridge => {
+                let mut p = vec![0.0; k * k];
+                (0..k).for_each(|i| p[i * k + i] = 1.0 / (4.0 * std::f64::consts::PI));
+                p
+            }
+        };
+        if data_driven || regularizer == Regularizer::Ridge {
+            return Arc::new(compute());
+        }
+        let spec = basis.spec();
+        let known = |list: &[(BasisSpec, Arc<Vec<f64>>)]| {
+            list.iter()
+                .find(|(s, _)| *s == spec)
+                .map(|(_, p)| p.clone())
+        };
+        if let Some(p) = known(&self.0.lock().expect("penalties")) {
+            return p;
+        }
+        // Computed outside the lock: two folds may compute the same one at once, and
+        // keep the first (the values are the same).
+        let p = Arc::new(compute());
+        let mut list = self.0.lock().expect("penalties");
+        if let Some(p) = known(&list) {
+            return p;
+        }
+        list.push((spec, p.clone()));
+        p
+    }
+}
+
 /// Validate `choice` under each of `objectives` (linear or perceptual) on `sub`, lit
 /// from `dirs` with quadrature weights `q`: for each, in order, the best λ of
 /// [`VALIDATION_LADDER`] by `criterion` and its error. `space` is what `sub` holds and
@@ -251,6 +296,7 @@ pub(super) fn validate(
     sub: &Subsample,
     folds: usize,
     ladders: &[Range<usize>],
+    penalties: &Penalties,
 ) -> Result<Vec<CandidateScore>> {
     assert_eq!(ladders.len(), objectives.len());
     assert!(
@@ -318,6 +364,7 @@ pub(super) fn validate(
                     sub,
                     folds,
                     fold,
+                    penalties,
                 )
             })
             .collect::<Result<Vec<_>>>()?;
@@ -356,6 +403,7 @@ fn fold_result(
     sub: &Subsample,
     folds: usize,
     fold: usize,
+    penalties: &Penalties,
 ) -> Result<FoldErrors> {
     let n = sub.n;
     let series = sub.count * 3;
@@ -377,6 +425,7 @@ fn fold_result(
     )?;
     let held_dirs: Vec<Vec3> = held.iter().map(|&j| dirs[j]).collect();
     let q_train: Vec<f64> = train.iter().map(|&j| q[j]).collect();
+    let penalty = penalties.of(basis.as_ref(), regularizer, choice.needs_samples());
     let errors = objectives
         .iter()
         .map(|(objective, ladder)| {
@@ -385,7 +434,7 @@ fn fold_result(
                 space,
                 *objective,
                 ladder.clone(),
-                regularizer,
+                &penalty,
                 &train_dirs,
                 &held_dirs,
                 &q_train,
@@ -507,7 +556,7 @@ fn fold_errors(
     space: MapSpace,
     objective: Objective,
     ladder: Range<usize>,
-    regularizer: Regularizer,
+    penalty: &[f64],
     train_dirs: &[Vec3],
     held_dirs: &[Vec3],
     q_train: &[f64],
@@ -519,14 +568,6 @@ fn fold_errors(
     let nt = train_dirs.len();
     let a_train: Vec<f64> = train_dirs.iter().flat_map(|d| basis.values(*d)).collect();
     let a_held: Vec<f64> = held_dirs.iter().flat_map(|d| basis.values(*d)).collect();
-    let penalty = match regularizer {
-        Regularizer::Roughness => basis.penalty(),
-        Regularizer::Ridge => {
-            let mut p = vec![0.0; k * k];
-            (0..k).for_each(|i| p[i * k + i] = 1.0 / (4.0 * std::f64::consts::PI));
-            p
-        }
-    };
     let normal = |w: &[f64]| -> (Vec<f64>, f64) {
         let mut m = vec![0.0; k * k];
         for (j, &wj) in w.iter().enumerate() {
@@ -547,18 +588,26 @@ fn fold_errors(
     };
     let factor = |m: &[f64], total: f64, lambda: f64| -> Option<Vec<f64>> {
         let mut f = m.to_vec();
-        for (v, &p) in f.iter_mut().zip(&penalty) {
+        for (v, &p) in f.iter_mut().zip(penalty) {
             *v += total * lambda * p;
         }
         (0..k).for_each(|i| f[i * k + i] += total * super::DEFINITENESS);
         linalg::cholesky(&mut f, k).then_some(f)
     };
-    // The linear objective shares one matrix (and its factors) across pixels.
+    // The linear objective shares one matrix across pixels, so each λ's held-out
+    // predictions are one linear map of a series' training values: the operator
+    // `A_held (AᵀQA + λ·total·P)⁻¹ AᵀQ` (held × train), applied to a block of series
+    // by one matrix product instead of a solve per series.
     let shared: Option<Vec<Option<Vec<f64>>>> = (objective == Objective::Linear).then(|| {
         let (m, total) = normal(q_train);
-        VALIDATION_LADDER
-            .iter()
-            .map(|&l| factor(&m, total, l))
+        (0..LADDER)
+            .map(|li| {
+                if !ladder.contains(&li) {
+                    return None;
+                }
+                let f = factor(&m, total, VALIDATION_LADDER[li])?;
+                Some(prediction_operator(&f, &a_train, &a_held, q_train, k))
+            })
             .collect()
     });
     let series = sub.count * 3;
@@ -568,42 +617,110 @@ fn fold_errors(
     // upper triangle) in one matrix product.
     let pairs = super::packed_pairs(k);
     let t = pairs.len();
-    let outer: Vec<f64> = (0..nt)
-        .flat_map(|j| {
-            let row = &a_train[j * k..(j + 1) * k];
-            pairs.iter().map(move |&(r, c)| row[r] * row[c])
-        })
-        .collect();
+    let outer: Vec<f64> = if shared.is_none() {
+        (0..nt)
+            .flat_map(|j| {
+                let row = &a_train[j * k..(j + 1) * k];
+                pairs.iter().map(move |&(r, c)| row[r] * row[c])
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
     (0..series.div_ceil(SERIES_BLOCK))
         .into_par_iter()
         .map(|block| {
             let mut acc = vec![[0.0f64; SLOTS]; lights];
             let first = block * SERIES_BLOCK;
             let len = SERIES_BLOCK.min(series - first);
-            // Each sample's weight, computed once for the normal matrix and the sums
-            // (the perceptual weights from the block's encodings, a batch at a time).
-            let weights: Vec<f64> = match objective {
-                Objective::Linear => (0..len).flat_map(|_| q_train.iter().copied()).collect(),
-                _ => {
-                    let values: Vec<f64> = train_values[first * nt..(first + len) * nt]
-                        .iter()
-                        .map(|&v| v as f64)
-                        .collect();
-                    let mut encoded = vec![0.0; values.len()];
-                    color::linear_to_srgb_tabulated_batch(&values, &mut encoded);
-                    values
-                        .iter()
-                        .zip(&encoded)
-                        .zip(q_train.iter().cycle())
-                        .map(|((&v, &e), &q)| q * perceptual_weight_encoded(v, e))
-                        .collect()
+            // The held-out observations and how a screen shows them, per series of the
+            // block and held-out light, the same at every λ.
+            let held_obs: Vec<(f64, f64)> = (first..first + len)
+                .flat_map(|s| {
+                    let (p, c) = (s / 3, s % 3);
+                    held.iter().map(move |&j| {
+                        let v = sub.values[(p * sub.n + j) * 3 + c];
+                        match space {
+                            MapSpace::Linear => (v as f64, srgb_on_screen(v as f64)),
+                            MapSpace::Srgb => (color::srgb_to_linear(v) as f64, v as f64),
+                        }
+                    })
+                })
+                .collect();
+            let (mut preds, mut shown) = (vec![0.0; len * lights], vec![0.0; len * lights]);
+            // Tally the predictions of series `rows` (of the block) at λ `li`, each as a
+            // screen shows it; series whose system was not positive definite score an
+            // infinite error.
+            let tally = |acc: &mut [[f64; SLOTS]],
+                         li: usize,
+                         rows: Range<usize>,
+                         preds: &mut [f64],
+                         shown: &mut [f64],
+                         ok: &[bool]| {
+                let used = rows.len();
+                let (preds, shown) = (&mut preds[..used * lights], &mut shown[..used * lights]);
+                match space {
+                    MapSpace::Linear => color::linear_to_srgb_tabulated_batch(preds, shown),
+                    // Display values are shown as they are; the linear error and the
+                    // brightness judge their decoding.
+                    MapSpace::Srgb => {
+                        for (s, p) in shown.iter_mut().zip(preds.iter_mut()) {
+                            *s = p.clamp(0.0, 1.0);
+                            *p = color::srgb_to_linear(*s as f32) as f64;
+                        }
+                    }
+                }
+                for (l, b) in rows.enumerate() {
+                    if !ok[l] {
+                        acc.iter_mut().for_each(|a| a[li] = f64::INFINITY);
+                        continue;
+                    }
+                    for (h, a) in acc.iter_mut().enumerate() {
+                        let (o, o_shown) = held_obs[b * lights + h];
+                        let pred = preds[l * lights + h];
+                        let d = shown[l * lights + h] - o_shown;
+                        a[li] += d * d;
+                        let d = pred - o;
+                        a[LINEAR + li] += d * d;
+                        a[LADDER + li] += pred;
+                        if li == ladder.start {
+                            a[2 * LADDER] += o;
+                        }
+                    }
                 }
             };
-            let mut packed = Vec::new();
-            if shared.is_none() {
-                packed = vec![0.0; len * t];
-                linalg::matmul(len, nt, t, &weights, &outer, &mut packed);
+            if let Some(operators) = &shared {
+                let values: Vec<f64> = train_values[first * nt..(first + len) * nt]
+                    .iter()
+                    .map(|&v| v as f64)
+                    .collect();
+                for li in ladder.clone() {
+                    let ok = vec![operators[li].is_some(); len];
+                    if let Some(g) = &operators[li] {
+                        linalg::matmul(len, nt, lights, &values, g, &mut preds);
+                    }
+                    tally(&mut acc, li, 0..len, &mut preds, &mut shown, &ok);
+                }
+                return acc;
             }
+            // Each sample's perceptual weight, computed once for the normal matrix and
+            // the sums (from the block's encodings, a batch at a time).
+            let weights: Vec<f64> = {
+                let values: Vec<f64> = train_values[first * nt..(first + len) * nt]
+                    .iter()
+                    .map(|&v| v as f64)
+                    .collect();
+                let mut encoded = vec![0.0; values.len()];
+                color::linear_to_srgb_tabulated_batch(&values, &mut encoded);
+                values
+                    .iter()
+                    .zip(&encoded)
+                    .zip(q_train.iter().cycle())
+                    .map(|((&v, &e), &q)| q * perceptual_weight_encoded(v, e))
+                    .collect()
+            };
+            let mut packed = vec![0.0; len * t];
+            linalg::matmul(len, nt, t, &weights, &outer, &mut packed);
             // Series a lane group at a time: each lane's systems are the scalar
             // systems, factored and solved side by side (`linalg::cholesky_lanes`).
             let mut m = vec![[0.0; LANES]; k * k];
@@ -612,8 +729,6 @@ fn fold_errors(
             let mut coef = vec![[0.0; LANES]; k];
             let mut coef2 = vec![[0.0; LANES]; k];
             let mut rhs0 = vec![[0.0; LANES]; k];
-            let mut held_obs = vec![[(0.0, 0.0); LANES]; lights];
-            let (mut preds, mut shown) = (vec![0.0; LANES * lights], vec![0.0; LANES * lights]);
             for g in (0..len).step_by(LANES) {
                 let used = LANES.min(len - g);
                 let mut total = [0.0; LANES];
@@ -622,59 +737,39 @@ fn fold_errors(
                     let (b, s) = (g + l, first + g + l);
                     let obs = &train_values[s * nt..(s + 1) * nt];
                     let weights = &weights[b * nt..(b + 1) * nt];
-                    let (p, c) = (s / 3, s % 3);
-                    if shared.is_none() {
-                        for (x, &(r, col)) in pairs.iter().enumerate() {
-                            let v = packed[b * t + x];
-                            m[col * k + r][l] = v;
-                        }
-                        total[l] = weights.iter().sum();
+                    for (x, &(r, col)) in pairs.iter().enumerate() {
+                        m[col * k + r][l] = packed[b * t + x];
                     }
+                    total[l] = weights.iter().sum();
                     for (j, (&v, &w)) in obs.iter().zip(weights).enumerate() {
                         let row = &a_train[j * k..(j + 1) * k];
                         for r in 0..k {
                             rhs0[r][l] += w * row[r] * v as f64;
                         }
                     }
-                    // The held-out observations and how a screen shows them, the
-                    // same at every λ.
-                    for (h, &j) in held.iter().enumerate() {
-                        let v = sub.values[(p * sub.n + j) * 3 + c];
-                        held_obs[h][l] = match space {
-                            MapSpace::Linear => (v as f64, srgb_on_screen(v as f64)),
-                            MapSpace::Srgb => (color::srgb_to_linear(v) as f64, v as f64),
-                        };
-                    }
                 }
                 // λ two at a time: their solves run side by side
                 // (`linalg::cholesky_solve_lanes_pair`), each as it would alone.
                 for pair in ladder.clone().step_by(2) {
                     let lis = [pair, pair + 1];
-                    let mut oks = [[false; LANES]; 2];
-                    for (slot, &li) in lis.iter().enumerate() {
-                        let f = if slot == 0 { &mut f } else { &mut f2 };
-                        oks[slot] = match &shared {
-                            Some(factors) => match &factors[li] {
-                                Some(shared_f) => {
-                                    for (dst, &v) in f.iter_mut().zip(shared_f) {
-                                        *dst = [v; LANES];
-                                    }
-                                    [true; LANES]
-                                }
-                                None => [false; LANES],
-                            },
-                            None => {
-                                factor_lanes(f, &m, &penalty, total, VALIDATION_LADDER[li], k, used)
-                            }
-                        };
-                    }
+                    let oks = [
+                        factor_lanes(&mut f, &m, penalty, total, VALIDATION_LADDER[pair], k, used),
+                        factor_lanes(
+                            &mut f2,
+                            &m,
+                            penalty,
+                            total,
+                            VALIDATION_LADDER[pair + 1],
+                            k,
+                            used,
+                        ),
+                    ];
                     coef.copy_from_slice(&rhs0);
                     coef2.copy_from_slice(&rhs0);
                     linalg::cholesky_solve_lanes_pair(&f, &f2, k, &mut coef, &mut coef2);
                     for (slot, &li) in lis.iter().enumerate() {
-                        let (ok, coef) = (oks[slot], if slot == 0 { &coef } else { &coef2 });
-                        // Every lane's predictions at the held-out lights, then how a
-                        // screen shows them, a batch at a time.
+                        let coef = if slot == 0 { &coef } else { &coef2 };
+                        // Every lane's predictions at the held-out lights.
                         for l in 0..used {
                             for h in 0..lights {
                                 let mut pred = 0.0;
@@ -684,41 +779,14 @@ fn fold_errors(
                                 preds[l * lights + h] = pred;
                             }
                         }
-                        match space {
-                            MapSpace::Linear => color::linear_to_srgb_tabulated_batch(
-                                &preds[..used * lights],
-                                &mut shown[..used * lights],
-                            ),
-                            // Display values are shown as they are; the linear error
-                            // and the brightness judge their decoding.
-                            MapSpace::Srgb => {
-                                for (s, p) in shown[..used * lights]
-                                    .iter_mut()
-                                    .zip(&mut preds[..used * lights])
-                                {
-                                    *s = p.clamp(0.0, 1.0);
-                                    *p = color::srgb_to_linear(*s as f32) as f64;
-                                }
-                            }
-                        }
-                        for l in 0..used {
-                            if !ok[l] {
-                                acc.iter_mut().for_each(|a| a[li] = f64::INFINITY);
-                                continue;
-                            }
-                            for (h, obs) in held_obs.iter().enumerate() {
-                                let (o, o_shown) = obs[l];
-                                let pred = preds[l * lights + h];
-                                let d = shown[l * lights + h] - o_shown;
-                                acc[h][li] += d * d;
-                                let d = pred - o;
-                                acc[h][LINEAR + li] += d * d;
-                                acc[h][LADDER + li] += pred;
-                                if li == ladder.start {
-                                    acc[h][2 * LADDER] += o;
-                                }
-                            }
-                        }
+                        tally(
+                            &mut acc,
+                            li,
+                            g..g + used,
+                            &mut preds,
+                            &mut shown,
+                            &oks[slot],
+                        );
                     }
                 }
             }
@@ -744,6 +812,37 @@ fn fold_errors(
             e
         })
         .collect()
+}
+
+/// The held-out predictions of the shared linear fit as a map of a series' training
+/// values, transposed (`train × held`): `(A_held F⁻¹ AᵀQ)ᵀ` for the Cholesky factor `f`
+/// of the regularised normal matrix (`k×k`), training rows `a_train` (`train × k`) and
+/// held-out rows `a_held` (`held × k`).
+fn prediction_operator(
+    f: &[f64],
+    a_train: &[f64],
+    a_held: &[f64],
+    q_train: &[f64],
+    k: usize,
+) -> Vec<f64> {
+    let (nt, lights) = (q_train.len(), a_held.len() / k.max(1));
+    let mut operator = vec![0.0; nt * lights];
+    let mut column = vec![0.0; k];
+    for (j, &q) in q_train.iter().enumerate() {
+        column
+            .iter_mut()
+            .zip(&a_train[j * k..(j + 1) * k])
+            .for_each(|(c, &a)| *c = q * a);
+        linalg::cholesky_solve(f, k, &mut column);
+        for h in 0..lights {
+            operator[j * lights + h] = a_held[h * k..(h + 1) * k]
+                .iter()
+                .zip(&column)
+                .map(|(a, c)| a * c)
+                .sum();
+        }
+    }
+    operator
 }
 
 /// The whole λ ladder.
