@@ -1509,12 +1509,22 @@ fn accumulate(acc: &mut CoefficientMaps, design: &Design, indices: &[usize], ima
         .enumerate()
         .for_each(|(block, mut planes)| {
             let p0 = block * SUM_BLOCK;
+            let len = planes[0].len();
+            // The block's pixels a channel at a time, so that each plane's sum runs
+            // over contiguous values (the interleaved samples would be gathered).
+            let mut channels = vec![0f32; 3 * len];
             for (img, row) in images.iter().zip(&rows) {
-                let pixels = &img[3 * p0..3 * (p0 + planes[0].len())];
+                let pixels = &img[3 * p0..3 * (p0 + len)];
+                for (p, rgb) in pixels.chunks_exact(3).enumerate() {
+                    channels[p] = rgb[0];
+                    channels[len + p] = rgb[1];
+                    channels[2 * len + p] = rgb[2];
+                }
                 for (x, run) in planes.iter_mut().enumerate() {
                     let (a, c) = (row[x / 3], x % 3);
-                    for (s, rgb) in run.iter_mut().zip(pixels.chunks_exact(3)) {
-                        *s += a * rgb[c];
+                    let channel = &channels[c * len..(c + 1) * len];
+                    for (s, &v) in run.iter_mut().zip(channel) {
+                        *s += a * v;
                     }
                 }
             }
@@ -1556,22 +1566,20 @@ fn solve_shared(sums: &mut CoefficientMaps, design: &Design, lambda: f64) -> Res
     plane_blocks(&mut sums.data, npix)
         .into_par_iter()
         .for_each(|mut planes| {
-            let mut b = vec![0f32; 3 * k];
-            for p in 0..planes[0].len() {
-                for (x, run) in planes.iter().enumerate() {
-                    b[x] = run[p];
-                }
-                for r in 0..k {
-                    let mut s = [0f32; 3];
-                    for (i, &v) in inv[r * k..(r + 1) * k].iter().enumerate() {
-                        s[0] += v * b[3 * i];
-                        s[1] += v * b[3 * i + 1];
-                        s[2] += v * b[3 * i + 2];
-                    }
-                    for (c, &v) in s.iter().enumerate() {
-                        planes[3 * r + c][p] = v;
+            // Plane by plane over the block's pixels (contiguous, so vectorised), each
+            // value summed over the sums in the same order as a pixel at a time would.
+            let len = planes[0].len();
+            let mut solved = vec![0f32; 3 * k * len];
+            for (x, out) in solved.chunks_exact_mut(len).enumerate() {
+                let (r, c) = (x / 3, x % 3);
+                for (i, &v) in inv[r * k..(r + 1) * k].iter().enumerate() {
+                    for (o, &b) in out.iter_mut().zip(planes[3 * i + c].iter()) {
+                        *o += v * b;
                     }
                 }
+            }
+            for (run, out) in planes.iter_mut().zip(solved.chunks_exact(len)) {
+                run.copy_from_slice(out);
             }
         });
     Ok(())
