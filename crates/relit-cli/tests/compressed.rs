@@ -155,6 +155,36 @@ fn principal_components_per_block_reach_every_reader() {
         &["export-web", "blocks.rlz", "site", "--viewer", "relit"],
     );
     assert!(d.join("site/index.html").exists());
+    // The wgpu engine reads the decoded planes too.
+    if let Err(why) = relit_gpu::probe() {
+        relit::skip::skipping(&format!("relit relight --gpu on a per-block file: {why}"));
+        return;
+    }
+    relit(
+        d,
+        &[
+            "relight",
+            "blocks.rlz",
+            "--light",
+            "dir:0.3,0.2,0.93",
+            "--gpu",
+            "-o",
+            "gpu.exr",
+        ],
+    );
+    let gpu = relit::image::load_linear(&d.join("gpu.exr"), None)
+        .unwrap()
+        .data;
+    let peak = blocks.iter().fold(0f32, |m, v| m.max(v.abs()));
+    let diff = gpu
+        .iter()
+        .zip(&blocks)
+        .fold(0f32, |m, (a, b)| m.max((a - b).abs()));
+    // f32 rounding of two summation orders: the GPU tests' bound.
+    assert!(
+        diff <= 1e-5 * peak.max(1.0),
+        "GPU vs CPU {diff} (peak {peak})"
+    );
 }
 
 #[test]
