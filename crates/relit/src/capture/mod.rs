@@ -271,9 +271,8 @@ impl Capture {
         let light = &self.lights[index];
         let inv = light.intensity.map(|v| 1.0 / v);
         let unit = light.intensity == [1.0; 3];
-        // The decoder maps the values itself where nothing is divided out first.
-        let (decoder_then, then) = if unit { (then, None) } else { (None, then) };
-        let divide = |values: &mut [f32]| {
+        // The intensity divided out, then `after` (where given) applied.
+        let finish = |values: &mut [f32], after: Option<fn(f32) -> f32>| {
             if !unit {
                 for px in values.chunks_exact_mut(3) {
                     px[0] *= inv[0];
@@ -281,7 +280,7 @@ impl Capture {
                     px[2] *= inv[2];
                 }
             }
-            if let Some(f) = then {
+            if let Some(f) = after {
                 values.iter_mut().for_each(|v| *v = f(*v));
             }
         };
@@ -299,10 +298,12 @@ impl Capture {
         let w = self.width;
         match &light.image {
             ImageSource::File { path, encoding } => {
-                let (fw, fh, picked) = image::read_linear_parts(
+                // The decoder applies `then` itself where nothing is divided out first.
+                let (by_decoder, after) = if unit { (then, None) } else { (None, then) };
+                let (fw, fh, mut picked) = image::read_linear_parts(
                     path,
                     *encoding,
-                    decoder_then,
+                    by_decoder,
                     rows.clone(),
                     pixels,
                     &mut |y, values| {
@@ -311,36 +312,28 @@ impl Capture {
                         if values.len() != 3 * w {
                             return Err(wrong_size(format!("{} pixels wide", values.len() / 3)));
                         }
-                        divide(values);
+                        finish(values, after);
                         row(y, values)
                     },
                 )?;
                 if (fw, fh) != (self.width, self.height) {
                     return Err(wrong_size(format!("{fw}×{fh}")));
                 }
-                let mut picked = picked;
-                divide(&mut picked);
+                finish(&mut picked, after);
                 Ok(picked)
             }
             ImageSource::Memory(_) | ImageSource::Generated(_) => {
-                // No decoder here: what it would map, mapped after the division.
-                let map = |values: &mut [f32]| {
-                    divide(values);
-                    if let Some(f) = decoder_then {
-                        values.iter_mut().for_each(|v| *v = f(*v));
-                    }
-                };
                 let img = self.load_raw(index)?;
                 for y in rows {
                     let mut values = img.data[3 * w * y..3 * w * (y + 1)].to_vec();
-                    map(&mut values);
+                    finish(&mut values, then);
                     row(y, &mut values)?;
                 }
                 let mut picked: Vec<f32> = pixels
                     .iter()
                     .flat_map(|&p| img.data[3 * p..3 * p + 3].iter().copied())
                     .collect();
-                map(&mut picked);
+                finish(&mut picked, then);
                 Ok(picked)
             }
         }

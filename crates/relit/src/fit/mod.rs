@@ -899,17 +899,16 @@ fn subsample_indices(pixels: usize, count: usize) -> Vec<usize> {
 /// sRGB-encoded for display-referred maps (from the table, within 5e-8 of the exact
 /// curve, a ten-thousandth of an 8-bit step: the exact curve's `powf` was a twentieth of
 /// a display-referred fit's time).
-/// What maps each linear value to the values maps in `space` are fitted to, as the
-/// image readers take it ([`Capture::read_parts`]): the same as [`to_target_values`].
+/// What maps each linear value to the values maps in `space` are fitted to (`None`:
+/// linear values as they are), as the image readers take it ([`Capture::read_parts`]).
 fn target_encoding(space: MapSpace) -> Option<fn(f32) -> f32> {
     (space == MapSpace::Srgb).then_some(color::linear_to_srgb_tabulated as fn(f32) -> f32)
 }
 
+/// Linear values turned in place into the values maps in `space` are fitted to.
 fn to_target_values(values: &mut [f32], space: MapSpace) {
-    if space == MapSpace::Srgb {
-        values
-            .iter_mut()
-            .for_each(|v| *v = color::linear_to_srgb_tabulated(*v));
+    if let Some(encode) = target_encoding(space) {
+        values.iter_mut().for_each(|v| *v = encode(*v));
     }
 }
 
