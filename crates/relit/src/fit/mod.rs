@@ -117,6 +117,19 @@ impl Regularizer {
             Regularizer::Ridge => "ridge",
         }
     }
+
+    /// The `k×k` penalty matrix of `basis` (row-major).
+    pub(crate) fn matrix(self, basis: &dyn Basis) -> Vec<f64> {
+        match self {
+            Regularizer::Roughness => basis.penalty(),
+            Regularizer::Ridge => {
+                let k = basis.len();
+                let mut p = vec![0.0; k * k];
+                (0..k).for_each(|i| p[i * k + i] = 1.0 / (4.0 * std::f64::consts::PI));
+                p
+            }
+        }
+    }
 }
 
 /// How λ is set.
@@ -454,14 +467,7 @@ impl Design {
             basis.eval(*d, &mut a[j * k..(j + 1) * k]);
         }
         let q = quadrature(dirs);
-        let penalty = match regularizer {
-            Regularizer::Roughness => basis.penalty(),
-            Regularizer::Ridge => {
-                let mut p = vec![0.0; k * k];
-                (0..k).for_each(|i| p[i * k + i] = 1.0 / (4.0 * std::f64::consts::PI));
-                p
-            }
-        };
+        let penalty = regularizer.matrix(basis.as_ref());
         Design {
             basis,
             k,

@@ -240,15 +240,7 @@ impl Penalties {
     /// The penalty of `basis` under `regularizer`, computed once per basis where
     /// `data_driven` is false.
     fn of(&self, basis: &dyn Basis, regularizer: Regularizer, data_driven: bool) -> Arc<Vec<f64>> {
-        let k = basis.len();
-        let compute = || match regularizer {
-            Regularizer::Roughness => basis.penalty(),
-            Regularizer::Ridge => {
-                let mut p = vec![0.0; k * k];
-                (0..k).for_each(|i| p[i * k + i] = 1.0 / (4.0 * std::f64::consts::PI));
-                p
-            }
-        };
+        let compute = || regularizer.matrix(basis);
         if data_driven || regularizer == Regularizer::Ridge {
             return Arc::new(compute());
         }
