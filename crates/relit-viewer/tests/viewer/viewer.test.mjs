@@ -898,15 +898,18 @@ try {
   await section('compressed', async () => {
     // Compressed files, principal components and a codebook: the viewer relights the
     // planes they decode to with the projected basis (K′ combinations of sh:16, from its
-    // weight table) and matches `relit relight` of the same file.
+    // weight table) and matches `relit relight` of the same file. Principal components
+    // per block decode into the fit's own basis (each block's projection undone).
     for (const [name, flags] of [
       ['pca', ['--layout', 'ycc', '--components', '6', '--codec', 'jpeg:90']],
       ['codebook', ['--layout', 'ycc', '--components', '9', '--codebook', '256']],
+      ['blocks', ['--layout', 'ycc', '--components', '6', '--codec', 'jpeg:90', '--pca-block', '128']],
     ]) {
       const rlz = path.join(work, `pano-${name}.rlz`);
       run('convert', path.join(work, 'pano.exr'), '-o', rlz, ...flags);
       await open(rlz, ENVS);
-      expect(`the viewer reads the ${name} file's projected basis`, current.info.basis.name.startsWith('sh:16→'), current.info.basis.name);
+      if (name === 'blocks') expect('the viewer reads the blocks file in the fit\'s basis', current.info.basis.name === 'sh:16', current.info.basis.name);
+      else expect(`the viewer reads the ${name} file's projected basis`, current.info.basis.name.startsWith('sh:16→'), current.info.basis.name);
       // A codebook file arrives as its entries and one index a pixel, not expanded.
       const book = current.info.codebook;
       expect(`the ${name} file ${name === 'codebook' ? 'arrives as entries and indices' : 'arrives as planes'}`,
