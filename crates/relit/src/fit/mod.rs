@@ -719,15 +719,17 @@ fn choose_basis(
     if choices.len() > FINALISTS && screen_keep < keep {
         let max_k = choices.iter().map(|c| c.k).max().unwrap_or(0);
         let folds = select::screening_folds(n, max_k);
-        let mut screening: Vec<(usize, usize, CandidateScore)> = Vec::new();
-        for (i, choice) in choices.iter().enumerate() {
-            for (v, score) in judge(choice, &every, true, folds, &whole)?
-                .into_iter()
-                .enumerate()
-            {
-                screening.push((i, v, score));
-            }
-        }
+        // Candidates side by side: each one's folds and blocks are too few to keep both
+        // cores busy alone. Collected in candidate order, so the ranking is the same.
+        let judged = choices
+            .par_iter()
+            .map(|choice| judge(choice, &every, true, folds, &whole))
+            .collect::<Result<Vec<_>>>()?;
+        let mut screening: Vec<(usize, usize, CandidateScore)> = judged
+            .into_iter()
+            .enumerate()
+            .flat_map(|(i, scores)| scores.into_iter().enumerate().map(move |(v, s)| (i, v, s)))
+            .collect();
         screening.sort_by(|a, b| order(&a.2, &b.2));
 
         finalists = screening
