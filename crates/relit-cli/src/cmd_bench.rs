@@ -889,7 +889,7 @@ fn load_times(files: &[std::path::PathBuf], json: bool) -> anyhow::Result<()> {
                 }
                 relit::codec::FileForm::Compressed => {
                     let packed = relit::codec::packed::read_packed(file)?;
-                    if packed.header.codebook.is_some() {
+                    if packed.header.indexed_pixels() {
                         path = "codebook look-up";
                         let indexed = relit::compress::indexed(&packed)?;
                         let mut frame = ImageRgb::new(0, 0);

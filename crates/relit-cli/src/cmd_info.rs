@@ -98,6 +98,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 .max()
                 .unwrap_or(0);
             let pixels = match header.codebook {
+                Some(entries) if !header.indexed_pixels() => format!(
+                    "{} planes of ≤ {levels} levels, {} tiles of {}², and components {}–{} of each function from a codebook of {entries} entries (the PCA residual, zstd index tiles)",
+                    header.planes.len(),
+                    header.codec.name(),
+                    header.tile,
+                    header.residual[0].index + 1,
+                    header.residual[0].index + header.residual.len() / counts.len(),
+                ),
                 Some(entries) => format!(
                     "a codebook of {entries} entries ({} values each, ≤ {levels} levels), {} index tiles of {}²",
                     header.planes.len(),

@@ -205,7 +205,7 @@ fn relight_codebook(
         return Ok(None);
     }
     let packed = relit::codec::packed::read_packed(&args.file)?;
-    if packed.header.codebook.is_none() {
+    if !packed.header.indexed_pixels() {
         return Ok(None);
     }
     let Some(output) = args.output.as_ref() else {

@@ -210,6 +210,11 @@ pub struct CompressArgs {
     /// relight the codebook and look pixels up.
     #[arg(long, value_parser = clap::value_parser!(u32).range(2..=65536))]
     pub codebook: Option<u32>,
+    /// With --codebook: keep the --components planes and vector-quantise only the next
+    /// R principal components of each function (the PCA residual), one index a pixel
+    /// beside the planes (any --codec; the indices are zstd).
+    #[arg(long, requires = "codebook", value_parser = clap::value_parser!(u16).range(1..=64))]
+    pub residual: Option<u16>,
     /// JPEG planes: `shared` (every plane with the first plane's step: few bits for the
     /// minor components) or `plane` (each over its own range: finer, many more bits).
     #[arg(long, default_value = "shared", value_parser = |s: &str| relit::compress::JpegRange::parse(s).map_err(|e| e.to_string()))]
@@ -236,6 +241,7 @@ impl CompressArgs {
             codec: self.codec,
             tile: self.tile as usize,
             codebook: self.codebook.map(|c| c as usize),
+            residual: self.residual.map(usize::from),
             jpeg_range: self.jpeg_range,
             directions: None,
             gain: self.gain,

@@ -172,7 +172,7 @@ impl WebBundle {
         }
         if form == FileForm::Compressed {
             let file = packed::read_packed(path)?;
-            if file.header.codebook.is_some() {
+            if file.header.indexed_pixels() {
                 return Self::build_indexed(&relit::compress::indexed(&file)?, options);
             }
         }
@@ -398,9 +398,9 @@ fn tile_side(
         }
         FileForm::Compressed => {
             let header = packed::read_header(path)?;
-            match header.codebook {
-                Some(_) => None,
-                None => Some((
+            match header.indexed_pixels() {
+                true => None,
+                false => Some((
                     header.width,
                     header.height,
                     header.meta.basis.build()?.len(),

@@ -150,7 +150,7 @@ impl TileSource {
             }
             FileForm::Compressed => {
                 let header = packed::read_header(path)?;
-                if header.codebook.is_some() {
+                if header.indexed_pixels() {
                     return Err(invalid(format!(
                         "{}: a codebook file goes to the viewer as its entries and one index a pixel, not in tiles",
                         path.display()

@@ -69,6 +69,10 @@ pub struct Settings {
     pub tile: usize,
     /// Vector quantisation: this many codebook entries (2–65536) instead of planes.
     pub codebook: Option<usize>,
+    /// With a codebook: keep the `K′` components as planes and vector-quantise only the
+    /// next this many principal components of every function channel (what the planes
+    /// leave: the PCA residual), one index a pixel beside the planes.
+    pub residual: Option<usize>,
     /// How JPEG planes map values to their 256 codes.
     pub jpeg_range: JpegRange,
     /// The capture's light directions, to weigh the components by the lights the maps
@@ -92,6 +96,7 @@ impl Default for Settings {
             codec: TileCodec::Zstd { level: 12 },
             tile: 512,
             codebook: None,
+            residual: None,
             jpeg_range: JpegRange::Shared,
             directions: None,
             gain: false,
@@ -113,7 +118,11 @@ impl Settings {
             c if c.is_image() => String::new(),
             _ => format!(" b{}", self.bits),
         };
-        let vq = self.codebook.map_or(String::new(), |c| format!(" vq{c}"));
+        let vq = match (self.codebook, self.residual) {
+            (Some(c), Some(r)) => format!(" vq{c}+r{r}"),
+            (Some(c), None) => format!(" vq{c}"),
+            (None, _) => String::new(),
+        };
         let gain = if self.gain { " gain" } else { "" };
         let block = self.pca_block.map_or(String::new(), |b| format!(" pca{b}"));
         format!(
@@ -175,6 +184,13 @@ pub struct Header {
     /// replaces the planes' tiles.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub codebook: Option<usize>,
+    /// With a codebook, the components it holds when the pixels keep their planes too
+    /// (vector quantisation of the PCA residual): components `K′ … K′+R−1` of each
+    /// function channel, channel by channel, each with the quantiser of its codebook
+    /// values. The codebook section and the index tiles then follow the planes' tiles
+    /// (always zstd), and a pixel's components past its planes' are its entry's.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub residual: Vec<PlaneEntry>,
     /// Whether the function planes are divided by the per-pixel plane `gain`
     /// ([`gain`]), the last of the planes.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
@@ -215,21 +231,57 @@ impl Header {
     }
 
     /// The sections the file holds: every plane's tiles (or the codebook and the index
-    /// plane's tiles), then depth's, then the blocks' principal components when they
-    /// are found per block.
+    /// plane's tiles; or both, the planes' first, for a codebook of the residual), then
+    /// depth's, then the blocks' principal components when they are found per block.
     pub fn sections(&self) -> usize {
         let (a, d) = self.tiles();
         self.plane_sections() + self.depth as usize * a * d + self.pca_block.is_some() as usize
     }
 
-    /// The sections of the planes (or of the codebook and the index plane): the first.
+    /// Whether every pixel is only an index (a codebook file without planes): frames
+    /// under uniform lights can then relight the entries and look pixels up.
+    pub fn indexed_pixels(&self) -> bool {
+        self.codebook.is_some() && self.residual.is_empty()
+    }
+
+    /// The section of the codebook, when there is one: the first, or the one after the
+    /// planes' tiles for a codebook of the residual. The index tiles follow it.
+    pub fn codebook_section(&self) -> Option<usize> {
+        let (a, d) = self.tiles();
+        self.codebook
+            .map(|_| (!self.indexed_pixels()) as usize * self.planes.len() * a * d)
+    }
+
+    /// What the codebook's values are, in order: the planes, or the residual's
+    /// components.
+    pub fn codebook_values(&self) -> &[PlaneEntry] {
+        if self.residual.is_empty() {
+            &self.planes
+        } else {
+            &self.residual
+        }
+    }
+
+    /// The codec of the index tiles: the file's when it is lossless, zstd otherwise
+    /// (indices must come back exactly).
+    pub fn index_codec(&self) -> TileCodec {
+        if self.codec.lossless() {
+            self.codec
+        } else {
+            TileCodec::Zstd { level: 19 }
+        }
+    }
+
+    /// The sections of the planes and of the codebook and its index tiles: the first.
     fn plane_sections(&self) -> usize {
         let (a, d) = self.tiles();
         let tiles = a * d;
-        match self.codebook {
-            Some(_) => 1 + tiles,
-            None => self.planes.len() * tiles,
-        }
+        let planes = if self.indexed_pixels() {
+            0
+        } else {
+            self.planes.len() * tiles
+        };
+        planes + self.codebook.map_or(0, |_| 1 + tiles)
     }
 
     /// Blocks of [`Header::pca_block`] across and down (none without it).
@@ -263,7 +315,7 @@ impl Header {
             if !(2..=vq::MAX_ENTRIES).contains(&c) {
                 return Err(bad(format!("a codebook of {c} entries")));
             }
-            if !self.codec.lossless() {
+            if self.residual.is_empty() && !self.codec.lossless() {
                 return Err(bad("codebook indices need a lossless codec".into()));
             }
             if self.gain {
@@ -318,7 +370,43 @@ impl Header {
         if k == 0 || counts.iter().any(|&c| c > k) {
             return Err(bad(format!("bad component counts {counts:?}")));
         }
-        Ok(k)
+        Ok(k + self.check_residual(k, functions)?)
+    }
+
+    /// The residual's components a function channel ([`Header::residual`]), checked:
+    /// components `k …` of every function channel in order, with codebook quantisers.
+    fn check_residual(&self, k: usize, functions: &[&str]) -> Result<usize> {
+        let bad = |why: &str| Error::parse(format!("compressed file: {why}"));
+        if self.residual.is_empty() {
+            return Ok(0);
+        }
+        if self.codebook.is_none() {
+            return Err(bad("residual components without a codebook"));
+        }
+        let r = self.residual.len() / functions.len();
+        let expected = functions
+            .iter()
+            .flat_map(|&c| (k..k + r).map(move |j| (c, j)));
+        if r == 0
+            || r * functions.len() != self.residual.len()
+            || self
+                .residual
+                .iter()
+                .zip(expected)
+                .any(|(p, (c, j))| p.channel != c || p.index != j)
+        {
+            return Err(bad("residual components out of order"));
+        }
+        for q in self.residual.iter().map(|p| &p.quantizer) {
+            if q.levels == 0 || q.levels > 1 << 16 {
+                return Err(bad("residual component with bad levels"));
+            }
+            if !(q.coding.scale.is_finite() && q.coding.offset.is_finite() && q.coding.scale >= 0.0)
+            {
+                return Err(bad("residual component with a non-finite coding"));
+            }
+        }
+        Ok(r)
     }
 }
 
@@ -403,6 +491,20 @@ pub fn pack_with_gain(
         .chroma
         .unwrap_or(components.div_ceil(3))
         .clamp(1, components);
+    let extra = settings.residual.unwrap_or(0);
+    if settings.residual.is_some() {
+        if settings.codebook.is_none() {
+            return Err(Error::invalid(
+                "residual components are vector-quantised: give a codebook (--codebook) too",
+            ));
+        }
+        if extra == 0 || components + extra > k {
+            return Err(Error::invalid(format!(
+                "{components} planes and {extra} residual components of a {k}-coefficient basis: choose 1 to {} residual components",
+                k - components
+            )));
+        }
+    }
     if settings.gain && settings.codebook.is_some() {
         return Err(Error::invalid(
             "a codebook and the perceptual gain do not combine: choose one",
@@ -506,7 +608,8 @@ pub fn pack_with_gain(
                     .flat_map(move |&f| (0..k).map(move |i| function_value(i, f, p) as f64))
             })
             .collect();
-        projection::principal(&gram, &vectors, k, counts[channels[0]])
+        // A codebook of the residual holds the next `extra` components of each.
+        projection::principal(&gram, &vectors, k, counts[channels[0]] + extra)
     };
     let width = maps.width;
     let all: Vec<usize> = (0..n).collect();
@@ -548,10 +651,13 @@ pub fn pack_with_gain(
         &principals[block][group_of[f]]
     };
 
-    // Project every pixel: plane (f, j) of components.
+    // Project every pixel: plane (f, j) of components, then the residual's components
+    // (f, components + r) at `residual_start + f · extra + r`.
+    let residual_start: usize = counts.iter().sum();
     let mut projected: Vec<Vec<f32>> = counts
         .iter()
-        .flat_map(|&c| (0..c).map(|_| vec![0.0f32; n]))
+        .map(|&c| c + extra)
+        .flat_map(|c| (0..c).map(|_| vec![0.0f32; n]))
         .collect();
     let starts: Vec<usize> = counts
         .iter()
@@ -578,16 +684,20 @@ pub fn pack_with_gain(
             .enumerate()
             .for_each(|(chunk, mut outs)| {
                 let mut c = vec![0.0f32; k];
-                let mut y = vec![0.0f32; components];
+                let mut y = vec![0.0f32; components + extra];
                 for local in 0..outs[0].len() {
                     let p = chunk * CHUNK + local;
                     for (f, &count) in counts.iter().enumerate() {
                         for (i, ci) in c.iter_mut().enumerate() {
                             *ci = function_value(i, f, p);
                         }
-                        principal_at(p, f).apply(&c, &mut y[..count]);
+                        let rows = if extra > 0 { components + extra } else { count };
+                        principal_at(p, f).apply(&c, &mut y[..rows]);
                         for j in 0..count {
                             outs[starts[f] + j][local] = y[j];
+                        }
+                        for r in 0..extra {
+                            outs[residual_start + f * extra + r][local] = y[components + r];
                         }
                     }
                 }
@@ -692,8 +802,31 @@ pub fn pack_with_gain(
         ));
     }
 
-    // Vector quantisation of every pixel's stored values together.
+    // The residual's components, each of its own range in 16 bits (a codebook is
+    // small): the codebook's values.
+    let residual: Vec<(PlaneEntry, &[f32])> = (0..fcount * extra)
+        .map(|i| {
+            let (f, r) = (i / extra, i % extra);
+            let plane = &projected[residual_start + i];
+            let range = range(plane);
+            let step = (range.hi - range.lo) / 65535.0;
+            let entry = PlaneEntry {
+                channel: functions[f].to_string(),
+                index: components + r,
+                quantizer: Quantizer::spanning(range.lo, range.hi, step, 1 << 16),
+            };
+            (entry, plane.as_slice())
+        })
+        .collect();
+
+    // Vector quantisation of every pixel's stored values together, or of the residual.
     let quantized = match settings.codebook {
+        Some(entries_wanted) if extra > 0 => Some(quantize_vectors(
+            &residual,
+            &vec![extra; fcount],
+            n,
+            entries_wanted,
+        )?),
         Some(entries_wanted) => {
             if !settings.codec.lossless() {
                 return Err(Error::invalid(
@@ -714,8 +847,9 @@ pub fn pack_with_gain(
             let principal = &principals[0][0];
             let (inner, prior) = inner_and_map(&image.meta.basis)?;
             let inner_k = inner.len();
-            let mut matrix = vec![0.0; components * inner_k];
-            for j in 0..components {
+            let rows = components + extra;
+            let mut matrix = vec![0.0; rows * inner_k];
+            for j in 0..rows {
                 for i in 0..inner_k {
                     matrix[j * inner_k + i] = (0..k)
                         .map(|m| principal.basis_map[j * k + m] * prior[m * inner_k + i])
@@ -739,6 +873,7 @@ pub fn pack_with_gain(
         codec: settings.codec,
         planes: entries.iter().map(|(e, _)| e.clone()).collect(),
         codebook: quantized.as_ref().map(|(book, _)| book.entries()),
+        residual: residual.iter().map(|(e, _)| e.clone()).collect(),
         gain: settings.gain,
         pca_block: settings.pca_block,
         depth: image.depth.is_some(),
@@ -747,53 +882,52 @@ pub fn pack_with_gain(
     let tiles = across * down;
     let tile_codes =
         |t: usize, code: &dyn Fn(usize) -> u16| tile_codes(maps.width, header.tile_rect(t), code);
-    let mut sections: Vec<Vec<u8>> = match &quantized {
-        None => {
-            // The gain plane, the last, is coded already.
-            let coded = entries.len() - gain_plane.is_some() as usize;
-            let jobs: Vec<(usize, usize)> = (0..coded)
-                .flat_map(|p| (0..tiles).map(move |t| (p, t)))
-                .collect();
-            let mut sections: Vec<Vec<u8>> = jobs
-                .par_iter()
-                .map(|&(p, t)| {
-                    let (entry, plane) = &entries[p];
-                    let q = &entry.quantizer;
-                    let codes = tile_codes(t, &|i| q.code(plane[i]));
-                    let (_, _, w, h) = header.tile_rect(t);
-                    planes::encode_tile(&codes, w, h, q.width(), settings.codec)
-                })
-                .collect::<Result<_>>()?;
-            sections.extend(gain_sections);
-            sections
-        }
-        Some((book, indices)) => {
-            let mut codes: Vec<u8> = Vec::with_capacity(2 * book.values.len());
-            for (j, (entry, _)) in entries.iter().enumerate() {
-                for e in 0..book.entries() {
-                    let code = entry.quantizer.code(book.entry(e)[j]);
-                    codes.extend_from_slice(&code.to_le_bytes());
-                }
+    let mut sections: Vec<Vec<u8>> = Vec::new();
+    if !header.indexed_pixels() {
+        // The gain plane, the last, is coded already.
+        let coded = entries.len() - gain_plane.is_some() as usize;
+        let jobs: Vec<(usize, usize)> = (0..coded)
+            .flat_map(|p| (0..tiles).map(move |t| (p, t)))
+            .collect();
+        sections = jobs
+            .par_iter()
+            .map(|&(p, t)| {
+                let (entry, plane) = &entries[p];
+                let q = &entry.quantizer;
+                let codes = tile_codes(t, &|i| q.code(plane[i]));
+                let (_, _, w, h) = header.tile_rect(t);
+                planes::encode_tile(&codes, w, h, q.width(), settings.codec)
+            })
+            .collect::<Result<_>>()?;
+        sections.extend(gain_sections);
+    }
+    if let Some((book, indices)) = &quantized {
+        let mut codes: Vec<u8> = Vec::with_capacity(2 * book.values.len());
+        for (j, entry) in header.codebook_values().iter().enumerate() {
+            for e in 0..book.entries() {
+                let code = entry.quantizer.code(book.entry(e)[j]);
+                codes.extend_from_slice(&code.to_le_bytes());
             }
-            let level = match settings.codec {
-                TileCodec::Zstd { level } => level,
-                TileCodec::Jpeg { .. } | TileCodec::Webp { .. } => unreachable!("refused above"),
-            };
-            let mut sections = vec![zstd::bulk::compress(&codes, level)
-                .map_err(|e| Error::new(crate::ErrorKind::Io, format!("zstd: {e}")))?];
-            let width = header.index_width();
-            let more: Vec<Vec<u8>> = (0..tiles)
-                .into_par_iter()
-                .map(|t| {
-                    let codes = tile_codes(t, &|i| indices[i]);
-                    let (_, _, w, h) = header.tile_rect(t);
-                    planes::encode_tile(&codes, w, h, width, settings.codec)
-                })
-                .collect::<Result<_>>()?;
-            sections.extend(more);
-            sections
         }
-    };
+        let codec = header.index_codec();
+        let TileCodec::Zstd { level } = codec else {
+            unreachable!("indices are coded losslessly")
+        };
+        sections.push(
+            zstd::bulk::compress(&codes, level)
+                .map_err(|e| Error::new(crate::ErrorKind::Io, format!("zstd: {e}")))?,
+        );
+        let width = header.index_width();
+        let more: Vec<Vec<u8>> = (0..tiles)
+            .into_par_iter()
+            .map(|t| {
+                let codes = tile_codes(t, &|i| indices[i]);
+                let (_, _, w, h) = header.tile_rect(t);
+                planes::encode_tile(&codes, w, h, width, codec)
+            })
+            .collect::<Result<_>>()?;
+        sections.extend(more);
+    }
     if let Some(depth) = &image.depth {
         let more: Vec<Vec<u8>> = (0..tiles)
             .into_par_iter()
@@ -1021,7 +1155,7 @@ fn decode_floats(bytes: &[u8], n: usize) -> Result<Vec<f32>> {
 pub fn unpack(packed: &Packed) -> Result<RelightableImage> {
     let header = &packed.header;
     let kp = checked(packed)?;
-    if header.codebook.is_some() {
+    if header.indexed_pixels() {
         return Ok(indexed_checked(packed, kp)?.expand());
     }
     Ok(RelightableImage {
@@ -1050,24 +1184,51 @@ fn region_maps(
         .map(|i| {
             let (p, t) = (i / touched.len(), touched[i % touched.len()]);
             let q = &header.planes[p].quantizer;
-            decode_codes(packed, p * tiles + t, t, q.width(), q.levels)
+            decode_codes(packed, p * tiles + t, t, q.width(), q.levels, header.codec)
         })
         .collect::<Result<_>>()?;
+    // A codebook of the residual: its codes and the touched tiles' indices.
+    let (book, indices) = match header.codebook {
+        Some(_) => (
+            codebook_codes(packed)?,
+            touched
+                .par_iter()
+                .map(|&t| index_tile(packed, t))
+                .collect::<Result<Vec<_>>>()?,
+        ),
+        None => (Vec::new(), Vec::new()),
+    };
+    let entries = header.codebook.unwrap_or(0);
     let blocks = match header.pca_block {
         Some(_) => Some(BlockDecoder::new(packed, kp, (x, y))?),
         None => None,
     };
     Ok(assemble(header, kp, w, h, blocks.as_ref(), |p, out| {
-        let coding = header.planes[p].quantizer.coding;
+        let residual = p.checked_sub(header.planes.len());
+        let coding = match residual {
+            Some(r) => header.residual[r].quantizer.coding,
+            None => header.planes[p].quantizer.coding,
+        };
         for (i, &t) in touched.iter().enumerate() {
             let (tx, ty, tw, _) = header.tile_rect(t);
             let (ox, oy, ow, oh) = tile_overlap(header, t, region).expect("touched");
-            let codes = &decoded[p * touched.len() + i];
             for r in 0..oh {
                 let src = (oy + r - ty) * tw + (ox - tx);
                 let dst = (oy + r - y) * w + (ox - x);
-                for (o, &q) in out[dst..dst + ow].iter_mut().zip(&codes[src..src + ow]) {
-                    *o = coding.decode(q as f32);
+                let out = &mut out[dst..dst + ow];
+                match residual {
+                    Some(j) => {
+                        let values = &book[j * entries..(j + 1) * entries];
+                        for (o, &e) in out.iter_mut().zip(&indices[i][src..src + ow]) {
+                            *o = coding.decode(values[e as usize] as f32);
+                        }
+                    }
+                    None => {
+                        let codes = &decoded[p * touched.len() + i][src..src + ow];
+                        for (o, &q) in out.iter_mut().zip(codes) {
+                            *o = coding.decode(q as f32);
+                        }
+                    }
                 }
             }
         }
@@ -1174,7 +1335,7 @@ impl BlockDecoder {
 /// a plane's tile that the region touches (depth is not read). A codebook file's
 /// sections are all needed (its index tiles decode into the whole index plane).
 pub fn section_needed(header: &Header, s: usize, region: (usize, usize, usize, usize)) -> bool {
-    if header.codebook.is_some() {
+    if header.indexed_pixels() {
         return true;
     }
     if header.pca_block.is_some() && s + 1 == header.sections() {
@@ -1182,7 +1343,17 @@ pub fn section_needed(header: &Header, s: usize, region: (usize, usize, usize, u
     }
     let (across, down) = header.tiles();
     let tiles = across * down;
-    s < header.planes.len() * tiles && tile_overlap(header, s % tiles, region).is_some()
+    if s < header.planes.len() * tiles {
+        return tile_overlap(header, s % tiles, region).is_some();
+    }
+    // A codebook of the residual, and the index tiles the region touches.
+    match header.codebook_section() {
+        Some(book) if s == book => true,
+        Some(book) if s > book && s <= book + tiles => {
+            tile_overlap(header, s - book - 1, region).is_some()
+        }
+        _ => false,
+    }
 }
 
 /// The part of tile `t` inside `region`, as `(x0, y0, w, h)` in image pixels.
@@ -1231,7 +1402,7 @@ pub fn unpack_region(
         out
     };
     let kp = checked(packed)?;
-    let maps = if header.codebook.is_some() {
+    let maps = if header.indexed_pixels() {
         crop(indexed_checked(packed, kp)?.expand())
     } else {
         region_maps(packed, kp, region)?
@@ -1259,33 +1430,13 @@ fn indexed_checked(packed: &Packed, kp: usize) -> Result<crate::engine::lookup::
             "not a codebook file: its pixels are planes, not indices",
         ));
     };
-    let dims = header.planes.len();
-    let want = 2 * entries * dims;
-    let codes = {
-        use std::io::Read;
-        let mut raw = Vec::new();
-        zstd::stream::read::Decoder::new(&packed.sections[0][..])
-            .and_then(|d| d.take(want as u64 + 1).read_to_end(&mut raw))
-            .map_err(|e| Error::parse(format!("the codebook does not decompress: {e}")))?;
-        if raw.len() != want {
-            return Err(Error::parse(format!(
-                "the codebook holds {} bytes, not {want}",
-                raw.len()
-            )));
-        }
-        raw
-    };
-    let code = |j: usize, e: usize| {
-        u16::from_le_bytes([
-            codes[2 * (j * entries + e)],
-            codes[2 * (j * entries + e) + 1],
-        ])
-    };
-    for (j, plane) in header.planes.iter().enumerate() {
-        if (0..entries).any(|e| code(j, e) as u32 >= plane.quantizer.levels) {
-            return Err(Error::parse("a codebook value is past its plane's codes"));
-        }
+    if !header.indexed_pixels() {
+        return Err(Error::invalid(
+            "a codebook of the residual: its pixels keep planes too, so the file relights as maps",
+        ));
     }
+    let codes = codebook_codes(packed)?;
+    let code = |j: usize, e: usize| codes[j * entries + e];
     let maps = assemble(header, kp, entries, 1, None, |j, out| {
         let coding = header.planes[j].quantizer.coding;
         for (e, o) in out.iter_mut().enumerate() {
@@ -1296,7 +1447,7 @@ fn indexed_checked(packed: &Packed, kp: usize) -> Result<crate::engine::lookup::
     let tiles = header.tiles().0 * header.tiles().1;
     let parts: Vec<Vec<u16>> = (0..tiles)
         .into_par_iter()
-        .map(|t| decode_codes(packed, 1 + t, t, header.index_width(), entries as u32))
+        .map(|t| index_tile(packed, t))
         .collect::<Result<_>>()?;
     let mut indices = vec![0u16; w * h];
     for (t, part) in parts.iter().enumerate() {
@@ -1341,16 +1492,16 @@ fn checked(packed: &Packed) -> Result<usize> {
     Ok(kp)
 }
 
-/// The codes of tile `t` from section `s`.
+/// The codes of tile `t` from section `s`, coded by `codec`.
 fn decode_codes(
     packed: &Packed,
     s: usize,
     t: usize,
     width: usize,
     levels: u32,
+    codec: TileCodec,
 ) -> Result<Vec<u16>> {
-    let header = &packed.header;
-    let (_, _, tw, th) = header.tile_rect(t);
+    let (_, _, tw, th) = packed.header.tile_rect(t);
     let mut codes = vec![0u16; tw * th];
     planes::decode_tile(
         &packed.sections[s],
@@ -1358,10 +1509,62 @@ fn decode_codes(
         th,
         width,
         levels,
-        header.codec,
+        codec,
         &mut codes,
     )?;
     Ok(codes)
+}
+
+/// The codebook's codes of a file already [`checked`]: value `j` of entry `e` at
+/// `j · entries + e` ([`Header::codebook_values`]), each checked against its levels.
+fn codebook_codes(packed: &Packed) -> Result<Vec<u16>> {
+    use std::io::Read;
+    let header = &packed.header;
+    let (Some(entries), Some(s)) = (header.codebook, header.codebook_section()) else {
+        return Err(Error::invalid("not a codebook file"));
+    };
+    let values = header.codebook_values();
+    let want = 2 * entries * values.len();
+    let mut raw = Vec::new();
+    zstd::stream::read::Decoder::new(&packed.sections[s][..])
+        .and_then(|d| d.take(want as u64 + 1).read_to_end(&mut raw))
+        .map_err(|e| Error::parse(format!("the codebook does not decompress: {e}")))?;
+    if raw.len() != want {
+        return Err(Error::parse(format!(
+            "the codebook holds {} bytes, not {want}",
+            raw.len()
+        )));
+    }
+    let codes: Vec<u16> = raw
+        .chunks_exact(2)
+        .map(|b| u16::from_le_bytes([b[0], b[1]]))
+        .collect();
+    for (j, value) in values.iter().enumerate() {
+        let levels = value.quantizer.levels;
+        if codes[j * entries..(j + 1) * entries]
+            .iter()
+            .any(|&c| c as u32 >= levels)
+        {
+            return Err(Error::parse("a codebook value is past its plane's codes"));
+        }
+    }
+    Ok(codes)
+}
+
+/// The indices of tile `t` of a codebook file already [`checked`].
+fn index_tile(packed: &Packed, t: usize) -> Result<Vec<u16>> {
+    let header = &packed.header;
+    let (Some(entries), Some(book)) = (header.codebook, header.codebook_section()) else {
+        return Err(Error::invalid("not a codebook file"));
+    };
+    decode_codes(
+        packed,
+        book + 1 + t,
+        t,
+        header.index_width(),
+        entries as u32,
+        header.index_codec(),
+    )
 }
 
 /// Whether section `s` holds part of the depth map (its tiles follow the planes').
@@ -1421,10 +1624,13 @@ fn assemble(
     let mut maps = CoefficientMaps::zeros(w, h, kp);
     let groups = projection_groups(header.layout, blocks.is_some());
     let (functions, _) = header.layout.channels();
+    // A codebook of the residual holds components past the planes': its values are
+    // planes `planes.len() + r` of `plane_values`.
     let index_of = |channel: &str, j: usize| {
         header
             .planes
             .iter()
+            .chain(&header.residual)
             .position(|e| e.channel == channel && e.index == j)
     };
     match header.layout {

@@ -820,3 +820,131 @@ fn principal_components_per_block_refuse_a_codebook_and_damaged_maps() {
         "blocks in a version 3 file"
     );
 }
+
+/// A codebook of the PCA residual: the planes keep `K′` components, the codebook the
+/// next `R`; every reader decodes `K′ + R` functions, region by region as a whole.
+#[test]
+fn a_codebook_of_the_residual_adds_its_components_to_the_planes() {
+    let img = halves("sh:25", 40, 30);
+    let jpeg = TileCodec::parse("jpeg:95").unwrap();
+    for layout in Layout::ALL {
+        let planes = |codec| Settings {
+            layout,
+            components: Some(3),
+            chroma: Some(3),
+            bits: 12,
+            tile: 16,
+            codec,
+            ..Settings::default()
+        };
+        let residual = |codec, entries, r| Settings {
+            codebook: Some(entries),
+            residual: Some(r),
+            ..planes(codec)
+        };
+        for codec in [TileCodec::Zstd { level: 12 }, jpeg] {
+            let alone = relit_error(&img, &unpack(&pack(&img, &planes(codec)).unwrap()).unwrap());
+            let packed_image = pack(&img, &residual(codec, 1200, 6)).unwrap();
+            assert_eq!(
+                packed_image.header.residual.len(),
+                6 * layout.channels().0.len()
+            );
+            assert!(!packed_image.header.indexed_pixels());
+            let bytes = packed::to_bytes(&packed_image).unwrap();
+            assert_eq!(
+                &bytes[8..12],
+                &5u32.to_le_bytes(),
+                "residual files are version 5"
+            );
+            let again = packed::from_bytes(&bytes, "test").unwrap();
+            assert!(again == packed_image);
+            let back = unpack(&again).unwrap();
+            assert_eq!(
+                back.maps.k, 9,
+                "{layout:?}: 3 planes and 6 from the codebook"
+            );
+            assert_eq!(back.depth, img.depth);
+            // As many entries as pixels: the residual's components are kept (to 16
+            // bits), so the file is as good as 9 planes.
+            let nine = relit_error(
+                &img,
+                &unpack(
+                    &pack(
+                        &img,
+                        &Settings {
+                            components: Some(9),
+                            ..planes(codec)
+                        },
+                    )
+                    .unwrap(),
+                )
+                .unwrap(),
+            );
+            let exact = relit_error(&img, &back);
+            assert!(
+                exact < alone * 0.8 && exact <= nine * 1.2 + 1e-4,
+                "{layout:?} {codec:?}: 3 planes {alone}, +6 by codebook {exact}, 9 planes {nine}"
+            );
+            // A small codebook still helps; less where the planes are near exact (JPEG's
+            // own error hides the difference).
+            let small = relit_error(
+                &img,
+                &unpack(&pack(&img, &residual(codec, 8, 6)).unwrap()).unwrap(),
+            );
+            assert!(
+                small < alone && (codec.is_image() || exact <= small),
+                "{layout:?} {codec:?}: {alone} ≥ {small} ≥ {exact}"
+            );
+            // Regions read the planes' and the index's tiles they touch, and equal the
+            // crop of the whole.
+            let region = (17, 3, 9, 12);
+            let mut cursor = std::io::Cursor::new(&bytes[..]);
+            let (sparse, read) =
+                packed::read_from(&mut cursor, bytes.len() as u64, "test", &|h, s| {
+                    section_needed(h, s, region)
+                })
+                .unwrap();
+            assert!(read < bytes.len() as u64, "{read} of {}", bytes.len());
+            let part = unpack_region(&sparse, region).unwrap();
+            let (x, y, w, h) = region;
+            for plane in 0..3 * back.maps.k {
+                for r in 0..h {
+                    let row = &back.maps.data[plane * 40 * 30 + (y + r) * 40 + x..][..w];
+                    assert_eq!(row, &part.maps.data[plane * w * h + r * w..][..w]);
+                }
+            }
+            // Its pixels are not indices alone: no look-up relighting.
+            assert!(indexed(&again).is_err());
+        }
+    }
+    // Refused: residual components without a codebook, or more than the basis has.
+    for bad in [
+        Settings {
+            residual: Some(4),
+            components: Some(3),
+            ..Settings::default()
+        },
+        Settings {
+            codebook: Some(16),
+            residual: Some(23),
+            components: Some(3),
+            ..Settings::default()
+        },
+    ] {
+        assert!(pack(&img, &bad).is_err(), "{bad:?}");
+    }
+    // A header whose residual components are out of order is refused.
+    let mut damaged = pack(
+        &img,
+        &Settings {
+            codebook: Some(16),
+            residual: Some(2),
+            components: Some(3),
+            tile: 16,
+            ..Settings::default()
+        },
+    )
+    .unwrap();
+    damaged.header.residual.swap(0, 1);
+    assert!(unpack(&damaged).is_err());
+}
