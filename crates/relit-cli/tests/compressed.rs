@@ -187,6 +187,131 @@ fn principal_components_per_block_reach_every_reader() {
     );
 }
 
+/// A codebook of the PCA residual (`--codebook C --residual R`): the planes keep K′
+/// components, the codebook the next R; relight (whole and by region), export-web and
+/// the wgpu engine read all K′ + R.
+#[test]
+fn a_codebook_of_the_residual_reaches_every_reader() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    common::capture_and_fit(d); // 24×16, 4 coefficients
+    let convert = |name: &str, more: &[&str]| {
+        let args = [
+            &["convert", "scene.exr", "-o", name, "--layout", "ycc"][..],
+            &[
+                "--components",
+                "2",
+                "--codec",
+                "jpeg:95",
+                "--tile-size",
+                "16",
+            ],
+            more,
+        ]
+        .concat();
+        relit(d, &args);
+    };
+    convert("residual.rlz", &["--codebook", "64", "--residual", "2"]);
+    convert("planes.rlz", &[]);
+    let info = relit(d, &["info", "residual.rlz", "--json"]);
+    let info: serde_json::Value = serde_json::from_str(&info).unwrap();
+    let storage = info["storage"].as_str().unwrap();
+    assert!(
+        storage.contains("components 3–4 of each function from a codebook of 64 entries"),
+        "{storage}"
+    );
+    assert_eq!(info["coefficients"], 4, "{info}");
+    let exr = frame(d, "scene.exr", "a");
+    let error = |f: &[f32]| {
+        exr.iter()
+            .zip(f)
+            .map(|(a, b)| ((a - b) as f64).powi(2))
+            .sum::<f64>()
+    };
+    let residual = frame(d, "residual.rlz", "b");
+    let planes = frame(d, "planes.rlz", "c");
+    assert!(
+        error(&residual) < 0.5 * error(&planes),
+        "two planes and two components by codebook {} against two planes {}",
+        error(&residual),
+        error(&planes)
+    );
+    // Not a look-up file: its pixels keep planes.
+    let said = relit(
+        d,
+        &[
+            "relight",
+            "residual.rlz",
+            "--light",
+            "dir:0,0,1",
+            "-o",
+            "x.exr",
+        ],
+    );
+    assert!(!said.contains("codebook"), "{said}");
+    relit(
+        d,
+        &[
+            "relight",
+            "residual.rlz",
+            "--roi",
+            "10,2,12,9",
+            "--light",
+            "dir:0.3,0.2,0.93",
+            "-o",
+            "part.exr",
+        ],
+    );
+    let part = relit::image::load_linear(&d.join("part.exr"), None).unwrap();
+    for y in 0..9 {
+        for x in 0..12 {
+            for c in 0..3 {
+                let a = part.data[3 * (y * 12 + x) + c];
+                let b = residual[3 * ((y + 2) * 24 + x + 10) + c];
+                assert!(
+                    (a - b).abs() <= 1e-6 * b.abs().max(1e-3),
+                    "({x},{y}) {a} {b}"
+                );
+            }
+        }
+    }
+    relit(
+        d,
+        &["export-web", "residual.rlz", "site", "--viewer", "relit"],
+    );
+    assert!(d.join("site/index.html").exists());
+    if let Err(why) = relit_gpu::probe() {
+        relit::skip::skipping(&format!(
+            "relit relight --gpu on a residual codebook file: {why}"
+        ));
+        return;
+    }
+    relit(
+        d,
+        &[
+            "relight",
+            "residual.rlz",
+            "--light",
+            "dir:0.3,0.2,0.93",
+            "--gpu",
+            "-o",
+            "gpu.exr",
+        ],
+    );
+    let gpu = relit::image::load_linear(&d.join("gpu.exr"), None)
+        .unwrap()
+        .data;
+    let peak = residual.iter().fold(0f32, |m, v| m.max(v.abs()));
+    let diff = gpu
+        .iter()
+        .zip(&residual)
+        .fold(0f32, |m, (a, b)| m.max((a - b).abs()));
+    assert!(
+        diff <= 1e-5 * peak.max(1.0),
+        "GPU vs CPU {diff} (peak {peak})"
+    );
+}
+
 #[test]
 fn a_region_is_read_tile_by_tile_and_relights_as_that_crop() {
     let dir = tempfile::tempdir().unwrap();

@@ -195,6 +195,18 @@ fn no_file_reader_panics_on_mutated_files() {
             }
         }
     }));
+    // A codebook of the residual beside JPEG planes: planes, codebook and index tiles.
+    let residual_settings = relit::compress::Settings {
+        codebook: Some(12),
+        residual: Some(1),
+        ..jpeg_settings.clone()
+    };
+    let residual_packed = relit::compress::pack(&fitted.image, &residual_settings).unwrap();
+    let rlz_residual = relit::codec::packed::to_bytes(&residual_packed).unwrap();
+    crashes.extend(fuzz(d, "maps-residual.rlz", &rlz_residual, |p| {
+        let _ = relit::codec::read(p);
+        let _ = relit::codec::packed::read_region(p, (3, 2, 6, 5));
+    }));
     // The RTI tools' files, written from the same maps.
     for (name, bytes) in [
         (
@@ -219,23 +231,29 @@ fn no_file_reader_panics_on_mutated_files() {
             let _ = relit::codec::read(p);
         }));
     }
-    std::fs::write(d.join("sections.bin"), packed.sections.concat()).unwrap();
-    let header_json = serde_json::to_vec(&packed.header).unwrap();
-    crashes.extend(fuzz(d, "header.json", &header_json, |p| {
-        let Ok(header) =
-            serde_json::from_slice::<relit::compress::Header>(&std::fs::read(p).unwrap())
-        else {
-            return;
-        };
-        // The seed's sections, reused whatever the mutated header says they are.
-        let all = std::fs::read(p.with_file_name("sections.bin")).unwrap();
-        let count = header.sections().min(4096);
-        let size = all.len() / count.max(1);
-        let sections = (0..count)
-            .map(|i| all[i * size..(i + 1) * size].to_vec())
-            .collect();
-        let _ = relit::compress::unpack(&relit::compress::Packed { header, sections });
-    }));
+    for (name, seed) in [
+        ("header.json", &packed),
+        ("header-residual.json", &residual_packed),
+    ] {
+        let path = d.join(name).with_extension("sections");
+        std::fs::write(path, seed.sections.concat()).unwrap();
+        let header_json = serde_json::to_vec(&seed.header).unwrap();
+        crashes.extend(fuzz(d, name, &header_json, |p| {
+            let Ok(header) =
+                serde_json::from_slice::<relit::compress::Header>(&std::fs::read(p).unwrap())
+            else {
+                return;
+            };
+            // The seed's sections, reused whatever the mutated header says they are.
+            let all = std::fs::read(p.with_extension("sections")).unwrap();
+            let count = header.sections().min(4096);
+            let size = all.len() / count.max(1);
+            let sections = (0..count)
+                .map(|i| all[i * size..(i + 1) * size].to_vec())
+                .collect();
+            let _ = relit::compress::unpack(&relit::compress::Packed { header, sections });
+        }));
+    }
     let q = &packed.header.planes[0].quantizer;
     assert_eq!(
         (q.width(), packed.header.tile),
