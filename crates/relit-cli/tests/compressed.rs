@@ -32,6 +32,86 @@ fn frame(dir: &Path, file: &str, name: &str) -> Vec<f32> {
         .data
 }
 
+/// What `relit info FILE --json` says of its storage, and its coefficients.
+fn storage_and_coefficients(d: &Path, file: &str) -> (String, u64) {
+    let info = relit(d, &["info", file, "--json"]);
+    let info: serde_json::Value = serde_json::from_str(&info).unwrap();
+    (
+        info["storage"].as_str().unwrap().to_string(),
+        info["coefficients"].as_u64().unwrap(),
+    )
+}
+
+/// The sum of squared differences of two frames.
+fn squared_error(a: &[f32], b: &[f32]) -> f64 {
+    a.iter().zip(b).map(|(a, b)| ((a - b) as f64).powi(2)).sum()
+}
+
+/// `relit relight FILE --roi 10,2,12,9` equals that crop of `whole`, FILE's 24×16 frame
+/// under `frame`'s light.
+fn region_relights_as_its_crop(d: &Path, file: &str, whole: &[f32]) {
+    relit(
+        d,
+        &[
+            "relight",
+            file,
+            "--roi",
+            "10,2,12,9",
+            "--light",
+            "dir:0.3,0.2,0.93",
+            "-o",
+            "part.exr",
+        ],
+    );
+    let part = relit::image::load_linear(&d.join("part.exr"), None).unwrap();
+    for y in 0..9 {
+        for x in 0..12 {
+            for c in 0..3 {
+                let a = part.data[3 * (y * 12 + x) + c];
+                let b = whole[3 * ((y + 2) * 24 + x + 10) + c];
+                assert!(
+                    (a - b).abs() <= 1e-6 * b.abs().max(1e-3),
+                    "({x},{y}) {a} {b}"
+                );
+            }
+        }
+    }
+}
+
+/// `relit relight FILE --gpu` matches `cpu`, FILE's frame under `frame`'s light, within
+/// f32 rounding of two summation orders (the GPU tests' bound); a skip where no adapter
+/// exists.
+fn gpu_relights_as_the_cpu(d: &Path, file: &str, cpu: &[f32], what: &str) {
+    if let Err(why) = relit_gpu::probe() {
+        relit::skip::skipping(&format!("relit relight --gpu on {what}: {why}"));
+        return;
+    }
+    relit(
+        d,
+        &[
+            "relight",
+            file,
+            "--light",
+            "dir:0.3,0.2,0.93",
+            "--gpu",
+            "-o",
+            "gpu.exr",
+        ],
+    );
+    let gpu = relit::image::load_linear(&d.join("gpu.exr"), None)
+        .unwrap()
+        .data;
+    let peak = cpu.iter().fold(0f32, |m, v| m.max(v.abs()));
+    let diff = gpu
+        .iter()
+        .zip(cpu)
+        .fold(0f32, |m, (a, b)| m.max((a - b).abs()));
+    assert!(
+        diff <= 1e-5 * peak.max(1.0),
+        "GPU vs CPU {diff} (peak {peak})"
+    );
+}
+
 #[test]
 fn convert_goes_both_ways_and_every_reader_reads_it() {
     let dir = tempfile::tempdir().unwrap();
@@ -99,22 +179,15 @@ fn principal_components_per_block_reach_every_reader() {
     };
     convert("blocks.rlz", &["--pca-block", "16"]);
     convert("once.rlz", &[]);
-    let info = relit(d, &["info", "blocks.rlz", "--json"]);
-    let info: serde_json::Value = serde_json::from_str(&info).unwrap();
-    let storage = info["storage"].as_str().unwrap();
+    let (storage, coefficients) = storage_and_coefficients(d, "blocks.rlz");
     assert!(
         storage.contains("per block of 16² (2×1 blocks)"),
         "{storage}"
     );
     // The file decodes into the fit's basis, all four coefficients.
-    assert_eq!(info["coefficients"], 4, "{info}");
+    assert_eq!(coefficients, 4);
     let exr = frame(d, "scene.exr", "a");
-    let error = |f: &[f32]| {
-        exr.iter()
-            .zip(f)
-            .map(|(a, b)| ((a - b) as f64).powi(2))
-            .sum::<f64>()
-    };
+    let error = |f: &[f32]| squared_error(f, &exr);
     let blocks = frame(d, "blocks.rlz", "b");
     let once = frame(d, "once.rlz", "c");
     assert!(
@@ -124,67 +197,14 @@ fn principal_components_per_block_reach_every_reader() {
         error(&once)
     );
     // A region across the blocks' border relights as that crop of the whole frame.
-    relit(
-        d,
-        &[
-            "relight",
-            "blocks.rlz",
-            "--roi",
-            "10,2,12,9",
-            "--light",
-            "dir:0.3,0.2,0.93",
-            "-o",
-            "part.exr",
-        ],
-    );
-    let part = relit::image::load_linear(&d.join("part.exr"), None).unwrap();
-    for y in 0..9 {
-        for x in 0..12 {
-            for c in 0..3 {
-                let a = part.data[3 * (y * 12 + x) + c];
-                let b = blocks[3 * ((y + 2) * 24 + x + 10) + c];
-                assert!(
-                    (a - b).abs() <= 1e-6 * b.abs().max(1e-3),
-                    "({x},{y}) {a} {b}"
-                );
-            }
-        }
-    }
+    region_relights_as_its_crop(d, "blocks.rlz", &blocks);
     relit(
         d,
         &["export-web", "blocks.rlz", "site", "--viewer", "relit"],
     );
     assert!(d.join("site/index.html").exists());
     // The wgpu engine reads the decoded planes too.
-    if let Err(why) = relit_gpu::probe() {
-        relit::skip::skipping(&format!("relit relight --gpu on a per-block file: {why}"));
-        return;
-    }
-    relit(
-        d,
-        &[
-            "relight",
-            "blocks.rlz",
-            "--light",
-            "dir:0.3,0.2,0.93",
-            "--gpu",
-            "-o",
-            "gpu.exr",
-        ],
-    );
-    let gpu = relit::image::load_linear(&d.join("gpu.exr"), None)
-        .unwrap()
-        .data;
-    let peak = blocks.iter().fold(0f32, |m, v| m.max(v.abs()));
-    let diff = gpu
-        .iter()
-        .zip(&blocks)
-        .fold(0f32, |m, (a, b)| m.max((a - b).abs()));
-    // f32 rounding of two summation orders: the GPU tests' bound.
-    assert!(
-        diff <= 1e-5 * peak.max(1.0),
-        "GPU vs CPU {diff} (peak {peak})"
-    );
+    gpu_relights_as_the_cpu(d, "blocks.rlz", &blocks, "a per-block file");
 }
 
 /// A codebook of the PCA residual (`--codebook C --residual R`): the planes keep K′
@@ -213,21 +233,14 @@ fn a_codebook_of_the_residual_reaches_every_reader() {
     };
     convert("residual.rlz", &["--codebook", "64", "--residual", "2"]);
     convert("planes.rlz", &[]);
-    let info = relit(d, &["info", "residual.rlz", "--json"]);
-    let info: serde_json::Value = serde_json::from_str(&info).unwrap();
-    let storage = info["storage"].as_str().unwrap();
+    let (storage, coefficients) = storage_and_coefficients(d, "residual.rlz");
     assert!(
         storage.contains("components 3–4 of each function from a codebook of 64 entries"),
         "{storage}"
     );
-    assert_eq!(info["coefficients"], 4, "{info}");
+    assert_eq!(coefficients, 4);
     let exr = frame(d, "scene.exr", "a");
-    let error = |f: &[f32]| {
-        exr.iter()
-            .zip(f)
-            .map(|(a, b)| ((a - b) as f64).powi(2))
-            .sum::<f64>()
-    };
+    let error = |f: &[f32]| squared_error(f, &exr);
     let residual = frame(d, "residual.rlz", "b");
     let planes = frame(d, "planes.rlz", "c");
     assert!(
@@ -249,67 +262,13 @@ fn a_codebook_of_the_residual_reaches_every_reader() {
         ],
     );
     assert!(!said.contains("codebook"), "{said}");
-    relit(
-        d,
-        &[
-            "relight",
-            "residual.rlz",
-            "--roi",
-            "10,2,12,9",
-            "--light",
-            "dir:0.3,0.2,0.93",
-            "-o",
-            "part.exr",
-        ],
-    );
-    let part = relit::image::load_linear(&d.join("part.exr"), None).unwrap();
-    for y in 0..9 {
-        for x in 0..12 {
-            for c in 0..3 {
-                let a = part.data[3 * (y * 12 + x) + c];
-                let b = residual[3 * ((y + 2) * 24 + x + 10) + c];
-                assert!(
-                    (a - b).abs() <= 1e-6 * b.abs().max(1e-3),
-                    "({x},{y}) {a} {b}"
-                );
-            }
-        }
-    }
+    region_relights_as_its_crop(d, "residual.rlz", &residual);
     relit(
         d,
         &["export-web", "residual.rlz", "site", "--viewer", "relit"],
     );
     assert!(d.join("site/index.html").exists());
-    if let Err(why) = relit_gpu::probe() {
-        relit::skip::skipping(&format!(
-            "relit relight --gpu on a residual codebook file: {why}"
-        ));
-        return;
-    }
-    relit(
-        d,
-        &[
-            "relight",
-            "residual.rlz",
-            "--light",
-            "dir:0.3,0.2,0.93",
-            "--gpu",
-            "-o",
-            "gpu.exr",
-        ],
-    );
-    let gpu = relit::image::load_linear(&d.join("gpu.exr"), None)
-        .unwrap()
-        .data;
-    let peak = residual.iter().fold(0f32, |m, v| m.max(v.abs()));
-    let diff = gpu
-        .iter()
-        .zip(&residual)
-        .fold(0f32, |m, (a, b)| m.max((a - b).abs()));
-    assert!(
-        diff <= 1e-5 * peak.max(1.0),
-        "GPU vs CPU {diff} (peak {peak})"
-    );
+    gpu_relights_as_the_cpu(d, "residual.rlz", &residual, "a residual codebook file");
 }
 
 #[test]
