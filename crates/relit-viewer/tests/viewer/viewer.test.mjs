@@ -899,11 +899,15 @@ try {
     // Compressed files, principal components and a codebook: the viewer relights the
     // planes they decode to with the projected basis (K′ combinations of sh:16, from its
     // weight table) and matches `relit relight` of the same file. Principal components
-    // per block decode into the fit's own basis (each block's projection undone).
+    // per block decode into the fit's own basis (each block's projection undone); a
+    // codebook of the residual into K′ + R planes.
     for (const [name, flags] of [
       ['pca', ['--layout', 'ycc', '--components', '6', '--codec', 'jpeg:90']],
       ['codebook', ['--layout', 'ycc', '--components', '9', '--codebook', '256']],
       ['blocks', ['--layout', 'ycc', '--components', '6', '--codec', 'jpeg:90', '--pca-block', '128']],
+      // A codebook of the residual: 6 planes and the next 6 components from 64 entries,
+      // decoded into 12 planes of the projected basis.
+      ['residual', ['--layout', 'ycc', '--components', '6', '--codec', 'jpeg:90', '--codebook', '64', '--residual', '6']],
     ]) {
       const rlz = path.join(work, `pano-${name}.rlz`);
       run('convert', path.join(work, 'pano.exr'), '-o', rlz, ...flags);
