@@ -255,6 +255,89 @@ fn jpeg_parts(
     })
 }
 
+/// Whether `path` is a JPEG: its samples are 8-bit codes, which [`read_code_parts`]
+/// hands over as they are.
+pub fn is_jpeg_file(path: &Path) -> bool {
+    jpeg::is_jpeg(path)
+}
+
+/// [`read_linear_parts`] of a JPEG without the conversion: each row of `rows` handed to
+/// `row(y, codes)` as its 8-bit RGB codes (`3·width` bytes), and the codes of `pixels`
+/// returned, with the image's size. `eight_bit_values(encoding)[code]` is the linear
+/// value [`read_linear_parts`] gives for a code, so a reader that keeps the codes (the
+/// fit's spill file, a quarter of the floats' bytes) can convert them later, in
+/// whichever encoding it then needs, to the same values. JPEGs libjpeg does not convert
+/// to RGB (CMYK) go through the general decoder, as there.
+pub fn read_code_parts(
+    path: &Path,
+    rows: std::ops::Range<usize>,
+    pixels: &[usize],
+    row: &mut dyn FnMut(usize, &[u8]) -> Result<()>,
+) -> Result<(usize, usize, Vec<u8>)> {
+    if !jpeg::is_jpeg(path) {
+        return Err(Error::new(
+            ErrorKind::Image,
+            format!("{}: not a JPEG, whose codes could be read", path.display()),
+        ));
+    }
+    let mut order: Vec<(usize, usize)> = pixels.iter().copied().zip(0..).collect();
+    order.sort_unstable();
+    let mut next = 0;
+    let mut picked = vec![0u8; 3 * pixels.len()];
+    let mut failed = None;
+    let width = Cell::new(0);
+    let streamed = jpeg::stream_rows(
+        path,
+        |w, h| {
+            let last = order.last().map_or(0, |&(p, _)| p + 1);
+            if rows.end > h || last > w * h {
+                return Err(missing_parts(path, w, h, &rows));
+            }
+            width.set(w);
+            Ok(rows.end.max(last.div_ceil(w.max(1))))
+        },
+        |y, codes| {
+            let w = width.get();
+            while let Some(&(p, slot)) = order.get(next).filter(|&&(p, _)| p / w == y) {
+                let x = p % w;
+                picked[3 * slot..3 * slot + 3].copy_from_slice(&codes[3 * x..3 * x + 3]);
+                next += 1;
+            }
+            if rows.contains(&y) && failed.is_none() {
+                if let Err(e) = row(y, codes) {
+                    failed = Some(e);
+                }
+            }
+        },
+    )?;
+    if let Some(e) = failed {
+        return Err(e);
+    }
+    if let jpeg::Streamed::Done { width, height } = streamed {
+        return Ok((width, height, picked));
+    }
+    let decoded = decode(path)?.to_rgb8();
+    let (width, height) = (decoded.width() as usize, decoded.height() as usize);
+    if rows.end > height || pixels.iter().any(|&p| p >= width * height) {
+        return Err(missing_parts(path, width, height, &rows));
+    }
+    let raw = decoded.as_raw();
+    for y in rows {
+        row(y, &raw[3 * width * y..3 * width * (y + 1)])?;
+    }
+    let picked = pixels
+        .iter()
+        .flat_map(|&p| raw[3 * p..3 * p + 3].iter().copied())
+        .collect();
+    Ok((width, height, picked))
+}
+
+/// The linear value of each of the 256 codes of an 8-bit file, as
+/// [`read_linear_parts`] converts them.
+pub fn eight_bit_values(encoding: Option<Encoding>) -> [f32; 256] {
+    eight_bit_table(encoding)
+}
+
 /// Linear values of the 256 codes of an 8-bit file: sRGB-decoded unless `encoding`
 /// says the codes are linear.
 fn eight_bit_table(encoding: Option<Encoding>) -> [f32; 256] {

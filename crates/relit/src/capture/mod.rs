@@ -251,6 +251,78 @@ impl Capture {
         Ok((band, picked))
     }
 
+    /// Whether every image is a JPEG file, whose samples [`Capture::read_code_parts`]
+    /// can hand over as 8-bit codes.
+    pub fn eight_bit_codes(&self) -> bool {
+        self.lights.iter().all(|l| match &l.image {
+            ImageSource::File { path, .. } => image::is_jpeg_file(path),
+            ImageSource::Memory(_) | ImageSource::Generated(_) => false,
+        })
+    }
+
+    /// [`Capture::read_parts`] of a capture of [`Capture::eight_bit_codes`], without
+    /// the conversion: rows and pixels as the file's 8-bit RGB codes. Image `index`'s
+    /// code `c` of channel `ch` stands for `code_values(index, then)[256·ch + c]`, the
+    /// value [`Capture::read_parts`] gives for it, bit for bit.
+    pub fn read_code_parts(
+        &self,
+        index: usize,
+        rows: std::ops::Range<usize>,
+        pixels: &[usize],
+        row: &mut dyn FnMut(usize, &[u8]) -> Result<()>,
+    ) -> Result<Vec<u8>> {
+        let ImageSource::File { path, .. } = &self.lights[index].image else {
+            return Err(Error::invalid(format!(
+                "{} is not a file, whose codes could be read",
+                self.image_name(index)
+            )));
+        };
+        let w = self.width;
+        let wrong_size = |size: String| {
+            Error::new(
+                ErrorKind::InvalidInput,
+                format!(
+                    "{} is {size} but the capture is {}×{}",
+                    self.image_name(index),
+                    self.width,
+                    self.height
+                ),
+            )
+        };
+        let (fw, fh, picked) = image::read_code_parts(path, rows, pixels, &mut |y, codes| {
+            if codes.len() != 3 * w {
+                return Err(wrong_size(format!("{} pixels wide", codes.len() / 3)));
+            }
+            row(y, codes)
+        })?;
+        if (fw, fh) != (self.width, self.height) {
+            return Err(wrong_size(format!("{fw}×{fh}")));
+        }
+        Ok(picked)
+    }
+
+    /// What each 8-bit code of image `index` stands for, per channel (`256·channel +
+    /// code`): the value [`Capture::read_parts`] gives for it with `then`, the light's
+    /// intensity divided out, computed as it computes it.
+    pub fn code_values(&self, index: usize, then: Option<fn(f32) -> f32>) -> Vec<f32> {
+        let light = &self.lights[index];
+        let encoding = match &light.image {
+            ImageSource::File { encoding, .. } => *encoding,
+            ImageSource::Memory(_) | ImageSource::Generated(_) => None,
+        };
+        let table = image::eight_bit_values(encoding);
+        let inv = light.intensity.map(|v| 1.0 / v);
+        let unit = light.intensity == [1.0; 3];
+        (0..3)
+            .flat_map(|c| {
+                table.iter().map(move |&v| {
+                    let v = if unit { v } else { v * inv[c] };
+                    then.map_or(v, |f| f(v))
+                })
+            })
+            .collect()
+    }
+
     /// Parts of image `index` as [`Capture::load`] gives them, the rows handed over one
     /// at a time: `row(y, values)` gets each row of `rows` in order (`3·width` values,
     /// the caller may change them), and the pixels `pixels` are returned (3 values each,

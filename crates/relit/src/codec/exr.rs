@@ -1575,6 +1575,144 @@ mod tests {
         }
     }
 
+    /// A synthetic capture written as JPEG photographs with an `.lp`, opened again.
+    fn jpeg_capture(dir: &std::path::Path, width: usize, height: usize) -> crate::capture::Capture {
+        let synthetic = crate::synth::BumpyPlane { width, height }
+            .capture(&crate::sphere::hemisphere_fibonacci(30));
+        let names: Vec<String> = (0..synthetic.len())
+            .map(|j| {
+                let name = format!("image{j:02}.jpg");
+                let img = synthetic.load(j).unwrap();
+                crate::image::save(&dir.join(&name), &img, 0.0).unwrap();
+                name
+            })
+            .collect();
+        let lp = dir.join("dirs.lp");
+        std::fs::write(
+            &lp,
+            crate::capture::lp::format(&names, &synthetic.directions()),
+        )
+        .unwrap();
+        crate::capture::Capture::open(&lp).unwrap()
+    }
+
+    #[test]
+    fn photographs_read_once_fit_as_when_read_twice() {
+        // A fit streamed to a file reads a JPEG capture's images once — the subsample
+        // and the spill file of codes together — before it chooses anything; a fit held
+        // whole reads the subsample first and the images after the choice, as values.
+        // Both give the same maps bit for bit: narrow (scan lines for every K), wide with
+        // candidates whose files differ (scan lines at K = 4, tiles at 25: pieces of
+        // whole rows), a shard, and a data-driven basis fixed.
+        let dir = tempfile::tempdir().unwrap();
+        let narrow_dir = dir.path().join("narrow");
+        let wide_dir = dir.path().join("wide");
+        std::fs::create_dir_all(&narrow_dir).unwrap();
+        std::fs::create_dir_all(&wide_dir).unwrap();
+        let narrow = jpeg_capture(&narrow_dir, 70, 37);
+        let wide = jpeg_capture(&wide_dir, 600, 20);
+        assert!(narrow.eight_bit_codes() && wide.eight_bit_codes());
+        assert_ne!(
+            ExrStream::tiles(600, 4, Precision::F16, false),
+            ExrStream::tiles(600, 25, Precision::F16, false)
+        );
+        let bits = |m: &CoefficientMaps| m.data.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        let candidates = |list: &[&str]| {
+            list.iter()
+                .map(|c| crate::basis::BasisChoice::parse(c).unwrap())
+                .collect::<Vec<_>>()
+        };
+        for (capture, basis, list, shard) in [
+            (&narrow, "auto", &["sh:9", "rbf:9", "hsh:16"][..], None),
+            (&narrow, "rbf:9", &[][..], Some((1, 3))),
+            (&wide, "auto", &["sh:4", "sg:25"][..], None),
+        ] {
+            let mut opts = crate::fit::FitOptions {
+                basis: crate::fit::BasisRequest::parse(basis).unwrap(),
+                candidates: candidates(list),
+                ..crate::fit::FitOptions::default()
+            };
+            // Pieces of one row of every image (whole rows fit a piece).
+            opts.piece_bytes = capture.width * 12 * capture.len();
+            opts.shard = shard;
+            let whole = crate::fit::fit(capture, &opts, &crate::progress::Silent).unwrap();
+            let path = dir.path().join("streamed.exr");
+            let (meta, report) = fit_to_exr(
+                capture,
+                &opts,
+                &crate::progress::Silent,
+                &path,
+                Precision::F32,
+            )
+            .unwrap();
+            let what = format!("{} {basis} {shard:?}", capture.width);
+            let stages: Vec<&str> = report.stages.iter().map(|s| s.name).collect();
+            assert_eq!(stages[0], "images", "{what}: read once, first ({stages:?})");
+            assert!(!stages.contains(&"subsample"), "{what}");
+            let rows = band_rows(capture.height, shard);
+            let codes = capture.width * rows * 3 * capture.len();
+            assert_eq!(report.spill_bytes, codes as u64, "{what}: codes");
+            let back = crate::codec::exr::read(&path).unwrap();
+            assert_eq!(
+                back.meta.basis, whole.image.meta.basis,
+                "{what}: the same choice"
+            );
+            assert_eq!(meta.basis, whole.image.meta.basis, "{what}");
+            assert!(bits(&back.maps) == bits(&whole.image.maps), "{what}");
+            assert_eq!(report.psnr_srgb8, whole.report.psnr_srgb8, "{what}");
+        }
+    }
+
+    #[test]
+    fn a_photographs_codes_stand_for_the_values_it_is_read_as() {
+        // What the spill file of codes turns back into values: bit for bit what
+        // `read_parts` gives, for a light of unit and of coloured intensity, in linear
+        // radiance and display values.
+        let dir = tempfile::tempdir().unwrap();
+        let mut capture = jpeg_capture(dir.path(), 23, 11);
+        capture.lights[1].intensity = [2.5, 0.7, 1.3];
+        let pixels = [0, 5, 100, 23 * 11 - 1];
+        let srgb = crate::color::linear_to_srgb_tabulated as fn(f32) -> f32;
+        for j in [0, 1] {
+            for then in [None, Some(srgb)] {
+                let mut rows = Vec::new();
+                let picked = capture
+                    .read_parts(j, 2..9, &pixels, then, &mut |_, v| {
+                        rows.extend_from_slice(v);
+                        Ok(())
+                    })
+                    .unwrap();
+                let mut code_rows = Vec::new();
+                let codes = capture
+                    .read_code_parts(j, 2..9, &pixels, &mut |_, c| {
+                        code_rows.extend_from_slice(c);
+                        Ok(())
+                    })
+                    .unwrap();
+                let values = capture.code_values(j, then);
+                let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                let decoded = |c: &[u8]| -> Vec<f32> {
+                    c.iter()
+                        .enumerate()
+                        .map(|(i, &c)| values[256 * (i % 3) + c as usize])
+                        .collect()
+                };
+                assert_eq!(bits(&decoded(&code_rows)), bits(&rows), "image {j}");
+                assert_eq!(bits(&decoded(&codes)), bits(&picked), "image {j}");
+            }
+        }
+    }
+
+    /// Rows of a shard's band of an image `height` rows high.
+    fn band_rows(height: usize, shard: Option<(usize, usize)>) -> usize {
+        shard.map_or(height, |(i, n)| {
+            crate::maps::ShardInfo::new(i, n, height)
+                .unwrap()
+                .rows()
+                .len()
+        })
+    }
+
     #[test]
     fn a_stream_missing_pixels_writes_nothing() {
         let dir = tempfile::tempdir().unwrap();

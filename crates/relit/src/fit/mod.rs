@@ -39,10 +39,13 @@
 //!   `12.92² ≈ 167`, a lit one (0.3) about 0.8, so a band-limited function that cannot
 //!   follow the shadow's edge is pulled toward black on the lit side too (the attic at
 //!   1000 lights relit about five times too dark, 5–9 dB below the linear fit against
-//!   ray-traced truth), and the linear objective wins. The subsample is read before
-//!   the images' pass and the choice made on it first, so the pass keeps only the
-//!   chosen objective's state (the spill file on disk, or the shared sums in memory,
-//!   the size of the maps).
+//!   ray-traced truth), and the linear objective wins. The choices are made on the
+//!   subsample before the maps are solved. A fit held in memory reads the subsample
+//!   first, so that its images' pass keeps only the chosen objective's state (the spill
+//!   file on disk, or the shared sums in memory, the size of the maps); a fit streamed
+//!   to a file of a JPEG capture reads every image once, into the subsample and a spill
+//!   file of the photographs' 8-bit codes, whose values (linear radiance or display
+//!   values, whichever space is chosen) are looked up as each piece is read.
 //!
 //! Maps stored display-referred ([`MapSpace::Srgb`]) fit sRGB-encoded values with
 //! plain (quadrature-weighted) least squares.
@@ -527,6 +530,151 @@ fn read_subsample(
         }
     }
     Ok(sub)
+}
+
+/// The tiles of the spill file of a fit streamed to `sink` that reads its images before
+/// it chooses, if it can: pieces must stay inside the output's tiles whichever K is
+/// chosen. Where the output's tiles differ with K (scan lines for a small K, tiles for
+/// a large one), pieces of whole rows suit both, if one row of every image fits a piece
+/// (otherwise the images are read after the choice, in the chosen output's tiles).
+fn one_pass_tiles(
+    sink: &dyn PieceSink,
+    width: usize,
+    height: usize,
+    n: usize,
+    options: &FitOptions,
+) -> Option<Option<(usize, usize)>> {
+    let tiles: Vec<_> = possible_k(&options.basis, options, n)
+        .into_iter()
+        .map(|k| sink.tiles(width, height, k))
+        .collect();
+    if tiles.windows(2).all(|t| t[0] == t[1]) {
+        return Some(tiles[0]);
+    }
+    let row_bytes = width * 3 * 4 * n;
+    (row_bytes <= piece_bytes(options, n)).then_some(None)
+}
+
+/// The coefficients per channel a fit of `request` may end with: the candidates' of
+/// `auto`, the basis' own otherwise (what the output's tiles may depend on).
+fn possible_k(request: &BasisRequest, options: &FitOptions, n: usize) -> Vec<usize> {
+    let mut ks: Vec<usize> = match request {
+        BasisRequest::Fixed(choice) => vec![choice.k],
+        BasisRequest::Auto if options.candidates.is_empty() => {
+            candidates(options.max_coefficients, n)
+                .iter()
+                .map(|c| c.k)
+                .collect()
+        }
+        BasisRequest::Auto => {
+            let train = select::training_lights(n);
+            options
+                .candidates
+                .iter()
+                .filter(|c| c.k < train)
+                .map(|c| c.k)
+                .collect()
+        }
+    };
+    if ks.is_empty() {
+        // No candidate: the choice will say so; until then, any K.
+        ks.push(options.max_coefficients.max(1));
+    }
+    ks
+}
+
+fn spill_samples(codes: bool) -> spill::Samples {
+    if codes {
+        spill::Samples::Codes
+    } else {
+        spill::Samples::Floats
+    }
+}
+
+/// Bytes of a piece of all `n` images: the option's, or more where each thread's share
+/// of the solve would otherwise be less than a chunk.
+fn piece_bytes(options: &FitOptions, n: usize) -> usize {
+    options
+        .piece_bytes
+        .max(rayon::current_num_threads() * CHUNK * 3 * 4 * n)
+}
+
+/// The spill file of a fit streamed to `sink`: pieces inside the output's tiles for
+/// `k` coefficients per channel.
+fn create_spill(
+    sink: &dyn PieceSink,
+    width: usize,
+    rows: std::ops::Range<usize>,
+    n: usize,
+    k: usize,
+    options: &FitOptions,
+    codes: bool,
+) -> Result<spill::Spill> {
+    spill::Spill::create(
+        width,
+        rows.len(),
+        n,
+        piece_bytes(options, n),
+        sink.tiles(width, rows.len(), k),
+        spill_samples(codes),
+    )
+}
+
+/// Every image of `capture` read once: its band `rows` into `spill` (codes), and the
+/// subsample pixels `sub_idx` returned as values in `space` (`count × n × 3`), as
+/// [`read_subsample`] reads them.
+fn spill_images(
+    capture: &Capture,
+    spill: &spill::Spill,
+    rows: std::ops::Range<usize>,
+    sub_idx: &[usize],
+    space: MapSpace,
+    progress: &dyn Progress,
+) -> Result<Vec<f32>> {
+    let n = capture.len();
+    progress.begin("reading images", n as u64);
+    let picked: Vec<Vec<f32>> = (0..n)
+        .into_par_iter()
+        .map(|j| {
+            let mut writer = spill.image_rows(j);
+            let codes = capture.read_code_parts(j, rows.clone(), sub_idx, &mut |_, codes| {
+                writer.push_codes(codes)
+            })?;
+            writer.finish()?;
+            progress.advance(1);
+            Ok(code_samples(
+                &codes,
+                &capture.code_values(j, target_encoding(space)),
+            ))
+        })
+        .collect::<Result<_>>()?;
+    progress.end();
+    let mut sub = vec![0f32; sub_idx.len() * n * 3];
+    for (j, row) in picked.iter().enumerate() {
+        for s in 0..sub_idx.len() {
+            let o = (s * n + j) * 3;
+            sub[o..o + 3].copy_from_slice(&row[3 * s..3 * s + 3]);
+        }
+    }
+    Ok(sub)
+}
+
+/// The values of RGB `codes` by an image's table (`256·channel + code`).
+fn code_samples(codes: &[u8], values: &[f32]) -> Vec<f32> {
+    codes
+        .iter()
+        .enumerate()
+        .map(|(i, &c)| values[256 * (i % 3) + c as usize])
+        .collect()
+}
+
+/// Each image's values of its codes in `space`, where `spill` holds codes.
+fn code_tables(capture: &Capture, spill: &spill::Spill, space: MapSpace) -> Option<Vec<Vec<f32>>> {
+    (spill.samples() == spill::Samples::Codes).then(|| {
+        (0..capture.len())
+            .map(|j| capture.code_values(j, target_encoding(space)))
+            .collect()
+    })
 }
 
 /// Pixels of the subsample the basis choice validates its finalists on: enough for
@@ -1087,14 +1235,42 @@ fn fit_into(
                 BasisRequest::Auto => true,
                 BasisRequest::Fixed(choice) => choice.needs_samples(),
             });
-    let mut early_sub = if early {
-        Some(read_subsample(capture, &sub_idx, space, progress)?)
+    // A fit streamed to a sink always keeps the spill file, and takes the linear
+    // objective's sums piece by piece from it too, so that no state the size of the maps
+    // is held.
+    let streaming = stream.is_some();
+    // Photographs are spilled as their codes, whose values are chosen when a piece is
+    // read: the images can then be read once, for the subsample and the spill file
+    // together, before anything is chosen (`one_pass`: the spill file's tiles).
+    let codes = capture.eight_bit_codes();
+    let one_pass = if early && codes {
+        stream
+            .as_ref()
+            .and_then(|sink| one_pass_tiles(&**sink, w, rows.len(), dirs.len(), options))
     } else {
         None
     };
-    if early {
+    let mut early_spill = None;
+    let mut early_sub = if let Some(tiles) = one_pass {
+        let spill = spill::Spill::create(
+            w,
+            rows.len(),
+            dirs.len(),
+            piece_bytes(options, dirs.len()),
+            tiles,
+            spill::Samples::Codes,
+        )?;
+        let sub = spill_images(capture, &spill, rows.clone(), &sub_idx, space, progress)?;
+        stages.end("images");
+        early_spill = Some(spill);
+        Some(sub)
+    } else if early {
+        let sub = read_subsample(capture, &sub_idx, space, progress)?;
         stages.end("subsample");
-    }
+        Some(sub)
+    } else {
+        None
+    };
     let (basis, validated, basis_scores) = match &options.plan {
         Some(plan) => (
             plan.basis.build()?,
@@ -1155,30 +1331,42 @@ fn fit_into(
     };
     // The automatic objective keeps both kinds of pass-1 state until it has chosen.
     let mut accum = None;
-    let mut spill = None;
-    // A fit streamed to a sink always keeps the spill file, and takes the linear
-    // objective's sums piece by piece from it too, so that no state the size of the maps
-    // is held.
-    let streaming = stream.is_some();
-    if objective != Objective::Linear || streaming {
-        spill = Some(spill::Spill::create(
-            w,
-            rows.len(),
-            design.n,
-            options
-                .piece_bytes
-                .max(rayon::current_num_threads() * CHUNK * 3 * 4 * design.n),
-            stream
-                .as_ref()
-                .and_then(|sink| sink.tiles(w, rows.len(), design.k)),
-        )?);
-    }
+    let mut spill = early_spill;
+    let read_already = spill.is_some();
     if objective != Objective::Perceptual && !streaming {
         accum = Some(CoefficientMaps::zeros(w, rows.len(), design.k));
     }
+    if !read_already && (objective != Objective::Linear || streaming) {
+        // Codes where the spill file is the pass's only state (the shared sums take
+        // values as the images are decoded).
+        let spill_codes = codes && accum.is_none();
+        spill = Some(match stream.as_ref() {
+            Some(sink) => create_spill(
+                &**sink,
+                w,
+                rows.clone(),
+                design.n,
+                design.k,
+                options,
+                spill_codes,
+            )?,
+            None => spill::Spill::create(
+                w,
+                rows.len(),
+                design.n,
+                piece_bytes(options, design.n),
+                None,
+                spill_samples(spill_codes),
+            )?,
+        });
+    }
 
-    // Pass 1: stream the images, a batch of decoders' worth at a time.
-    progress.begin("reading images", design.n as u64);
+    // Pass 1: stream the images, a batch of decoders' worth at a time (unless the
+    // images were read before the choices).
+    progress.begin(
+        "reading images",
+        if read_already { 0 } else { design.n as u64 },
+    );
     // The shared sums gain from many images a batch; the spill file takes each image
     // alone, so a batch of one image a thread keeps decoded images out of the peak.
     let batch = if accum.is_some() {
@@ -1197,7 +1385,8 @@ fn fit_into(
             .collect()
     };
     let wanted: Vec<usize> = unread.iter().map(|&s| sub_idx[s]).collect();
-    for first in (0..design.n).step_by(batch) {
+    let to_read = if read_already { 0 } else { design.n };
+    for first in (0..to_read).step_by(batch) {
         let indices: Vec<usize> = (first..(first + batch).min(design.n)).collect();
         // Each image's band of rows, and its subsample pixels where still unread.
         let images: Vec<(Vec<f32>, Vec<f32>)> = indices
@@ -1205,6 +1394,17 @@ fn fit_into(
             .map(|&j| {
                 let wanted = wanted.as_slice();
                 let (img, samples) = match (&spill, &accum) {
+                    // A photograph's codes, converted to the values the pass reads now.
+                    (Some(spill), None) if spill.samples() == spill::Samples::Codes => {
+                        let mut writer = spill.image_rows(j);
+                        let picked =
+                            capture.read_code_parts(j, rows.clone(), wanted, &mut |_, codes| {
+                                writer.push_codes(codes)
+                            })?;
+                        writer.finish()?;
+                        let values = capture.code_values(j, target_encoding(space));
+                        (Vec::new(), code_samples(&picked, &values))
+                    }
                     // Only the spill file takes the band: it goes there a row at a
                     // time, as the image is decoded, and is never held whole.
                     (Some(spill), None) => {
@@ -1245,7 +1445,9 @@ fn fit_into(
     }
     progress.end();
 
-    stages.end("images");
+    if !read_already {
+        stages.end("images");
+    }
     let (choice, objective_scores) = match decided {
         Some(d) => d,
         None => choose(&sub)?,
@@ -1280,9 +1482,10 @@ fn fit_into(
         );
         let indices: Vec<usize> = (0..design.n).collect();
         let mut buffer = Vec::new();
+        let values = code_tables(capture, spill, space);
         progress.begin("fitting pieces", spill.pieces() as u64);
         for s in 0..spill.pieces() {
-            let piece = spill.read_piece(s, &mut buffer)?;
+            let piece = spill.read_piece(s, &mut buffer, values.as_deref())?;
             let images: Vec<&[f32]> = buffer.chunks_exact(3 * piece.pixels()).collect();
             let mut maps = CoefficientMaps::zeros(piece.width, piece.height, design.k);
             accumulate(&mut maps, &design, &indices, &images);
@@ -1305,6 +1508,7 @@ fn fit_into(
         if let Some(spill) = spill.as_ref() {
             solve_per_pixel(
                 spill,
+                code_tables(capture, spill, space).as_deref(),
                 &design,
                 lambda,
                 options.reweights,
@@ -1659,6 +1863,7 @@ type SolvedSink<'a> = dyn FnMut(Piece, &[Vec<f32>]) -> Result<()> + 'a;
 /// go to `emit` (the piece, then runs of pixel-major coefficients).
 fn solve_per_pixel(
     spill: &spill::Spill,
+    values: Option<&[Vec<f32>]>,
     design: &Design,
     lambda: f64,
     reweights: usize,
@@ -1685,7 +1890,7 @@ fn solve_per_pixel(
     progress.begin("fitting pieces", spill.pieces() as u64);
     let mut buffer = Vec::new();
     for s in 0..spill.pieces() {
-        let piece = spill.read_piece(s, &mut buffer)?;
+        let piece = spill.read_piece(s, &mut buffer, values)?;
         let count = piece.pixels();
         let samples = &buffer;
         let results: Vec<Vec<f32>> = (0..count.div_ceil(CHUNK))

@@ -14,6 +14,11 @@
 //! more than a narrow one: the output file's tiles ([`crate::fit::RowSink::tiles`]) set
 //! the tile size. Memory stays a few rows of one image per decoder thread while
 //! writing and one piece of all images while solving.
+//!
+//! Photographs are spilled as their 8-bit codes ([`Samples::Codes`]), a quarter of the
+//! floats' bytes, and turned into values as a piece is read, by each image's table of
+//! what its codes stand for: the table can then be chosen after the images were read
+//! (the maps' space is chosen on the subsample read in the same pass).
 
 use crate::{Error, ErrorKind, Result};
 use std::fs::File;
@@ -64,29 +69,47 @@ pub struct Spill {
     tile_w: usize,
     tile_h: usize,
     piece_h: usize,
+    samples: Samples,
 }
 
-/// Bytes of one pixel's sample of one image (linear RGB in f32).
-const SAMPLE_BYTES: usize = 3 * 4;
+/// What the spill file holds of each sample.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Samples {
+    /// The values the fit solves for, RGB in f32.
+    Floats,
+    /// A photograph's 8-bit RGB codes, turned into values when read.
+    Codes,
+}
+
+impl Samples {
+    /// Bytes of one pixel's sample of one image.
+    fn pixel_bytes(self) -> usize {
+        match self {
+            Samples::Floats => 3 * 4,
+            Samples::Codes => 3,
+        }
+    }
+}
 
 impl Spill {
     /// A spill file for `images` images of `width×height`, in pieces of at most
-    /// `piece_bytes` bytes of all images (at least one row of a tile). `tiles`: the tile
-    /// size pieces must stay inside (the output's tiles), or `None` for strips of whole
-    /// rows.
+    /// `piece_bytes` bytes of all images as the solve holds them, in floats (at least
+    /// one row of a tile). `tiles`: the tile size pieces must stay inside (the output's
+    /// tiles), or `None` for strips of whole rows. `samples`: what the file keeps.
     pub fn create(
         width: usize,
         height: usize,
         images: usize,
         piece_bytes: usize,
         tiles: Option<(usize, usize)>,
+        samples: Samples,
     ) -> Result<Spill> {
         let (tile_w, tile_h) = match tiles {
             Some((tw, th)) if tw > 0 && th > 0 => (tw.min(width.max(1)), th),
             Some(_) => return Err(Error::invalid("a spill file of empty tiles")),
             None => (width.max(1), height.max(1)),
         };
-        let row_bytes = tile_w * SAMPLE_BYTES * images;
+        let row_bytes = tile_w * Samples::Floats.pixel_bytes() * images;
         let piece_h = (piece_bytes / row_bytes.max(1)).clamp(1, tile_h.min(height.max(1)));
         // Strips of whole rows are tiles of one piece each.
         let tile_h = if tiles.is_none() { piece_h } else { tile_h };
@@ -105,7 +128,13 @@ impl Spill {
             tile_w,
             tile_h,
             piece_h,
+            samples,
         })
+    }
+
+    /// What the file keeps of each sample.
+    pub fn samples(&self) -> Samples {
+        self.samples
     }
 
     fn tile_columns(&self) -> usize {
@@ -133,7 +162,7 @@ impl Spill {
     }
 
     pub fn bytes(&self) -> u64 {
-        (self.width * self.height * SAMPLE_BYTES * self.images) as u64
+        (self.width * self.height * self.samples.pixel_bytes() * self.images) as u64
     }
 
     /// Piece `s` and the band pixels of the pieces before it.
@@ -176,10 +205,10 @@ impl Spill {
     /// Byte offset of piece `s` of image `j`.
     fn offset(&self, s: usize, j: usize) -> u64 {
         let (piece, before) = self.piece(s);
-        ((before * self.images + j * piece.pixels()) * SAMPLE_BYTES) as u64
+        ((before * self.images + j * piece.pixels()) * self.samples.pixel_bytes()) as u64
     }
 
-    /// Store image `j` (interleaved linear RGB of the full frame).
+    /// Store image `j` (interleaved RGB values of the full frame) in a file of floats.
     pub fn write_image(&self, j: usize, data: &[f32]) -> Result<()> {
         let mut rows = self.image_rows(j);
         for row in data.chunks_exact(3 * self.width.max(1)) {
@@ -197,27 +226,58 @@ impl Spill {
             held: Vec::new(),
             held_from: 0,
             rows: 0,
-            most: (HELD_BYTES / (self.width * SAMPLE_BYTES).max(1)).clamp(1, self.piece_h),
+            most: (HELD_BYTES / (self.width * self.samples.pixel_bytes()).max(1))
+                .clamp(1, self.piece_h),
         }
     }
 
     /// Read piece `s` of every image into `buffer` as `[image][pixel][channel]`, the
-    /// piece's pixels row by row; returns the piece.
-    pub fn read_piece(&self, s: usize, buffer: &mut Vec<f32>) -> Result<Piece> {
+    /// piece's pixels row by row; returns the piece. A file of codes needs `values`:
+    /// per image, what each code of each channel stands for (`256·channel + code`).
+    pub fn read_piece(
+        &self,
+        s: usize,
+        buffer: &mut Vec<f32>,
+        values: Option<&[Vec<f32>]>,
+    ) -> Result<Piece> {
         let (piece, _) = self.piece(s);
         let count = piece.pixels();
+        let tables = match (self.samples, values) {
+            (Samples::Codes, Some(v))
+                if v.len() == self.images && v.iter().all(|t| t.len() == 768) =>
+            {
+                Some(v)
+            }
+            (Samples::Codes, _) => {
+                return Err(Error::invalid(
+                    "a spill file of codes is read with each image's values of its codes",
+                ))
+            }
+            (Samples::Floats, _) => None,
+        };
         // One image's part at a time, so that the bytes read add one image's piece to
         // the floats, not a second piece.
-        let mut bytes = vec![0u8; count * SAMPLE_BYTES];
+        let mut bytes = vec![0u8; count * self.samples.pixel_bytes()];
         buffer.clear();
         buffer.reserve_exact(count * 3 * self.images);
         for j in 0..self.images {
             read_at(&self.file, &mut bytes, self.offset(s, j))?;
-            buffer.extend(
-                bytes
-                    .chunks_exact(4)
-                    .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
-            );
+            match tables {
+                None => buffer.extend(
+                    bytes
+                        .chunks_exact(4)
+                        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+                ),
+                Some(tables) => {
+                    let (r, rest) = tables[j].split_at(256);
+                    let (g, b) = rest.split_at(256);
+                    buffer.extend(
+                        bytes.chunks_exact(3).flat_map(|px| {
+                            [r[px[0] as usize], g[px[1] as usize], b[px[2] as usize]]
+                        }),
+                    );
+                }
+            }
         }
         Ok(piece)
     }
@@ -242,15 +302,33 @@ pub struct ImageRows<'a> {
 }
 
 impl ImageRows<'_> {
-    /// The next row (`3·width` values).
+    /// The next row (`3·width` values) of a file of floats.
     pub fn push(&mut self, row: &[f32]) -> Result<()> {
+        self.check(row.len(), Samples::Floats)?;
+        self.held.extend(row.iter().flat_map(|v| v.to_le_bytes()));
+        self.pushed()
+    }
+
+    /// The next row (`3·width` codes) of a file of codes.
+    pub fn push_codes(&mut self, row: &[u8]) -> Result<()> {
+        self.check(row.len(), Samples::Codes)?;
+        self.held.extend_from_slice(row);
+        self.pushed()
+    }
+
+    fn check(&self, samples: usize, kind: Samples) -> Result<()> {
         let spill = self.spill;
-        if row.len() != 3 * spill.width || self.rows == spill.height {
+        if samples != 3 * spill.width || self.rows == spill.height || kind != spill.samples {
             return Err(Error::invalid(
                 "a row that does not belong to the spill file",
             ));
         }
-        self.held.extend(row.iter().flat_map(|v| v.to_le_bytes()));
+        Ok(())
+    }
+
+    /// A row is held: write the held rows where they end a piece or fill the buffer.
+    fn pushed(&mut self) -> Result<()> {
+        let spill = self.spill;
         let y = self.rows;
         self.rows += 1;
         // Held rows stay in one piece of each tile column: the rows of a piece of one
@@ -268,21 +346,20 @@ impl ImageRows<'_> {
         if rows == 0 {
             return Ok(());
         }
-        let row_bytes = spill.width * SAMPLE_BYTES;
+        let sample = spill.samples.pixel_bytes();
+        let row_bytes = spill.width * sample;
         let mut part = Vec::new();
         for tx in 0..spill.tile_columns() {
             let (s, r) = spill.piece_at(tx, self.held_from);
             let x0 = tx * spill.tile_w;
             let width = spill.tile_w.min(spill.width - x0);
-            let at = spill.offset(s, self.image) + (r * width * SAMPLE_BYTES) as u64;
+            let at = spill.offset(s, self.image) + (r * width * sample) as u64;
             if width == spill.width {
                 write_at(&spill.file, &self.held, at)?;
             } else {
                 part.clear();
                 for held_row in self.held.chunks_exact(row_bytes) {
-                    part.extend_from_slice(
-                        &held_row[x0 * SAMPLE_BYTES..(x0 + width) * SAMPLE_BYTES],
-                    );
+                    part.extend_from_slice(&held_row[x0 * sample..(x0 + width) * sample]);
                 }
                 write_at(&spill.file, &part, at)?;
             }
@@ -358,62 +435,99 @@ mod tests {
     #[test]
     fn every_piece_reads_back_its_pixels_of_every_image() {
         let (w, h, n) = (37, 23, 3);
+        // Codes, and what each image's codes stand for: a different table an image and
+        // a channel, so that a code read with another image's table shows.
+        let codes: Vec<Vec<u8>> = (0..n)
+            .map(|j| {
+                (0..w * h * 3)
+                    .map(|v| ((v * 7 + j * 13) % 256) as u8)
+                    .collect()
+            })
+            .collect();
+        let tables: Vec<Vec<f32>> = (0..n)
+            .map(|j| (0..768).map(|i| (i * 3 + j * 1000) as f32).collect())
+            .collect();
+        let value = |j: usize, v: usize| tables[j][256 * (v % 3) + codes[j][v] as usize];
         let images: Vec<Vec<f32>> = (0..n)
-            .map(|j| (0..w * h * 3).map(|v| (v * 7 + j * 1000) as f32).collect())
+            .map(|j| (0..w * h * 3).map(|v| value(j, v)).collect())
             .collect();
         // Strips of whole rows (one, several, all), and tiles with narrower last
-        // columns, shorter last rows and pieces of one, some or all of a tile's rows.
-        for (tiles, rows) in [
-            (None, 1),
-            (None, 5),
-            (None, h),
-            (Some((16, 8)), 1),
-            (Some((16, 8)), 3),
-            (Some((16, 8)), 8),
-            (Some((64, 16)), 16),
-        ] {
-            let spill = Spill::create(
-                w,
-                h,
-                n,
-                rows * w.min(tiles.map_or(w, |t| t.0)) * 12 * n,
-                tiles,
-            )
-            .unwrap();
-            for (j, image) in images.iter().enumerate() {
-                spill.write_image(j, image).unwrap();
-            }
-            let mut seen = vec![0; w * h];
-            let mut buffer = Vec::new();
-            for s in 0..spill.pieces() {
-                let piece = spill.read_piece(s, &mut buffer).unwrap();
-                let (tw, th) = tiles.unwrap_or((w, rows));
-                assert!(piece.height <= rows, "{tiles:?} {rows}");
-                assert_eq!(
-                    piece.x0 / tw,
-                    (piece.x0 + piece.width - 1) / tw,
-                    "inside a tile"
-                );
-                assert_eq!(
-                    piece.y0 / th,
-                    (piece.y0 + piece.height - 1) / th,
-                    "inside a tile"
-                );
-                assert_eq!(buffer.len(), piece.pixels() * 3 * n);
-                for (j, image) in images.iter().enumerate() {
-                    for p in 0..piece.pixels() {
-                        let q = piece.band_pixel(p, w);
-                        let got = &buffer[(j * piece.pixels() + p) * 3..][..3];
-                        assert_eq!(got, &image[3 * q..3 * q + 3], "{tiles:?} {rows} piece {s}");
-                        seen[q] += 1;
+        // columns, shorter last rows and pieces of one, some or all of a tile's rows;
+        // floats and codes.
+        for samples in [Samples::Floats, Samples::Codes] {
+            for (tiles, rows) in [
+                (None, 1),
+                (None, 5),
+                (None, h),
+                (Some((16, 8)), 1),
+                (Some((16, 8)), 3),
+                (Some((16, 8)), 8),
+                (Some((64, 16)), 16),
+            ] {
+                let spill = Spill::create(
+                    w,
+                    h,
+                    n,
+                    rows * w.min(tiles.map_or(w, |t| t.0)) * 12 * n,
+                    tiles,
+                    samples,
+                )
+                .unwrap();
+                for j in 0..n {
+                    match samples {
+                        Samples::Floats => spill.write_image(j, &images[j]).unwrap(),
+                        Samples::Codes => {
+                            let mut writer = spill.image_rows(j);
+                            // A row of the other kind is refused.
+                            assert!(writer.push(&images[j][..3 * w]).is_err());
+                            for row in codes[j].chunks_exact(3 * w) {
+                                writer.push_codes(row).unwrap();
+                            }
+                            writer.finish().unwrap();
+                        }
                     }
                 }
+                let tables = (samples == Samples::Codes).then_some(tables.as_slice());
+                let mut seen = vec![0; w * h];
+                let mut buffer = Vec::new();
+                for s in 0..spill.pieces() {
+                    let piece = spill.read_piece(s, &mut buffer, tables).unwrap();
+                    let (tw, th) = tiles.unwrap_or((w, rows));
+                    assert!(piece.height <= rows, "{tiles:?} {rows}");
+                    assert_eq!(
+                        piece.x0 / tw,
+                        (piece.x0 + piece.width - 1) / tw,
+                        "inside a tile"
+                    );
+                    assert_eq!(
+                        piece.y0 / th,
+                        (piece.y0 + piece.height - 1) / th,
+                        "inside a tile"
+                    );
+                    assert_eq!(buffer.len(), piece.pixels() * 3 * n);
+                    for (j, image) in images.iter().enumerate() {
+                        for p in 0..piece.pixels() {
+                            let q = piece.band_pixel(p, w);
+                            let got = &buffer[(j * piece.pixels() + p) * 3..][..3];
+                            assert_eq!(
+                                got,
+                                &image[3 * q..3 * q + 3],
+                                "{samples:?} {tiles:?} {rows} piece {s}"
+                            );
+                            seen[q] += 1;
+                        }
+                    }
+                }
+                assert!(
+                    seen.iter().all(|&c| c == n),
+                    "every pixel once, {tiles:?} {rows}"
+                );
+                let bytes = if samples == Samples::Codes { 3 } else { 12 };
+                assert_eq!(spill.bytes(), (w * h * bytes * n) as u64);
+                if samples == Samples::Codes && spill.pieces() > 0 {
+                    assert!(spill.read_piece(0, &mut buffer, None).is_err());
+                }
             }
-            assert!(
-                seen.iter().all(|&c| c == n),
-                "every pixel once, {tiles:?} {rows}"
-            );
-            assert_eq!(spill.bytes(), (w * h * 12 * n) as u64);
         }
     }
 }

@@ -1,8 +1,9 @@
 //! JPEG through MozJPEG (libjpeg-turbo with a better encoder): photographs decoded row
 //! by row, and the web export's 8-bit planes encoded.
 //!
-//! A capture's photographs are read many times over: once for the subsample the basis is
-//! chosen on, once for the rows a fit (or one part of a sharded fit) solves. Decoding a
+//! A capture's photographs are read more than once: for the subsample the basis is
+//! chosen on and the rows a fit (or one part of a sharded fit) solves — one pass where
+//! the fit spills the photographs' codes, two otherwise — and by evaluations. Decoding a
 //! whole image for either holds `3·W·H` bytes a thread; libjpeg hands rows out one at a
 //! time and can stop anywhere, so a reader holds a few rows and never decodes below the
 //! last one it needs. Every JPEG photograph relit reads comes through here, so that the
