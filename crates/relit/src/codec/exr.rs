@@ -1602,8 +1602,9 @@ mod tests {
         // and the spill file of codes together — before it chooses anything; a fit held
         // whole reads the subsample first and the images after the choice, as values.
         // Both give the same maps bit for bit: narrow (scan lines for every K), wide with
-        // candidates whose files differ (scan lines at K = 4, tiles at 25: pieces of
-        // whole rows), a shard, and a data-driven basis fixed.
+        // candidates whose files differ (scan lines at K = 4 and 9, tiles at 16 and 25:
+        // the spill file in tiles, a choice of scan lines solved in strips read across
+        // them), shards, and a data-driven basis fixed.
         let dir = tempfile::tempdir().unwrap();
         let narrow_dir = dir.path().join("narrow");
         let wide_dir = dir.path().join("wide");
@@ -1622,10 +1623,13 @@ mod tests {
                 .map(|c| crate::basis::BasisChoice::parse(c).unwrap())
                 .collect::<Vec<_>>()
         };
+        let mut across = 0;
         for (capture, basis, list, shard) in [
             (&narrow, "auto", &["sh:9", "rbf:9", "hsh:16"][..], None),
             (&narrow, "rbf:9", &[][..], Some((1, 3))),
             (&wide, "auto", &["sh:4", "sg:25"][..], None),
+            (&wide, "auto", &["sh:4", "ptm:6", "sh:9"][..], None),
+            (&wide, "auto", &["sh:9", "sh:16"][..], Some((0, 2))),
         ] {
             let mut opts = crate::fit::FitOptions {
                 basis: crate::fit::BasisRequest::parse(basis).unwrap(),
@@ -1658,9 +1662,18 @@ mod tests {
                 "{what}: the same choice"
             );
             assert_eq!(meta.basis, whole.image.meta.basis, "{what}");
+            // Whether the pieces were read across the spill file's tiles: its tiles are
+            // the narrowest of any candidate's file, the chosen one's may differ.
+            let tiles_of = |k: usize| ExrStream::tiles(capture.width, k, Precision::F32, false);
+            let spilled = opts.candidates.iter().filter_map(|c| tiles_of(c.k)).min();
+            across += usize::from(!list.is_empty() && tiles_of(back.maps.k) != spilled);
             assert!(bits(&back.maps) == bits(&whole.image.maps), "{what}");
             assert_eq!(report.psnr_srgb8, whole.report.psnr_srgb8, "{what}");
         }
+        assert!(
+            across > 0,
+            "a choice whose file's tiles are not the spill file's"
+        );
     }
 
     #[test]

@@ -533,26 +533,22 @@ fn read_subsample(
 }
 
 /// The tiles of the spill file of a fit streamed to `sink` that reads its images before
-/// it chooses, if it can: pieces must stay inside the output's tiles whichever K is
-/// chosen. Where the output's tiles differ with K (scan lines for a small K, tiles for
-/// a large one), pieces of whole rows suit both, if one row of every image fits a piece
-/// (otherwise the images are read after the choice, in the chosen output's tiles).
+/// it chooses its K: the narrowest of the output's tiles for any K the fit may choose
+/// (`None`, strips of whole rows, where every K's output is in scan lines). The pieces
+/// the chosen output takes are then read across the spill file's tiles
+/// ([`spill::Spill::pieces_for`]): its own tiles, or whole strips for scan lines, or
+/// tiles twice as wide; the tiles' widths are powers of two.
 fn one_pass_tiles(
     sink: &dyn PieceSink,
     width: usize,
     height: usize,
     n: usize,
     options: &FitOptions,
-) -> Option<Option<(usize, usize)>> {
-    let tiles: Vec<_> = possible_k(&options.basis, options, n)
+) -> Option<(usize, usize)> {
+    possible_k(&options.basis, options, n)
         .into_iter()
-        .map(|k| sink.tiles(width, height, k))
-        .collect();
-    if tiles.windows(2).all(|t| t[0] == t[1]) {
-        return Some(tiles[0]);
-    }
-    let row_bytes = width * 3 * 4 * n;
-    (row_bytes <= piece_bytes(options, n)).then_some(None)
+        .filter_map(|k| sink.tiles(width, height, k))
+        .min()
 }
 
 /// The coefficients per channel a fit of `request` may end with: the candidates' of
@@ -1246,7 +1242,7 @@ fn fit_into(
     let one_pass = if early && codes {
         stream
             .as_ref()
-            .and_then(|sink| one_pass_tiles(&**sink, w, rows.len(), dirs.len(), options))
+            .map(|sink| one_pass_tiles(&**sink, w, rows.len(), dirs.len(), options))
     } else {
         None
     };
@@ -1483,9 +1479,10 @@ fn fit_into(
         let indices: Vec<usize> = (0..design.n).collect();
         let mut buffer = Vec::new();
         let values = code_tables(capture, spill, space);
-        progress.begin("fitting pieces", spill.pieces() as u64);
-        for s in 0..spill.pieces() {
-            let piece = spill.read_piece(s, &mut buffer, values.as_deref())?;
+        let pieces = spill.pieces_for(stream.tiles(w, rows.len(), design.k));
+        progress.begin("fitting pieces", pieces.len() as u64);
+        for &piece in &pieces {
+            spill.read_region(piece, &mut buffer, values.as_deref())?;
             let images: Vec<&[f32]> = buffer.chunks_exact(3 * piece.pixels()).collect();
             let mut maps = CoefficientMaps::zeros(piece.width, piece.height, design.k);
             accumulate(&mut maps, &design, &indices, &images);
@@ -1506,8 +1503,14 @@ fn fit_into(
             .is_none()
             .then(|| CoefficientMaps::zeros(w, rows.len(), design.k));
         if let Some(spill) = spill.as_ref() {
+            // The pieces of the output's tiles (a fit held whole: the spill file's own).
+            let tiles = match stream.as_ref() {
+                Some(sink) => sink.tiles(w, rows.len(), design.k),
+                None => None,
+            };
             solve_per_pixel(
                 spill,
+                &spill.pieces_for(tiles),
                 code_tables(capture, spill, space).as_deref(),
                 &design,
                 lambda,
@@ -1863,6 +1866,7 @@ type SolvedSink<'a> = dyn FnMut(Piece, &[Vec<f32>]) -> Result<()> + 'a;
 /// go to `emit` (the piece, then runs of pixel-major coefficients).
 fn solve_per_pixel(
     spill: &spill::Spill,
+    pieces: &[Piece],
     values: Option<&[Vec<f32>]>,
     design: &Design,
     lambda: f64,
@@ -1887,10 +1891,10 @@ fn solve_per_pixel(
     let a32: Vec<f32> = design.a.iter().map(|&v| v as f32).collect();
     let lower: Vec<usize> = pairs.iter().map(|&(r, c)| c * k + r).collect();
     let packed_penalty: Vec<f64> = lower.iter().map(|&x| design.penalty[x]).collect();
-    progress.begin("fitting pieces", spill.pieces() as u64);
+    progress.begin("fitting pieces", pieces.len() as u64);
     let mut buffer = Vec::new();
-    for s in 0..spill.pieces() {
-        let piece = spill.read_piece(s, &mut buffer, values)?;
+    for &piece in pieces {
+        spill.read_region(piece, &mut buffer, values)?;
         let count = piece.pixels();
         let samples = &buffer;
         let results: Vec<Vec<f32>> = (0..count.div_ceil(CHUNK))

@@ -70,6 +70,10 @@ pub struct Spill {
     tile_h: usize,
     piece_h: usize,
     samples: Samples,
+    /// The budget of a piece of all images, in floats.
+    piece_bytes: usize,
+    /// The tiles asked for (`None`: strips of whole rows).
+    tiles: Option<(usize, usize)>,
 }
 
 /// What the spill file holds of each sample.
@@ -129,7 +133,116 @@ impl Spill {
             tile_h,
             piece_h,
             samples,
+            piece_bytes,
+            tiles,
         })
+    }
+
+    /// The pieces of an output whose tiles are `tiles` (`None`: scan lines, read in
+    /// strips of whole rows), in the output's order — tile rows from the top, tiles from
+    /// the left, each tile's pieces from its top — each at most the file's piece budget
+    /// and at least one row of a tile: the file's own pieces where its tiles are those,
+    /// pieces read across its tiles ([`Spill::read_region`]) otherwise. A fit that
+    /// spills its images before it knows its output's tiles solves in them so.
+    pub fn pieces_for(&self, tiles: Option<(usize, usize)>) -> Vec<Piece> {
+        if tiles == self.tiles || self.width == 0 || self.height == 0 {
+            return (0..self.pieces()).map(|s| self.piece(s).0).collect();
+        }
+        let (tile_w, tile_h) = match tiles {
+            Some((tw, th)) if tw > 0 && th > 0 => (tw.min(self.width), th),
+            _ => (self.width, self.height),
+        };
+        let row_bytes = tile_w * Samples::Floats.pixel_bytes() * self.images;
+        let piece_h = (self.piece_bytes / row_bytes.max(1)).clamp(1, tile_h.min(self.height));
+        let mut pieces = Vec::new();
+        for ty in (0..self.height).step_by(tile_h) {
+            let rows = tile_h.min(self.height - ty);
+            for x0 in (0..self.width).step_by(tile_w) {
+                let width = tile_w.min(self.width - x0);
+                for y0 in (ty..ty + rows).step_by(piece_h) {
+                    pieces.push(Piece {
+                        x0,
+                        y0,
+                        width,
+                        height: piece_h.min(ty + rows - y0),
+                    });
+                }
+            }
+        }
+        pieces
+    }
+
+    /// Read the rectangle `region` of every image into `buffer` as [`Spill::read_piece`]
+    /// reads a piece, from whichever of the file's pieces hold it: one read per image
+    /// where it is one of them, one per image, tile and piece it crosses otherwise.
+    pub fn read_region(
+        &self,
+        region: Piece,
+        buffer: &mut Vec<f32>,
+        values: Option<&[Vec<f32>]>,
+    ) -> Result<()> {
+        if region.pixels() == 0
+            || region.x0 + region.width > self.width
+            || region.y0 + region.height > self.height
+        {
+            return Err(Error::invalid("a region outside the spill file"));
+        }
+        let (s, r) = self.piece_at(region.x0 / self.tile_w, region.y0);
+        if r == 0 && self.piece(s).0 == region {
+            return self.read_piece(s, buffer, values).map(|_| ());
+        }
+        let tables = self.tables(values)?;
+        let count = region.pixels();
+        let sample = self.samples.pixel_bytes();
+        buffer.clear();
+        buffer.resize(count * 3 * self.images, 0.0);
+        let mut bytes = Vec::new();
+        let first_column = region.x0 / self.tile_w;
+        let last_column = (region.x0 + region.width - 1) / self.tile_w;
+        for j in 0..self.images {
+            let image = &mut buffer[j * count * 3..(j + 1) * count * 3];
+            for tx in first_column..=last_column {
+                let tile_x0 = tx * self.tile_w;
+                let tile_w = self.tile_w.min(self.width - tile_x0);
+                let from = region.x0.max(tile_x0);
+                let to = (region.x0 + region.width).min(tile_x0 + tile_w);
+                let mut y = region.y0;
+                while y < region.y0 + region.height {
+                    // The rows of this piece of the tile column: contiguous in the file.
+                    let (s, r) = self.piece_at(tx, y);
+                    let (piece, _) = self.piece(s);
+                    let run = (piece.y0 + piece.height).min(region.y0 + region.height) - y;
+                    bytes.resize(run * tile_w * sample, 0);
+                    let at = self.offset(s, j) + (r * tile_w * sample) as u64;
+                    read_at(&self.file, &mut bytes, at)?;
+                    for i in 0..run {
+                        let row = (y + i - region.y0) * region.width;
+                        for x in from..to {
+                            let src = &bytes[((i * tile_w) + x - tile_x0) * sample..][..sample];
+                            let dst = &mut image[3 * (row + x - region.x0)..][..3];
+                            decode_sample(src, dst, tables.map(|t| t[j].as_slice()));
+                        }
+                    }
+                    y += run;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The per-image tables of a file of codes, checked; `None` for a file of floats.
+    fn tables<'v>(&self, values: Option<&'v [Vec<f32>]>) -> Result<Option<&'v [Vec<f32>]>> {
+        match (self.samples, values) {
+            (Samples::Codes, Some(v))
+                if v.len() == self.images && v.iter().all(|t| t.len() == 768) =>
+            {
+                Ok(Some(v))
+            }
+            (Samples::Codes, _) => Err(Error::invalid(
+                "a spill file of codes is read with each image's values of its codes",
+            )),
+            (Samples::Floats, _) => Ok(None),
+        }
     }
 
     /// What the file keeps of each sample.
@@ -242,19 +355,7 @@ impl Spill {
     ) -> Result<Piece> {
         let (piece, _) = self.piece(s);
         let count = piece.pixels();
-        let tables = match (self.samples, values) {
-            (Samples::Codes, Some(v))
-                if v.len() == self.images && v.iter().all(|t| t.len() == 768) =>
-            {
-                Some(v)
-            }
-            (Samples::Codes, _) => {
-                return Err(Error::invalid(
-                    "a spill file of codes is read with each image's values of its codes",
-                ))
-            }
-            (Samples::Floats, _) => None,
-        };
+        let tables = self.tables(values)?;
         // One image's part at a time, so that the bytes read add one image's piece to
         // the floats, not a second piece.
         let mut bytes = vec![0u8; count * self.samples.pixel_bytes()];
@@ -280,6 +381,22 @@ impl Spill {
             }
         }
         Ok(piece)
+    }
+}
+
+/// One pixel's sample of one image as the file stores it (`src`), as its three values.
+fn decode_sample(src: &[u8], dst: &mut [f32], table: Option<&[f32]>) {
+    match table {
+        None => {
+            for (d, b) in dst.iter_mut().zip(src.chunks_exact(4)) {
+                *d = f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+            }
+        }
+        Some(t) => {
+            for (c, (d, &code)) in dst.iter_mut().zip(src).enumerate() {
+                *d = t[256 * c + code as usize];
+            }
+        }
     }
 }
 
@@ -529,5 +646,84 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn pieces_of_other_tiles_read_across_the_files_pieces() {
+        // A file spilled in one layout, solved in another's pieces: strips of whole rows
+        // from tiles, tiles twice as wide, and tiles from strips; floats and codes.
+        let (w, h, n) = (70, 21, 3);
+        let tables: Vec<Vec<f32>> = (0..n)
+            .map(|j| (0..768).map(|i| (i * 5 + j * 7000) as f32).collect())
+            .collect();
+        let codes: Vec<Vec<u8>> = (0..n)
+            .map(|j| (0..w * h * 3).map(|v| ((v * 11 + j) % 256) as u8).collect())
+            .collect();
+        let value = |j: usize, v: usize| tables[j][256 * (v % 3) + codes[j][v] as usize];
+        for samples in [Samples::Floats, Samples::Codes] {
+            for (spilled, solved, budget_rows) in [
+                (Some((16, 8)), None, 2),
+                (Some((16, 8)), Some((32, 8)), 3),
+                (None, Some((16, 8)), 4),
+                (Some((16, 8)), Some((16, 8)), 5),
+            ] {
+                let piece_bytes = budget_rows * 16 * 12 * n;
+                let spill = Spill::create(w, h, n, piece_bytes, spilled, samples).unwrap();
+                for j in 0..n {
+                    let mut writer = spill.image_rows(j);
+                    for y in 0..h {
+                        match samples {
+                            Samples::Floats => {
+                                let row: Vec<f32> =
+                                    (3 * w * y..3 * w * (y + 1)).map(|v| value(j, v)).collect();
+                                writer.push(&row).unwrap();
+                            }
+                            Samples::Codes => writer
+                                .push_codes(&codes[j][3 * w * y..3 * w * (y + 1)])
+                                .unwrap(),
+                        }
+                    }
+                    writer.finish().unwrap();
+                }
+                let tables = (samples == Samples::Codes).then_some(tables.as_slice());
+                let pieces = spill.pieces_for(solved);
+                let what = format!("{samples:?} {spilled:?} → {solved:?}");
+                let mut seen = vec![0; w * h];
+                let mut buffer = Vec::new();
+                for piece in &pieces {
+                    let (tw, th) = solved.unwrap_or((w, h));
+                    assert_eq!(piece.x0 % tw, 0, "{what}: a piece starts a tile");
+                    assert_eq!(
+                        piece.width,
+                        tw.min(w - piece.x0),
+                        "{what}: the tile's width"
+                    );
+                    assert_eq!(piece.y0 / th, (piece.y0 + piece.height - 1) / th, "{what}");
+                    spill.read_region(*piece, &mut buffer, tables).unwrap();
+                    for j in 0..n {
+                        for p in 0..piece.pixels() {
+                            let q = piece.band_pixel(p, w);
+                            for c in 0..3 {
+                                let got = buffer[(j * piece.pixels() + p) * 3 + c];
+                                assert_eq!(got, value(j, 3 * q + c), "{what} {piece:?}");
+                            }
+                        }
+                    }
+                    (0..piece.pixels()).for_each(|p| seen[piece.band_pixel(p, w)] += 1);
+                }
+                assert!(seen.iter().all(|&c| c == 1), "{what}: every pixel once");
+                if spilled == solved {
+                    assert_eq!(pieces.len(), spill.pieces(), "{what}: the file's own");
+                }
+            }
+        }
+        let spill = Spill::create(8, 4, 1, 1000, None, Samples::Floats).unwrap();
+        let outside = Piece {
+            x0: 4,
+            y0: 0,
+            width: 5,
+            height: 1,
+        };
+        assert!(spill.read_region(outside, &mut Vec::new(), None).is_err());
     }
 }
