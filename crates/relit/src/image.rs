@@ -226,7 +226,7 @@ fn jpeg_parts(
                 return Err(missing_parts(path, w, h, &rows));
             }
             width.set(w);
-            Ok(rows.end.max(last.div_ceil(w.max(1))))
+            Ok(rows_wanted(&rows, &order, w))
         },
         |y, codes| {
             let w = width.get();
@@ -253,6 +253,25 @@ fn jpeg_parts(
         jpeg::Streamed::Done { width, height } => Some((width, height, picked)),
         jpeg::Streamed::Unsupported => None,
     })
+}
+
+/// The rows of an image `width` pixels wide that hold `rows` and the pixels `order`
+/// (sorted, with their places): from the first of either to the last.
+fn rows_wanted(
+    rows: &std::ops::Range<usize>,
+    order: &[(usize, usize)],
+    width: usize,
+) -> std::ops::Range<usize> {
+    let w = width.max(1);
+    let pixel_rows = match (order.first(), order.last()) {
+        (Some(&(first, _)), Some(&(last, _))) => first / w..last / w + 1,
+        _ => 0..0,
+    };
+    match (rows.is_empty(), pixel_rows.is_empty()) {
+        (_, true) => rows.clone(),
+        (true, false) => pixel_rows,
+        (false, false) => rows.start.min(pixel_rows.start)..rows.end.max(pixel_rows.end),
+    }
 }
 
 /// Whether `path` is a JPEG: its samples are 8-bit codes, which [`read_code_parts`]
@@ -294,7 +313,7 @@ pub fn read_code_parts(
                 return Err(missing_parts(path, w, h, &rows));
             }
             width.set(w);
-            Ok(rows.end.max(last.div_ceil(w.max(1))))
+            Ok(rows_wanted(&rows, &order, w))
         },
         |y, codes| {
             let w = width.get();
@@ -743,6 +762,46 @@ mod tests {
         for (l, s) in linear.data.iter().zip(&srgb.data) {
             assert_eq!(color::srgb8_table()[(l * 255.0).round() as usize], *s);
         }
+    }
+
+    #[test]
+    fn jpeg_rows_below_skipped_rows_are_those_of_the_whole_image() {
+        // Rows above a band are skipped (entropy-decoded only): the band's rows are
+        // still bit for bit those of the whole image, at any start — inside or at the
+        // edge of a row of blocks, with chroma at half and at full resolution (libjpeg
+        // upsamples half-resolution chroma from the rows around, which skipping must
+        // keep).
+        use jpeg_encoder::{ColorType, Encoder, SamplingFactor};
+        let dir = tempfile::tempdir().unwrap();
+        let (w, h) = (53, 70);
+        let rgb: Vec<u8> = textured(w, h).to_srgb8();
+        for sampling in [SamplingFactor::R_4_2_0, SamplingFactor::R_4_4_4] {
+            let path = dir.path().join(format!("{sampling:?}.jpg"));
+            let mut encoder = Encoder::new_file(&path, 90).unwrap();
+            encoder.set_sampling_factor(sampling);
+            encoder
+                .encode(&rgb, w as u16, h as u16, ColorType::Rgb)
+                .unwrap();
+            let whole = load_linear(&path, None).unwrap();
+            for start in [1, 7, 8, 9, 15, 16, 17, 31, 37, 69] {
+                let (_, _, band, _) = load_linear_parts(&path, None, start..h, &[]).unwrap();
+                let want = &whole.data[3 * w * start..];
+                assert!(band == want, "{sampling:?} from row {start}");
+                // A pixel below the band's first row does not move its start.
+                let (_, _, band, picked) =
+                    load_linear_parts(&path, None, start..h.min(start + 5), &[w * (h - 1)])
+                        .unwrap();
+                assert_eq!(band, whole.data[3 * w * start..3 * w * h.min(start + 5)]);
+                assert_eq!(picked, whole.data[3 * w * (h - 1)..3 * w * (h - 1) + 3]);
+            }
+        }
+        // A file cut short is an error from a skipped start too.
+        let path = dir.path().join("cut.jpg");
+        save(&path, &textured(64, 256), 0.0).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        std::fs::write(&path, &bytes[..bytes.len() * 3 / 5]).unwrap();
+        let err = load_linear_parts(&path, None, 100..256, &[]).unwrap_err();
+        assert_eq!(err.kind(), ErrorKind::Image, "{err}");
     }
 
     #[test]

@@ -664,13 +664,39 @@ fn code_samples(codes: &[u8], values: &[f32]) -> Vec<f32> {
         .collect()
 }
 
-/// Each image's values of its codes in `space`, where `spill` holds codes.
-fn code_tables(capture: &Capture, spill: &spill::Spill, space: MapSpace) -> Option<Vec<Vec<f32>>> {
-    (spill.samples() == spill::Samples::Codes).then(|| {
-        (0..capture.len())
-            .map(|j| capture.code_values(j, target_encoding(space)))
-            .collect()
-    })
+/// The spill file as a solve reads it: in the pieces of the output's tiles, each
+/// piece's samples as values in the maps' space.
+struct SpillReader<'a> {
+    spill: &'a spill::Spill,
+    pieces: Vec<Piece>,
+    /// Each image's values of its codes, where the file holds codes.
+    values: Option<Vec<Vec<f32>>>,
+}
+
+impl<'a> SpillReader<'a> {
+    fn new(
+        capture: &Capture,
+        spill: &'a spill::Spill,
+        tiles: Option<(usize, usize)>,
+        space: MapSpace,
+    ) -> SpillReader<'a> {
+        let values = (spill.samples() == spill::Samples::Codes).then(|| {
+            (0..capture.len())
+                .map(|j| capture.code_values(j, target_encoding(space)))
+                .collect()
+        });
+        SpillReader {
+            spill,
+            pieces: spill.pieces_for(tiles),
+            values,
+        }
+    }
+
+    /// `piece` of every image, as [`spill::Spill::read_piece`] reads one.
+    fn read(&self, piece: Piece, buffer: &mut Vec<f32>) -> Result<()> {
+        self.spill
+            .read_region(piece, buffer, self.values.as_deref())
+    }
 }
 
 /// Pixels of the subsample the basis choice validates its finalists on: enough for
@@ -1478,11 +1504,10 @@ fn fit_into(
         );
         let indices: Vec<usize> = (0..design.n).collect();
         let mut buffer = Vec::new();
-        let values = code_tables(capture, spill, space);
-        let pieces = spill.pieces_for(stream.tiles(w, rows.len(), design.k));
-        progress.begin("fitting pieces", pieces.len() as u64);
-        for &piece in &pieces {
-            spill.read_region(piece, &mut buffer, values.as_deref())?;
+        let reader = SpillReader::new(capture, spill, stream.tiles(w, rows.len(), design.k), space);
+        progress.begin("fitting pieces", reader.pieces.len() as u64);
+        for &piece in &reader.pieces {
+            reader.read(piece, &mut buffer)?;
             let images: Vec<&[f32]> = buffer.chunks_exact(3 * piece.pixels()).collect();
             let mut maps = CoefficientMaps::zeros(piece.width, piece.height, design.k);
             accumulate(&mut maps, &design, &indices, &images);
@@ -1509,9 +1534,7 @@ fn fit_into(
                 None => None,
             };
             solve_per_pixel(
-                spill,
-                &spill.pieces_for(tiles),
-                code_tables(capture, spill, space).as_deref(),
+                &SpillReader::new(capture, spill, tiles, space),
                 &design,
                 lambda,
                 options.reweights,
@@ -1865,9 +1888,7 @@ type SolvedSink<'a> = dyn FnMut(Piece, &[Vec<f32>]) -> Result<()> + 'a;
 /// Per-pixel weighted fit of every piece in the spill file; each piece's coefficients
 /// go to `emit` (the piece, then runs of pixel-major coefficients).
 fn solve_per_pixel(
-    spill: &spill::Spill,
-    pieces: &[Piece],
-    values: Option<&[Vec<f32>]>,
+    reader: &SpillReader,
     design: &Design,
     lambda: f64,
     reweights: usize,
@@ -1891,10 +1912,10 @@ fn solve_per_pixel(
     let a32: Vec<f32> = design.a.iter().map(|&v| v as f32).collect();
     let lower: Vec<usize> = pairs.iter().map(|&(r, c)| c * k + r).collect();
     let packed_penalty: Vec<f64> = lower.iter().map(|&x| design.penalty[x]).collect();
-    progress.begin("fitting pieces", pieces.len() as u64);
+    progress.begin("fitting pieces", reader.pieces.len() as u64);
     let mut buffer = Vec::new();
-    for &piece in pieces {
-        spill.read_region(piece, &mut buffer, values)?;
+    for &piece in &reader.pieces {
+        reader.read(piece, &mut buffer)?;
         let count = piece.pixels();
         let samples = &buffer;
         let results: Vec<Vec<f32>> = (0..count.div_ceil(CHUNK))

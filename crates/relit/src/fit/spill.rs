@@ -669,7 +669,7 @@ mod tests {
             ] {
                 let piece_bytes = budget_rows * 16 * 12 * n;
                 let spill = Spill::create(w, h, n, piece_bytes, spilled, samples).unwrap();
-                for j in 0..n {
+                for (j, image_codes) in codes.iter().enumerate() {
                     let mut writer = spill.image_rows(j);
                     for y in 0..h {
                         match samples {
@@ -679,7 +679,7 @@ mod tests {
                                 writer.push(&row).unwrap();
                             }
                             Samples::Codes => writer
-                                .push_codes(&codes[j][3 * w * y..3 * w * (y + 1)])
+                                .push_codes(&image_codes[3 * w * y..3 * w * (y + 1)])
                                 .unwrap(),
                         }
                     }

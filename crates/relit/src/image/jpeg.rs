@@ -12,7 +12,7 @@
 use crate::{Error, ErrorKind, Result};
 use mozjpeg_sys as ffi;
 use std::fs::File;
-use std::io::{BufRead, BufReader};
+use std::io::BufReader;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::Path;
 
@@ -33,13 +33,16 @@ pub(super) enum Streamed {
     Unsupported,
 }
 
-/// Decode the JPEG at `path` from the top, handing each 8-bit RGB row (`3·width` bytes)
-/// to `row` with its index. `rows_to_read(width, height)` says, once the header is read,
-/// how many rows from the top are wanted: decoding stops there, so nothing below them is
-/// decoded. A file that ends early is an error, not grey rows (libjpeg's default).
+/// Decode the JPEG at `path`, handing each 8-bit RGB row (`3·width` bytes) of the rows
+/// wanted to `row` with its index. `rows_to_read(width, height)` says, once the header
+/// is read, which rows are wanted: decoding stops after the last, so nothing below them
+/// is decoded, and rows above the first are skipped — libjpeg reads their entropy-coded
+/// data (a JPEG without restart markers must be read from its start) but does no
+/// inverse DCT, upsampling or colour conversion for them. A file that ends early is an
+/// error, not grey rows (libjpeg's default).
 pub(super) fn stream_rows(
     path: &Path,
-    rows_to_read: impl FnOnce(usize, usize) -> Result<usize>,
+    rows_to_read: impl FnOnce(usize, usize) -> Result<std::ops::Range<usize>>,
     mut row: impl FnMut(usize, &[u8]),
 ) -> Result<Streamed> {
     let file = File::open(path).map_err(|e| Error::io(path, "open image", e))?;
@@ -62,43 +65,203 @@ pub(super) fn stream_rows(
     }
 }
 
-fn decode<R: BufRead>(
-    reader: R,
-    rows_to_read: impl FnOnce(usize, usize) -> Result<usize>,
+fn decode(
+    reader: BufReader<File>,
+    rows_to_read: impl FnOnce(usize, usize) -> Result<std::ops::Range<usize>>,
     row: &mut impl FnMut(usize, &[u8]),
 ) -> Result<Streamed> {
-    let decompress = mozjpeg::Decompress::builder()
-        .with_err(error_manager())
-        .from_reader(reader)
-        .map_err(|e| Error::new(ErrorKind::Image, e.to_string()))?;
+    let mut decoder = Decoder::new(reader);
+    let d = &mut *decoder.cinfo;
+    // SAFETY: the decompressor was created with a source and an error manager that
+    // outlive it (both are in `decoder`, which is neither moved nor dropped before it).
+    unsafe { ffi::jpeg_read_header(d, 1) };
     if matches!(
-        decompress.color_space(),
+        d.jpeg_color_space,
         ffi::J_COLOR_SPACE::JCS_CMYK | ffi::J_COLOR_SPACE::JCS_YCCK
     ) {
         return Ok(Streamed::Unsupported);
     }
-    let (width, height) = (decompress.width(), decompress.height());
-    let wanted = rows_to_read(width, height)?.min(height);
-    let mut started = decompress
-        .rgb()
-        .map_err(|e| Error::new(ErrorKind::Image, e.to_string()))?;
+    let (width, height) = (d.image_width as usize, d.image_height as usize);
+    let wanted = rows_to_read(width, height)?;
+    let (first, end) = (wanted.start.min(height), wanted.end.min(height));
+    if first >= end {
+        return Ok(Streamed::Done { width, height });
+    }
+    d.out_color_space = ffi::J_COLOR_SPACE::JCS_RGB;
+    // SAFETY: as above; the header has been read.
+    unsafe { ffi::jpeg_start_decompress(d) };
+    if d.output_components != 3 || d.output_width as usize != width {
+        return Err(Error::new(
+            ErrorKind::Image,
+            "libjpeg did not decode the JPEG to RGB",
+        ));
+    }
+    // The rows above the first wanted: entropy-decoded only (libjpeg-turbo decodes the
+    // rows it cannot skip, at the edges of a row of blocks, as it would anyway).
+    let mut y = 0;
+    while y < first {
+        // SAFETY: decompression has started; `first - y` rows remain above `first`.
+        let skipped = unsafe { ffi::jpeg_skip_scanlines(d, (first - y) as ffi::JDIMENSION) };
+        if skipped == 0 {
+            return Err(Error::new(
+                ErrorKind::Image,
+                format!("cannot skip to row {first}"),
+            ));
+        }
+        y += skipped as usize;
+    }
     // A few rows a call: libjpeg decodes a whole row of 8×8 or 16×16 blocks at a time
     // and keeps it, so a small buffer costs no extra decoding.
     const ROWS_A_CALL: usize = 16;
-    let mut buffer = vec![0u8; 3 * width * ROWS_A_CALL.min(wanted.max(1))];
-    let mut y = 0;
-    while y < wanted {
-        let count = ROWS_A_CALL.min(wanted - y);
-        let lines = started
-            .read_scanlines_into(&mut buffer[..3 * width * count])
-            .map_err(|e| Error::new(ErrorKind::Image, format!("rows {y}…: {e}")))?;
-        for (i, line) in lines.chunks_exact(3 * width).enumerate() {
+    let stride = 3 * width;
+    let mut buffer = vec![0u8; stride * ROWS_A_CALL.min(end - first)];
+    while y < end {
+        let count = ROWS_A_CALL.min(end - y);
+        let mut pointers: Vec<*mut u8> = buffer
+            .chunks_exact_mut(stride)
+            .take(count)
+            .map(|r| r.as_mut_ptr())
+            .collect();
+        // SAFETY: `count` pointers to rows of `3·width` bytes, each the decoder's
+        // output width × 3 components; decompression has started and `y < height`.
+        let got =
+            unsafe { ffi::jpeg_read_scanlines(d, pointers.as_mut_ptr(), count as ffi::JDIMENSION) }
+                as usize;
+        if got == 0 {
+            return Err(Error::new(
+                ErrorKind::Image,
+                format!("no rows from row {y}"),
+            ));
+        }
+        for (i, line) in buffer.chunks_exact(stride).take(got).enumerate() {
             row(y + i, line);
         }
-        y += count;
+        y += got;
     }
-    // Rows below `wanted` are never decoded: dropping the decoder aborts it.
+    // Rows below `end` are never decoded: the decoder is destroyed unfinished.
     Ok(Streamed::Done { width, height })
+}
+
+/// A libjpeg decompressor reading a file through its own buffer, with the error manager
+/// of [`error_manager`]; destroyed when dropped (also while a libjpeg error unwinds).
+/// Each part is boxed: libjpeg keeps pointers to the error and source managers.
+struct Decoder {
+    cinfo: Box<ffi::jpeg_decompress_struct>,
+    _errors: Box<ffi::jpeg_error_mgr>,
+    _source: Box<Source>,
+}
+
+impl Decoder {
+    fn new(reader: BufReader<File>) -> Decoder {
+        let mut errors = Box::new(error_manager());
+        let mut source = Box::new(Source {
+            manager: ffi::jpeg_source_mgr {
+                next_input_byte: std::ptr::null(),
+                bytes_in_buffer: 0,
+                init_source: Some(Source::nothing),
+                fill_input_buffer: Some(Source::fill),
+                skip_input_data: Some(Source::skip),
+                resync_to_restart: Some(ffi::jpeg_resync_to_restart),
+                term_source: Some(Source::nothing),
+            },
+            reader,
+            buffer: vec![0; 1 << 16].into_boxed_slice(),
+        });
+        // SAFETY: an all-zero decompress struct is what jpeg_create_decompress expects
+        // (C callers clear it too); its error manager is set before it is created.
+        let mut cinfo: Box<ffi::jpeg_decompress_struct> = Box::new(unsafe { std::mem::zeroed() });
+        cinfo.common.err = &mut *errors;
+        // SAFETY: `cinfo` is cleared and has its error manager.
+        unsafe { ffi::jpeg_create_decompress(&mut *cinfo) };
+        cinfo.src = &mut source.manager;
+        Decoder {
+            cinfo,
+            _errors: errors,
+            _source: source,
+        }
+    }
+}
+
+impl Drop for Decoder {
+    fn drop(&mut self) {
+        // SAFETY: created in `new`; destroying also aborts an unfinished decompression.
+        unsafe { ffi::jpeg_destroy_decompress(&mut self.cinfo) };
+    }
+}
+
+/// libjpeg's source manager over a file: `manager` first, so that libjpeg's pointer to
+/// it is a pointer to the whole.
+#[repr(C)]
+struct Source {
+    manager: ffi::jpeg_source_mgr,
+    reader: BufReader<File>,
+    buffer: Box<[u8]>,
+}
+
+impl Source {
+    /// # Safety
+    /// `cinfo.src` must be a [`Source`]'s manager.
+    unsafe fn of(cinfo: &mut ffi::jpeg_decompress_struct) -> &mut Source {
+        // SAFETY: the caller's promise.
+        unsafe { &mut *(cinfo.src as *mut Source) }
+    }
+
+    extern "C-unwind" fn nothing(_: &mut ffi::jpeg_decompress_struct) {}
+
+    /// The next bytes of the file. At its end, libjpeg's end-of-file warning (which
+    /// [`error_manager`] makes fatal) and, were it to return, an end-of-image marker, as
+    /// libjpeg's own sources do.
+    extern "C-unwind" fn fill(cinfo: &mut ffi::jpeg_decompress_struct) -> ffi::boolean {
+        use std::io::Read;
+        // SAFETY: every decompressor made by `Decoder::new` has a `Source`.
+        let source = unsafe { Source::of(cinfo) };
+        let mut read = loop {
+            match source.reader.read(&mut source.buffer) {
+                Ok(n) => break n,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                Err(e) => std::panic::resume_unwind(Box::new(LibjpegFailure(format!(
+                    "cannot read the file: {e}"
+                )))),
+            }
+        };
+        let at_end = read == 0;
+        if at_end {
+            source.buffer[..2].copy_from_slice(&[0xFF, 0xD9]);
+            read = 2;
+        }
+        source.manager.next_input_byte = source.buffer.as_ptr();
+        source.manager.bytes_in_buffer = read;
+        if at_end {
+            // SAFETY: `err` is the manager `Decoder::new` set.
+            if let Some(errors) = unsafe { cinfo.common.err.as_mut() } {
+                errors.msg_code = ffi::JWRN_JPEG_EOF as std::os::raw::c_int;
+                if let Some(emit) = errors.emit_message {
+                    // SAFETY: libjpeg's own call, with its struct.
+                    unsafe { emit(&mut cinfo.common, -1) };
+                }
+            }
+        }
+        1
+    }
+
+    extern "C-unwind" fn skip(
+        cinfo: &mut ffi::jpeg_decompress_struct,
+        bytes: std::os::raw::c_long,
+    ) {
+        let mut left = usize::try_from(bytes).unwrap_or(0);
+        while left > 0 {
+            // SAFETY: as in `fill`.
+            let source = unsafe { Source::of(cinfo) };
+            let here = source.manager.bytes_in_buffer.min(left);
+            // SAFETY: `here` bytes remain in the buffer.
+            source.manager.next_input_byte = unsafe { source.manager.next_input_byte.add(here) };
+            source.manager.bytes_in_buffer -= here;
+            left -= here;
+            if left > 0 {
+                Source::fill(cinfo);
+            }
+        }
+    }
 }
 
 /// An 8-bit RGB image (`width × height` pixels of 3 samples, rows from the top) as a
