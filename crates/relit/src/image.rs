@@ -209,12 +209,31 @@ fn jpeg_parts(
     if let Some(f) = then {
         table.iter_mut().for_each(|v| *v = f(*v));
     }
+    let mut values = Vec::new();
+    let parts = jpeg_code_parts(path, rows, pixels, &mut |y, codes| {
+        values.clear();
+        values.extend(codes.iter().map(|&b| table[b as usize]));
+        row(y, &mut values)
+    })?;
+    Ok(parts.map(|(width, height, picked)| {
+        let picked = picked.iter().map(|&b| table[b as usize]).collect();
+        (width, height, picked)
+    }))
+}
+
+/// [`read_code_parts`] for a JPEG libjpeg decodes to RGB, row by row; `None` when it
+/// leaves the file to the general decoder.
+fn jpeg_code_parts(
+    path: &Path,
+    rows: std::ops::Range<usize>,
+    pixels: &[usize],
+    row: &mut dyn FnMut(usize, &[u8]) -> Result<()>,
+) -> Result<Option<(usize, usize, Vec<u8>)>> {
     // The picked pixels in file order, each with where its samples go.
     let mut order: Vec<(usize, usize)> = pixels.iter().copied().zip(0..).collect();
     order.sort_unstable();
     let mut next = 0;
-    let mut picked = vec![0f32; 3 * pixels.len()];
-    let mut values = Vec::new();
+    let mut picked = vec![0u8; 3 * pixels.len()];
     // The first error of the caller's, which stops the rows handed over.
     let mut failed = None;
     let width = Cell::new(0);
@@ -232,15 +251,11 @@ fn jpeg_parts(
             let w = width.get();
             while let Some(&(p, slot)) = order.get(next).filter(|&&(p, _)| p / w == y) {
                 let x = p % w;
-                for c in 0..3 {
-                    picked[3 * slot + c] = table[codes[3 * x + c] as usize];
-                }
+                picked[3 * slot..3 * slot + 3].copy_from_slice(&codes[3 * x..3 * x + 3]);
                 next += 1;
             }
             if rows.contains(&y) && failed.is_none() {
-                values.clear();
-                values.extend(codes.iter().map(|&b| table[b as usize]));
-                if let Err(e) = row(y, &mut values) {
+                if let Err(e) = row(y, codes) {
                     failed = Some(e);
                 }
             }
@@ -299,41 +314,8 @@ pub fn read_code_parts(
             format!("{}: not a JPEG, whose codes could be read", path.display()),
         ));
     }
-    let mut order: Vec<(usize, usize)> = pixels.iter().copied().zip(0..).collect();
-    order.sort_unstable();
-    let mut next = 0;
-    let mut picked = vec![0u8; 3 * pixels.len()];
-    let mut failed = None;
-    let width = Cell::new(0);
-    let streamed = jpeg::stream_rows(
-        path,
-        |w, h| {
-            let last = order.last().map_or(0, |&(p, _)| p + 1);
-            if rows.end > h || last > w * h {
-                return Err(missing_parts(path, w, h, &rows));
-            }
-            width.set(w);
-            Ok(rows_wanted(&rows, &order, w))
-        },
-        |y, codes| {
-            let w = width.get();
-            while let Some(&(p, slot)) = order.get(next).filter(|&&(p, _)| p / w == y) {
-                let x = p % w;
-                picked[3 * slot..3 * slot + 3].copy_from_slice(&codes[3 * x..3 * x + 3]);
-                next += 1;
-            }
-            if rows.contains(&y) && failed.is_none() {
-                if let Err(e) = row(y, codes) {
-                    failed = Some(e);
-                }
-            }
-        },
-    )?;
-    if let Some(e) = failed {
-        return Err(e);
-    }
-    if let jpeg::Streamed::Done { width, height } = streamed {
-        return Ok((width, height, picked));
+    if let Some(parts) = jpeg_code_parts(path, rows.clone(), pixels, row)? {
+        return Ok(parts);
     }
     let decoded = decode(path)?.to_rgb8();
     let (width, height) = (decoded.width() as usize, decoded.height() as usize);

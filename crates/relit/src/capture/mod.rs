@@ -251,6 +251,19 @@ impl Capture {
         Ok((band, picked))
     }
 
+    /// The error of image `index` being `size` (e.g. `640×480`), not the capture's size.
+    fn wrong_size(&self, index: usize, size: String) -> Error {
+        Error::new(
+            ErrorKind::InvalidInput,
+            format!(
+                "{} is {size} but the capture is {}×{}",
+                self.image_name(index),
+                self.width,
+                self.height
+            ),
+        )
+    }
+
     /// Whether every image is a JPEG file, whose samples [`Capture::read_code_parts`]
     /// can hand over as 8-bit codes.
     pub fn eight_bit_codes(&self) -> bool {
@@ -278,17 +291,7 @@ impl Capture {
             )));
         };
         let w = self.width;
-        let wrong_size = |size: String| {
-            Error::new(
-                ErrorKind::InvalidInput,
-                format!(
-                    "{} is {size} but the capture is {}×{}",
-                    self.image_name(index),
-                    self.width,
-                    self.height
-                ),
-            )
-        };
+        let wrong_size = |size: String| self.wrong_size(index, size);
         let (fw, fh, picked) = image::read_code_parts(path, rows, pixels, &mut |y, codes| {
             if codes.len() != 3 * w {
                 return Err(wrong_size(format!("{} pixels wide", codes.len() / 3)));
@@ -356,17 +359,7 @@ impl Capture {
                 values.iter_mut().for_each(|v| *v = f(*v));
             }
         };
-        let wrong_size = |size: String| {
-            Error::new(
-                ErrorKind::InvalidInput,
-                format!(
-                    "{} is {size} but the capture is {}×{}",
-                    self.image_name(index),
-                    self.width,
-                    self.height
-                ),
-            )
-        };
+        let wrong_size = |size: String| self.wrong_size(index, size);
         let w = self.width;
         match &light.image {
             ImageSource::File { path, encoding } => {

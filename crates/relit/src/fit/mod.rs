@@ -522,14 +522,7 @@ fn read_subsample(
         })
         .collect::<Result<_>>()?;
     progress.end();
-    let mut sub = vec![0f32; sub_idx.len() * n * 3];
-    for (j, row) in rows.iter().enumerate() {
-        for s in 0..sub_idx.len() {
-            let o = (s * n + j) * 3;
-            sub[o..o + 3].copy_from_slice(&row[3 * s..3 * s + 3]);
-        }
-    }
-    Ok(sub)
+    Ok(pixel_major(&rows, sub_idx.len()))
 }
 
 /// The tiles of the spill file of a fit streamed to `sink` that reads its images before
@@ -645,14 +638,21 @@ fn spill_images(
         })
         .collect::<Result<_>>()?;
     progress.end();
-    let mut sub = vec![0f32; sub_idx.len() * n * 3];
-    for (j, row) in picked.iter().enumerate() {
-        for s in 0..sub_idx.len() {
+    Ok(pixel_major(&picked, sub_idx.len()))
+}
+
+/// Each image's samples of `count` pixels (`per_image[j]`: pixel, channel) as the
+/// subsample holds them: pixel, image, channel.
+fn pixel_major(per_image: &[Vec<f32>], count: usize) -> Vec<f32> {
+    let n = per_image.len();
+    let mut sub = vec![0f32; count * n * 3];
+    for (j, row) in per_image.iter().enumerate() {
+        for s in 0..count {
             let o = (s * n + j) * 3;
             sub[o..o + 3].copy_from_slice(&row[3 * s..3 * s + 3]);
         }
     }
-    Ok(sub)
+    sub
 }
 
 /// The values of RGB `codes` by an image's table (`256·channel + code`).
