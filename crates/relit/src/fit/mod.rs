@@ -1385,10 +1385,9 @@ fn fit_into(
 
     // Pass 1: stream the images, a batch of decoders' worth at a time (unless the
     // images were read before the choices).
-    progress.begin(
-        "reading images",
-        if read_already { 0 } else { design.n as u64 },
-    );
+    if !read_already {
+        progress.begin("reading images", design.n as u64);
+    }
     // The shared sums gain from many images a batch; the spill file takes each image
     // alone, so a batch of one image a thread keeps decoded images out of the peak.
     let batch = if accum.is_some() {
@@ -1465,9 +1464,8 @@ fn fit_into(
             accumulate(acc, &design, &indices, &bands);
         }
     }
-    progress.end();
-
     if !read_already {
+        progress.end();
         stages.end("images");
     }
     let (choice, objective_scores) = match decided {
