@@ -204,6 +204,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
         match r.candidates.as_slice() {
             // Where the choice was close, say so: the runner-up's score beside it.
+            [chosen, next, ..] if next.psnr > chosen.psnr => println!(
+                "basis: {} (chosen by validation among {} candidates: {:.2} dB on its own \
+                 lights held out, within the validation's noise of {} {:.2} dB and \
+                 cheaper to fit)",
+                r.basis,
+                r.candidates.len(),
+                chosen.psnr,
+                next.basis,
+                next.psnr
+            ),
             [best, next, ..] => println!(
                 "basis: {} (chosen by validation among {} candidates: {:.2} dB on its own \
                  lights held out; next {} {:.2} dB)",

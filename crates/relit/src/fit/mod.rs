@@ -918,6 +918,7 @@ fn choose_basis(
     }
     let mut best: Option<(usize, (MapSpace, Objective), CandidateScore)> = None;
     let mut judged: Vec<(usize, CandidateScore)> = Vec::new();
+    let mut contenders: Vec<(usize, (MapSpace, Objective), CandidateScore)> = Vec::new();
     // A candidate's finalist variants are judged together (variants of one space share
     // each fold's basis), candidates in the order they became finalists.
     let mut order_of: Vec<usize> = Vec::new();
@@ -937,7 +938,31 @@ fn choose_basis(
             if !matches!(&best, Some((_, _, b)) if !score.beats(b)) {
                 best = Some((i, variants[v], score.clone()));
             }
+            contenders.push((i, variants[v], score.clone()));
             judged.push((i, score));
+        }
+    }
+    // The validation cannot tell apart finalists whose lead over one another is within
+    // its noise: of those within one standard error of the best, the one cheapest to fit
+    // (display-referred maps, then linear ones with the plain objective, then the
+    // perceptual objective), the best scored among equals.
+    if let Some((_, _, top)) = &best {
+        let cost = |v: &(MapSpace, Objective)| match v {
+            (MapSpace::Srgb, _) => 0,
+            (MapSpace::Linear, Objective::Linear | Objective::Auto) => 1,
+            (MapSpace::Linear, Objective::Perceptual) => 2,
+        };
+        let tied = contenders
+            .iter()
+            .filter(|(_, _, score)| score.unbiased() || !top.unbiased())
+            .filter(|(_, _, score)| within_noise(top, score))
+            .min_by(|a, b| {
+                cost(&a.1)
+                    .cmp(&cost(&b.1))
+                    .then(b.2.psnr.total_cmp(&a.2.psnr))
+            });
+        if let Some(pick) = tied {
+            best = Some(pick.clone());
         }
     }
     // Each finalist candidate once, by its best variant.
@@ -948,9 +973,12 @@ fn choose_basis(
             scores.push(score);
         }
     }
-    // Finalists first (they were judged on more pixels), each group best first.
+    // Finalists first (they were judged on more pixels), each group best first; the
+    // chosen one (as the variant chosen) ahead of them all.
     scores.sort_by(|a, b| b.pixels.cmp(&a.pixels).then(order(a, b)));
     let (i, (space, chosen_objective), score) = best.expect("at least one candidate");
+    scores.retain(|s| s.basis != score.basis);
+    scores.insert(0, score.clone());
     let mut samples: Vec<f32> = (0..sub_count * 3)
         .flat_map(|s| (0..n).map(move |j| sub[((s / 3) * n + j) * 3 + s % 3]))
         .collect();
@@ -965,6 +993,34 @@ fn choose_basis(
         }),
     )?;
     Ok((basis, Some((chosen_objective, space, score.lambda)), scores))
+}
+
+/// Whether `other`'s validation is within one standard error of `top`'s: the mean
+/// over lights of the paired PSNR differences at most their standard error.
+fn within_noise(top: &CandidateScore, other: &CandidateScore) -> bool {
+    if top.lights.len() != other.lights.len() || top.lights.is_empty() {
+        return false;
+    }
+    let pairs: Vec<(f64, f64)> = top
+        .lights
+        .iter()
+        .zip(&other.lights)
+        .filter(|(a, _)| a.0 > 0.0)
+        .map(|(a, b)| (a.0, a.1 - b.1))
+        .collect();
+    let w: f64 = pairs.iter().map(|p| p.0).sum();
+    let w2: f64 = pairs.iter().map(|p| p.0 * p.0).sum();
+    if w <= 0.0 {
+        return false;
+    }
+    let mean = pairs.iter().map(|p| p.0 * p.1).sum::<f64>() / w;
+    let var = pairs
+        .iter()
+        .map(|p| p.0 * (p.1 - mean).powi(2))
+        .sum::<f64>()
+        / w;
+    let n_eff = w * w / w2;
+    mean <= (var / n_eff).sqrt()
 }
 
 /// Candidates best first: unbiased ones, then by validation PSNR.
