@@ -625,16 +625,9 @@ fn spill_images(
     let picked: Vec<Vec<f32>> = (0..n)
         .into_par_iter()
         .map(|j| {
-            let mut writer = spill.image_rows(j);
-            let codes = capture.read_code_parts(j, rows.clone(), sub_idx, &mut |_, codes| {
-                writer.push_codes(codes)
-            })?;
-            writer.finish()?;
+            let picked = spill_image_codes(capture, spill, j, rows.clone(), sub_idx, space)?;
             progress.advance(1);
-            Ok(code_samples(
-                &codes,
-                &capture.code_values(j, target_encoding(space)),
-            ))
+            Ok(picked)
         })
         .collect::<Result<_>>()?;
     progress.end();
@@ -655,13 +648,26 @@ fn pixel_major(per_image: &[Vec<f32>], count: usize) -> Vec<f32> {
     sub
 }
 
-/// The values of RGB `codes` by an image's table (`256·channel + code`).
-fn code_samples(codes: &[u8], values: &[f32]) -> Vec<f32> {
-    codes
+/// Image `j`'s band `rows` into `spill` as its codes, and its pixels `pixels` returned
+/// as values in `space` (3 each, in the order asked).
+fn spill_image_codes(
+    capture: &Capture,
+    spill: &spill::Spill,
+    j: usize,
+    rows: std::ops::Range<usize>,
+    pixels: &[usize],
+    space: MapSpace,
+) -> Result<Vec<f32>> {
+    let mut writer = spill.image_rows(j);
+    let codes =
+        capture.read_code_parts(j, rows, pixels, &mut |_, codes| writer.push_codes(codes))?;
+    writer.finish()?;
+    let values = capture.code_values(j, target_encoding(space));
+    Ok(codes
         .iter()
         .enumerate()
         .map(|(i, &c)| values[256 * (i % 3) + c as usize])
-        .collect()
+        .collect())
 }
 
 /// The spill file as a solve reads it: in the pieces of the output's tiles, each
@@ -917,7 +923,6 @@ fn choose_basis(
         }
     }
     let mut best: Option<(usize, (MapSpace, Objective), CandidateScore)> = None;
-    let mut judged: Vec<(usize, CandidateScore)> = Vec::new();
     let mut contenders: Vec<(usize, (MapSpace, Objective), CandidateScore)> = Vec::new();
     // A candidate's finalist variants are judged together (variants of one space share
     // each fold's basis), candidates in the order they became finalists.
@@ -938,8 +943,7 @@ fn choose_basis(
             if !matches!(&best, Some((_, _, b)) if !score.beats(b)) {
                 best = Some((i, variants[v], score.clone()));
             }
-            contenders.push((i, variants[v], score.clone()));
-            judged.push((i, score));
+            contenders.push((i, variants[v], score));
         }
     }
     // The validation cannot tell apart finalists whose lead over one another is within
@@ -966,6 +970,10 @@ fn choose_basis(
         }
     }
     // Each finalist candidate once, by its best variant.
+    let mut judged: Vec<(usize, CandidateScore)> = contenders
+        .into_iter()
+        .map(|(i, _, score)| (i, score))
+        .collect();
     judged.sort_by(|a, b| order(&a.1, &b.1));
     let mut listed = vec![false; choices.len()];
     for (i, score) in judged {
@@ -1472,16 +1480,10 @@ fn fit_into(
                 let wanted = wanted.as_slice();
                 let (img, samples) = match (&spill, &accum) {
                     // A photograph's codes, converted to the values the pass reads now.
-                    (Some(spill), None) if spill.samples() == spill::Samples::Codes => {
-                        let mut writer = spill.image_rows(j);
-                        let picked =
-                            capture.read_code_parts(j, rows.clone(), wanted, &mut |_, codes| {
-                                writer.push_codes(codes)
-                            })?;
-                        writer.finish()?;
-                        let values = capture.code_values(j, target_encoding(space));
-                        (Vec::new(), code_samples(&picked, &values))
-                    }
+                    (Some(spill), None) if spill.samples() == spill::Samples::Codes => (
+                        Vec::new(),
+                        spill_image_codes(capture, spill, j, rows.clone(), wanted, space)?,
+                    ),
                     // Only the spill file takes the band: it goes there a row at a
                     // time, as the image is decoded, and is never held whole.
                     (Some(spill), None) => {
