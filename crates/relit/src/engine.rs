@@ -1258,6 +1258,13 @@ mod tests {
                 Some(choice.build(&dirs, Some(samples)).unwrap())
             })
             .collect();
+        // The bilinear family's other grid (the default one is octahedral).
+        out.push(
+            BasisChoice::parse("bilinear:16:map=square")
+                .unwrap()
+                .build(&dirs, Some(samples))
+                .unwrap(),
+        );
         // The family that compression makes rather than fits: combinations of a
         // table-driven and of a recurrence basis.
         for inner in ["rbf:16", "sh:16"] {

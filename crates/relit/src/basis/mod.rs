@@ -126,12 +126,11 @@ pub trait Basis: Send + Sync + std::fmt::Debug {
         None
     }
 
-    /// `(G, nodes)` when the basis is exactly the bilinear blend of weights at the nodes
-    /// of a `G × G` grid over the light vector's `(x, y) ∈ [−1, 1]²` (light vectors below
-    /// the horizon taken at the horizon, `(x, y)` normalised): `nodes` holds `len()`
-    /// weights per node, node `(i, j)` at `(j·G + i)·len()`. The CPU engine then reads
-    /// that grid (exact and small) instead of an octahedral weight table.
-    fn planar_grid(&self) -> Option<(usize, Vec<f64>)> {
+    /// The grid, when the basis is exactly the bilinear blend of weights at the nodes of
+    /// a `G × G` grid over a square that a light vector lands on by a [`GridMap`]. The
+    /// CPU engine then reads that grid (exact and small) instead of an octahedral weight
+    /// table.
+    fn planar_grid(&self) -> Option<PlanarGrid> {
         None
     }
 
@@ -269,6 +268,17 @@ impl BuildContext<'_> {
                 .map_err(|_| Error::parse(format!("bad basis option `{key}={v}`"))),
         }
     }
+}
+
+/// A basis that is a bilinear grid over the light vector's square ([`Basis::planar_grid`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlanarGrid {
+    /// `G`, the nodes a side.
+    pub grid: usize,
+    /// `len()` weights per node, node `(i, j)` at `(j·G + i)·len()`.
+    pub nodes: Vec<f64>,
+    /// How a light vector lands on the square `[−1, 1]²`.
+    pub map: GridMap,
 }
 
 /// A kind of basis: how to build one of a given size and how to rebuild a stored one.

@@ -12,7 +12,7 @@
 //! Stored: the inner basis' spec and `P` (`K′ × K`, row-major). The family offers no
 //! sizes: nothing fits one directly; compression makes it.
 
-use super::{Basis, BasisSpec, BuildContext, Domain, Family, MAX_PROJECTED_INNER};
+use super::{Basis, BasisSpec, BuildContext, Domain, Family, PlanarGrid, MAX_PROJECTED_INNER};
 use crate::sphere::Vec3;
 use crate::{Error, Result};
 
@@ -169,14 +169,14 @@ impl Basis for Projected {
     }
 
     /// The inner grid's nodes mapped: a projected bilinear basis is still bilinear.
-    fn planar_grid(&self) -> Option<(usize, Vec<f64>)> {
-        let (grid, nodes) = self.inner.planar_grid()?;
+    fn planar_grid(&self) -> Option<PlanarGrid> {
+        let inner = self.inner.planar_grid()?;
         let (k, kp) = (self.inner.len(), self.len());
-        let mut out = vec![0.0; nodes.len() / k * kp];
-        for (w, o) in nodes.chunks_exact(k).zip(out.chunks_exact_mut(kp)) {
+        let mut nodes = vec![0.0; inner.nodes.len() / k * kp];
+        for (w, o) in inner.nodes.chunks_exact(k).zip(nodes.chunks_exact_mut(kp)) {
             self.project(w, o);
         }
-        Some((grid, out))
+        Some(PlanarGrid { nodes, ..inner })
     }
 
     fn label(&self, i: usize) -> String {

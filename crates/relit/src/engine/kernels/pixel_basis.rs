@@ -60,7 +60,7 @@ impl PixelBasis {
             PixelBasis::Sh(b) => b.name(),
             PixelBasis::Table(b) => match b.layout() {
                 Layout::Octahedral => "weight table",
-                Layout::Planar => "planar grid",
+                Layout::Planar(_) => "planar grid",
             },
         }
     }

@@ -15,7 +15,7 @@
 
 use super::{Rows, Simd, BLOCK};
 use crate::basis::table::measure_accuracy;
-use crate::basis::{Basis, TableAccuracy, WeightTable};
+use crate::basis::{Basis, GridMap, PlanarGrid, TableAccuracy, WeightTable};
 use half::f16;
 
 /// A basis' weight table in half floats, laid out for the block kernels.
@@ -38,9 +38,9 @@ pub(crate) struct TableKernel {
 pub(crate) enum Layout {
     /// The octahedral map of every back end ([`WeightTable`]).
     Octahedral,
-    /// The basis' own grid over the light vector's `(x, y)` ([`Basis::planar_grid`]):
-    /// the basis exactly, up to half-float rounding.
-    Planar,
+    /// The basis' own grid over the square its map lands light vectors on
+    /// ([`Basis::planar_grid`]): the basis exactly, up to half-float rounding.
+    Planar(GridMap),
 }
 
 impl TableKernel {
@@ -48,9 +48,9 @@ impl TableKernel {
     /// [`WeightTable::for_basis`] picks, rounded to half floats as every back end holds
     /// it. Either with its measured accuracy (of the rounded values).
     pub(crate) fn for_basis(basis: &dyn Basis) -> Self {
-        if let Some((grid, nodes)) = basis.planar_grid().filter(|(g, _)| *g >= 2) {
+        if let Some(PlanarGrid { grid, nodes, map }) = basis.planar_grid().filter(|p| p.grid >= 2) {
             let nodes: Vec<f32> = nodes.iter().map(|&v| v as f32).collect();
-            let mut kernel = Self::new(Layout::Planar, grid - 1, basis.len(), &nodes, None);
+            let mut kernel = Self::new(Layout::Planar(map), grid - 1, basis.len(), &nodes, None);
             let simd = Simd::detect();
             kernel.accuracy = measure_accuracy(basis, grid - 1, |d, out| {
                 let mut dir = [[0f32; BLOCK]; 3];
@@ -156,14 +156,14 @@ impl TableKernel {
             vertex: [0; BLOCK],
             weight: [[0.0; BLOCK]; 4],
         };
-        if self.layout == Layout::Planar {
+        if let Layout::Planar(map) = self.layout {
             #[cfg(target_arch = "x86_64")]
             if simd.avx2() {
                 // SAFETY: `Simd::detect` found avx2, fma and f16c on this CPU.
-                unsafe { planar_corners_avx2(self.resolution, dir, w, &mut c) };
+                unsafe { planar_corners_avx2(map, self.resolution, dir, w, &mut c) };
                 return c;
             }
-            planar_corners(self.resolution, dir, w, &mut c);
+            planar_corners(map, self.resolution, dir, w, &mut c);
             return c;
         }
         #[cfg(target_arch = "x86_64")]
@@ -242,24 +242,41 @@ fn corners_body(n: usize, dir: &[[f32; BLOCK]; 3], w: Option<&[f32; BLOCK]>, c: 
     }
 }
 
-/// The cell of each light vector on a planar grid of `n` cells a side over
-/// `(x, y) ∈ [−1, 1]²`, as [`Basis::planar_grid`] defines it: below the horizon `(x, y)`
-/// is normalised; a zero (or non-finite) vector gets no weight.
+/// The cell of each light vector on a planar grid of `n` cells a side over the square
+/// `[−1, 1]²` that `map` lands it on, as [`GridMap`] defines it: on the square map,
+/// `(x, y)`, normalised below the horizon; on the octahedral one, `((x + y)/s, (y − x)/s)`
+/// with `s = |x| + |y| + max(z, 0)`. A zero (or non-finite) vector gets no weight.
 #[inline(always)]
 // Lane p of three coordinate rows and of the outputs: an index loop vectorises.
 #[allow(clippy::needless_range_loop)]
-fn planar_corners(n: usize, dir: &[[f32; BLOCK]; 3], w: Option<&[f32; BLOCK]>, c: &mut Corners) {
+fn planar_corners(
+    map: GridMap,
+    n: usize,
+    dir: &[[f32; BLOCK]; 3],
+    w: Option<&[f32; BLOCK]>,
+    c: &mut Corners,
+) {
     let nf = n as f32;
     let side = (n + 1) as u32;
     for p in 0..BLOCK {
         let (x, y, z) = (dir[0][p], dir[1][p], dir[2][p]);
         let s = x.abs() + y.abs() + z.abs();
         let valid = s > 0.0 && s < f32::INFINITY;
-        let r = (x * x + y * y).sqrt();
         // Selects, not branches, so that the loop vectorises.
-        let inv = if z < 0.0 && r > 0.0 { 1.0 / r } else { 1.0 };
-        let u = ((x * inv + 1.0) * 0.5 * nf).clamp(0.0, nf);
-        let v = ((y * inv + 1.0) * 0.5 * nf).clamp(0.0, nf);
+        let (px, py) = match map {
+            GridMap::Square => {
+                let r = (x * x + y * y).sqrt();
+                let inv = if z < 0.0 && r > 0.0 { 1.0 / r } else { 1.0 };
+                (x * inv, y * inv)
+            }
+            GridMap::Octahedral => {
+                let h = x.abs() + y.abs() + z.max(0.0);
+                let inv = if h > 0.0 { 1.0 / h } else { 0.0 };
+                ((x + y) * inv, (y - x) * inv)
+            }
+        };
+        let u = ((px + 1.0) * 0.5 * nf).clamp(0.0, nf);
+        let v = ((py + 1.0) * 0.5 * nf).clamp(0.0, nf);
         let u = if valid { u } else { 0.0 };
         let v = if valid { v } else { 0.0 };
         let i = u.floor().min(nf - 1.0);
@@ -274,12 +291,13 @@ fn planar_corners(n: usize, dir: &[[f32; BLOCK]; 3], w: Option<&[f32; BLOCK]>, c
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma,f16c")]
 unsafe fn planar_corners_avx2(
+    map: GridMap,
     n: usize,
     dir: &[[f32; BLOCK]; 3],
     w: Option<&[f32; BLOCK]>,
     c: &mut Corners,
 ) {
-    planar_corners(n, dir, w, c)
+    planar_corners(map, n, dir, w, c)
 }
 
 /// [`corners_body`] in 8-lane code (the floors become `vroundps`, not calls to libm).
