@@ -260,9 +260,10 @@ pub struct WebArgs {
     /// ptm:6 and hsh:9): principal components, a multiple of 3.
     #[arg(long, default_value_t = 18)]
     pub planes: usize,
-    /// Nodes per side of a `bilinear` web folder's light grid (2 to 12; relight writes 8).
-    #[arg(long, default_value_t = 12)]
-    pub grid: usize,
+    /// Nodes per side of a `bilinear` web folder's light grid (2 to 12; relight writes
+    /// 8). Default: a bilinear basis' own grid (at most 12), 12 for any other basis.
+    #[arg(long)]
+    pub grid: Option<usize>,
     /// How a web folder's plane images are laid out, by OpenLIME's layout names: single
     /// images, or tiled pyramids for big images (Deep Zoom files, or one tarzoom file
     /// per plane image, or one itarzoom file for all).

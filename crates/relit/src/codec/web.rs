@@ -912,7 +912,10 @@ pub struct WriteOptions {
     /// no bytes in the planes and follows a fit's highlights and shadows better
     /// (RealRTI item1, rbf:16 fitted by relit, against its photos at five captured
     /// lights: 32.4–39.3 dB at 8, 32.7–40.7 dB at 12; the EXR itself 33.3–42.5 dB).
-    pub resolution: usize,
+    /// `None`: a basis that is itself an octahedral bilinear grid of at most
+    /// [`MAX_WRITE_RESOLUTION`] nodes a side keeps its grid (the file then holds its
+    /// functions exactly, before the principal components and JPEG); any other, 12.
+    pub resolution: Option<usize>,
     /// How the plane images are laid out: OpenLIME's `image`, `deepzoom`, `tarzoom` or
     /// `itarzoom`.
     pub layout: Layout,
@@ -978,7 +981,7 @@ impl Default for WriteOptions {
         WriteOptions {
             quality: 95,
             planes: 18,
-            resolution: 12,
+            resolution: None,
             layout: Layout::Image,
             lrgb: false,
             functions: WebFunctions::Auto,
@@ -1156,6 +1159,9 @@ pub struct WriteSummary {
 /// `3·resolution²` dimensions by a dense eigen-decomposition ([`crate::linalg::symmetric_eigen`]).
 pub const MAX_WRITE_RESOLUTION: usize = 12;
 
+/// The `bilinear` grid written for a basis that is not one ([`WriteOptions::resolution`]).
+pub const DEFAULT_WRITE_RESOLUTION: usize = 12;
+
 /// Write `image` as a web folder at `folder` (created, or its files replaced one by one
 /// through [`crate::fsutil::StagedFolder`]): `info.json` and JPEG planes, single
 /// images or Deep Zoom tiles.
@@ -1194,7 +1200,16 @@ pub fn write(
             let table = match options.functions {
                 WebFunctions::Rbf => rbf_nodes(basis.as_ref(), options.rbf_nodes)?,
                 WebFunctions::Auto | WebFunctions::Bilinear => {
-                    bilinear_nodes(basis.as_ref(), options.resolution)?
+                    let own = basis
+                        .planar_grid()
+                        .filter(|p| p.map == GridMap::Octahedral)
+                        .map(|p| p.grid)
+                        .filter(|&g| g <= MAX_WRITE_RESOLUTION);
+                    let r = options
+                        .resolution
+                        .or(own)
+                        .unwrap_or(DEFAULT_WRITE_RESOLUTION);
+                    bilinear_nodes(basis.as_ref(), r)?
                 }
             };
             pca_planes(image, &table, options)?
@@ -1898,7 +1913,8 @@ mod tests {
     /// range in 255 steps) and JPEG at quality 100; `bilinear` also the grid between
     /// its nodes and 18 components. Measured (worst of five lights): ptm 48.7 dB,
     /// hsh 49.7 dB, sh:9 linear as bilinear 39.5 dB (the 12×12 grid's interpolation; 33.6
-    /// dB at relight's 8×8).
+    /// dB at relight's 8×8); an octahedral bilinear:9 of 7 nodes a side on its own grid
+    /// 41.7 dB (only the components and JPEG), regridded to 12 nodes 37.6 dB.
     #[test]
     fn what_is_written_reads_back() {
         let options = WriteOptions {
@@ -1909,6 +1925,7 @@ mod tests {
             ("ptm:6", MapSpace::Srgb, "ptm", 45.0),
             ("hsh:9", MapSpace::Srgb, "hsh", 46.0),
             ("sh:9", MapSpace::Linear, "bilinear", 36.0),
+            ("bilinear:9:grid=7", MapSpace::Srgb, "bilinear", 39.0),
         ] {
             let image = fitted(basis, space);
             let dir = tempfile::tempdir().unwrap();
@@ -1921,6 +1938,25 @@ mod tests {
             let psnr = worst_psnr(&image, &back);
             eprintln!("{basis} as {kind}: {psnr:.1} dB");
             assert!(psnr > floor, "{basis} as {kind}: {psnr:.1} dB");
+            if basis.starts_with("bilinear") {
+                // A bilinear basis keeps its own grid; anything else gets 12 nodes.
+                let info: serde_json::Value =
+                    serde_json::from_slice(&std::fs::read(folder.join("info.json")).unwrap())
+                        .unwrap();
+                assert_eq!(info["resolution"], 7);
+                let regridded = dir.path().join("regridded");
+                let twelve = WriteOptions {
+                    resolution: Some(12),
+                    ..options.clone()
+                };
+                write(&regridded, &image, &twelve).unwrap();
+                let other = worst_psnr(&image, &super::super::read(&regridded).unwrap());
+                eprintln!("{basis} on a 12-node grid: {other:.1} dB");
+                assert!(
+                    psnr > other + 1.0,
+                    "own grid {psnr:.1}, 12 nodes {other:.1}"
+                );
+            }
         }
     }
 
