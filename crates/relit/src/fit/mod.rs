@@ -1787,41 +1787,148 @@ fn plane_blocks(data: &mut [f32], npix: usize) -> Vec<Vec<&mut [f32]>> {
 /// adds the images in batch order, as a pixel-major loop would.
 fn accumulate(acc: &mut CoefficientMaps, design: &Design, indices: &[usize], images: &[&[f32]]) {
     let npix = acc.pixels();
-    let rows: Vec<Vec<f32>> = indices
-        .iter()
-        .map(|&j| {
-            design
-                .row(j)
-                .iter()
-                .map(|&v| (v * design.q[j]) as f32)
-                .collect()
-        })
-        .collect();
+    let k = design.k;
+    // Each image's weights, padded with zeros to whole groups of `SUM_ROWS`.
+    let stride = k.div_ceil(SUM_ROWS) * SUM_ROWS;
+    let mut rows = vec![0f32; indices.len() * stride];
+    for (&j, row) in indices.iter().zip(rows.chunks_exact_mut(stride)) {
+        for (w, &v) in row.iter_mut().zip(design.row(j)) {
+            *w = (v * design.q[j]) as f32;
+        }
+    }
     plane_blocks(&mut acc.data, npix)
         .into_par_iter()
         .enumerate()
         .for_each(|(block, mut planes)| {
-            let p0 = block * SUM_BLOCK;
-            let len = planes[0].len();
-            // The block's pixels a channel at a time, so that each plane's sum runs
-            // over contiguous values (the interleaved samples would be gathered).
-            let mut channels = vec![0f32; 3 * len];
-            for (img, row) in images.iter().zip(&rows) {
-                let pixels = &img[3 * p0..3 * (p0 + len)];
-                for (p, rgb) in pixels.chunks_exact(3).enumerate() {
-                    channels[p] = rgb[0];
-                    channels[len + p] = rgb[1];
-                    channels[2 * len + p] = rgb[2];
-                }
-                for (x, run) in planes.iter_mut().enumerate() {
-                    let (a, c) = (row[x / 3], x % 3);
-                    let channel = &channels[c * len..(c + 1) * len];
-                    for (s, &v) in run.iter_mut().zip(channel) {
-                        *s += a * v;
-                    }
+            SUM_SCRATCH.with_borrow_mut(|channels| {
+                add_block(channels, &mut planes, block, images, &rows, stride, k)
+            })
+        });
+}
+
+thread_local! {
+    /// [`accumulate`]'s de-interleaved block, one a thread, reused: a batch's block is
+    /// hundreds of kilobytes, which the allocator would map and unmap (and the kernel
+    /// zero) block after block.
+    static SUM_SCRATCH: std::cell::RefCell<Vec<f32>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// One block of [`accumulate`]: block `block`'s runs of every plane, `planes`.
+fn add_block(
+    channels: &mut Vec<f32>,
+    planes: &mut [&mut [f32]],
+    block: usize,
+    images: &[&[f32]],
+    rows: &[f32],
+    stride: usize,
+    k: usize,
+) {
+    let p0 = block * SUM_BLOCK;
+    let len = planes[0].len();
+    // The block's pixels of every image a channel at a time (image `t`'s
+    // channel `c` at `(3t + c)·len`), so that each sum runs over contiguous
+    // values (the interleaved samples would be gathered).
+    channels.resize(3 * len * images.len(), 0.0);
+    for (img, out) in images.iter().zip(channels.chunks_exact_mut(3 * len)) {
+        let pixels = &img[3 * p0..3 * (p0 + len)];
+        let (r, gb) = out.split_at_mut(len);
+        let (g, b) = gb.split_at_mut(len);
+        for (p, rgb) in pixels.chunks_exact(3).enumerate() {
+            (r[p], g[p], b[p]) = (rgb[0], rgb[1], rgb[2]);
+        }
+    }
+    for c in 0..3 {
+        for first in (0..k).step_by(SUM_ROWS) {
+            let mut runs: Vec<&mut [f32]> = planes
+                .iter_mut()
+                .skip(3 * first + c)
+                .step_by(3)
+                .take(SUM_ROWS)
+                .map(|run| &mut **run)
+                .collect();
+            add_weighted(&mut runs, rows, stride, first, &channels[c * len..], len);
+        }
+    }
+}
+
+/// Planes of one channel summed together by [`accumulate`]: their running sums stay in
+/// registers over a whole batch of images, each image's value loaded once for all of
+/// them.
+const SUM_ROWS: usize = 4;
+
+/// `runs[g][p] += Σ_t rows[t·stride + first + g] · channel_t[p]` over the images `t` in
+/// order, `channel_t` at `channels[3·len·t ..][..len]`: each sum adds the images one at a
+/// time, exactly as a loop over images would (a product, then a sum; never fused).
+fn add_weighted(
+    runs: &mut [&mut [f32]],
+    rows: &[f32],
+    stride: usize,
+    first: usize,
+    channels: &[f32],
+    len: usize,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2.
+        return unsafe { add_weighted_avx2(runs, rows, stride, first, channels, len) };
+    }
+    add_weighted_body(runs, rows, stride, first, channels, len)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn add_weighted_avx2(
+    runs: &mut [&mut [f32]],
+    rows: &[f32],
+    stride: usize,
+    first: usize,
+    channels: &[f32],
+    len: usize,
+) {
+    add_weighted_body(runs, rows, stride, first, channels, len)
+}
+
+#[inline(always)]
+fn add_weighted_body(
+    runs: &mut [&mut [f32]],
+    rows: &[f32],
+    stride: usize,
+    first: usize,
+    channels: &[f32],
+    len: usize,
+) {
+    const LANES: usize = 8;
+    let images = rows.len() / stride;
+    let lanes = |slice: &[f32]| -> [f32; LANES] { slice[..LANES].try_into().expect("8 lanes") };
+    let whole = len / LANES * LANES;
+    for p in (0..whole).step_by(LANES) {
+        let mut sums = [[0f32; LANES]; SUM_ROWS];
+        for (sum, run) in sums.iter_mut().zip(runs.iter()) {
+            *sum = lanes(&run[p..]);
+        }
+        for t in 0..images {
+            let v = lanes(&channels[3 * len * t + p..]);
+            let w = &rows[t * stride + first..t * stride + first + SUM_ROWS];
+            for (sum, &a) in sums.iter_mut().zip(w) {
+                for (s, &x) in sum.iter_mut().zip(&v) {
+                    *s += a * x;
                 }
             }
-        });
+        }
+        for (sum, run) in sums.iter().zip(runs.iter_mut()) {
+            run[p..p + LANES].copy_from_slice(sum);
+        }
+    }
+    // The last few pixels, one at a time.
+    for p in whole..len {
+        for (g, run) in runs.iter_mut().enumerate() {
+            let mut s = run[p];
+            for t in 0..images {
+                s += rows[t * stride + first + g] * channels[3 * len * t + p];
+            }
+            run[p] = s;
+        }
+    }
 }
 
 /// Solve the shared normal equations for every pixel, turning the planar sums of

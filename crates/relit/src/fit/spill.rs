@@ -21,6 +21,7 @@
 //! (the maps' space is chosen on the subsample read in the same pass).
 
 use crate::{Error, ErrorKind, Result};
+use rayon::prelude::*;
 use std::fs::File;
 
 /// A rectangle of the band's pixels: columns `x0..x0 + width`, rows `y0..y0 + height`.
@@ -196,37 +197,39 @@ impl Spill {
         let sample = self.samples.pixel_bytes();
         buffer.clear();
         buffer.resize(count * 3 * self.images, 0.0);
-        let mut bytes = Vec::new();
         let first_column = region.x0 / self.tile_w;
         let last_column = (region.x0 + region.width - 1) / self.tile_w;
-        for j in 0..self.images {
-            let image = &mut buffer[j * count * 3..(j + 1) * count * 3];
-            for tx in first_column..=last_column {
-                let tile_x0 = tx * self.tile_w;
-                let tile_w = self.tile_w.min(self.width - tile_x0);
-                let from = region.x0.max(tile_x0);
-                let to = (region.x0 + region.width).min(tile_x0 + tile_w);
-                let mut y = region.y0;
-                while y < region.y0 + region.height {
-                    // The rows of this piece of the tile column: contiguous in the file.
-                    let (s, r) = self.piece_at(tx, y);
-                    let (piece, _) = self.piece(s);
-                    let run = (piece.y0 + piece.height).min(region.y0 + region.height) - y;
-                    bytes.resize(run * tile_w * sample, 0);
-                    let at = self.offset(s, j) + (r * tile_w * sample) as u64;
-                    read_at(&self.file, &mut bytes, at)?;
-                    for i in 0..run {
-                        let row = (y + i - region.y0) * region.width;
-                        for x in from..to {
-                            let src = &bytes[((i * tile_w) + x - tile_x0) * sample..][..sample];
-                            let dst = &mut image[3 * (row + x - region.x0)..][..3];
-                            decode_sample(src, dst, tables.map(|t| t[j].as_slice()));
+        buffer
+            .par_chunks_mut(count * 3)
+            .enumerate()
+            .try_for_each_init(Vec::new, |bytes, (j, image)| -> Result<()> {
+                for tx in first_column..=last_column {
+                    let tile_x0 = tx * self.tile_w;
+                    let tile_w = self.tile_w.min(self.width - tile_x0);
+                    let from = region.x0.max(tile_x0);
+                    let to = (region.x0 + region.width).min(tile_x0 + tile_w);
+                    let mut y = region.y0;
+                    while y < region.y0 + region.height {
+                        // The rows of this piece of the tile column: contiguous in the file.
+                        let (s, r) = self.piece_at(tx, y);
+                        let (piece, _) = self.piece(s);
+                        let run = (piece.y0 + piece.height).min(region.y0 + region.height) - y;
+                        bytes.resize(run * tile_w * sample, 0);
+                        let at = self.offset(s, j) + (r * tile_w * sample) as u64;
+                        read_at(&self.file, bytes, at)?;
+                        for i in 0..run {
+                            let row = (y + i - region.y0) * region.width;
+                            for x in from..to {
+                                let src = &bytes[((i * tile_w) + x - tile_x0) * sample..][..sample];
+                                let dst = &mut image[3 * (row + x - region.x0)..][..3];
+                                decode_sample(src, dst, tables.map(|t| t[j].as_slice()));
+                            }
                         }
+                        y += run;
                     }
-                    y += run;
                 }
-            }
-        }
+                Ok(())
+            })?;
         Ok(())
     }
 
@@ -356,30 +359,37 @@ impl Spill {
         let (piece, _) = self.piece(s);
         let count = piece.pixels();
         let tables = self.tables(values)?;
-        // One image's part at a time, so that the bytes read add one image's piece to
-        // the floats, not a second piece.
-        let mut bytes = vec![0u8; count * self.samples.pixel_bytes()];
         buffer.clear();
-        buffer.reserve_exact(count * 3 * self.images);
-        for j in 0..self.images {
-            read_at(&self.file, &mut bytes, self.offset(s, j))?;
-            match tables {
-                None => buffer.extend(
-                    bytes
-                        .chunks_exact(4)
-                        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
-                ),
-                Some(tables) => {
-                    let (r, rest) = tables[j].split_at(256);
-                    let (g, b) = rest.split_at(256);
-                    buffer.extend(
-                        bytes.chunks_exact(3).flat_map(|px| {
-                            [r[px[0] as usize], g[px[1] as usize], b[px[2] as usize]]
-                        }),
-                    );
-                }
-            }
-        }
+        buffer.resize(count * 3 * self.images, 0.0);
+        // The images' parts in parallel, each reading its bytes into a buffer of one
+        // image's part (a thread's, reused), so that the bytes add a part a thread to
+        // the floats, not a second piece.
+        buffer
+            .par_chunks_mut(count * 3)
+            .enumerate()
+            .try_for_each_init(
+                || vec![0u8; count * self.samples.pixel_bytes()],
+                |bytes, (j, image)| -> Result<()> {
+                    read_at(&self.file, bytes, self.offset(s, j))?;
+                    match tables {
+                        None => {
+                            for (d, b) in image.iter_mut().zip(bytes.chunks_exact(4)) {
+                                *d = f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+                            }
+                        }
+                        Some(tables) => {
+                            let (r, rest) = tables[j].split_at(256);
+                            let (g, b) = rest.split_at(256);
+                            for (d, px) in image.chunks_exact_mut(3).zip(bytes.chunks_exact(3)) {
+                                d[0] = r[px[0] as usize];
+                                d[1] = g[px[1] as usize];
+                                d[2] = b[px[2] as usize];
+                            }
+                        }
+                    }
+                    Ok(())
+                },
+            )?;
         Ok(piece)
     }
 }

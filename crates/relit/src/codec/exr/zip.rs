@@ -104,31 +104,41 @@ fn chunk_block(
 
 /// OpenEXR's ZIP of little-endian block bytes `raw`.
 pub(crate) fn zip(raw: &[u8]) -> Vec<u8> {
-    let half = raw.len().div_ceil(2);
-    let mut split = vec![0u8; raw.len()];
-    let (even, odd) = split.split_at_mut(half);
-    for (i, pair) in raw.chunks(2).enumerate() {
-        even[i] = pair[0];
-        if let Some(&b) = pair.get(1) {
-            odd[i] = b;
+    thread_local! {
+        // The split bytes and the deflated stream, reused block after block: a block is
+        // about a megabyte, which the allocator would map and unmap (and the kernel
+        // zero) every time.
+        static SCRATCH: std::cell::RefCell<(Vec<u8>, Vec<u8>)> = const {
+            std::cell::RefCell::new((Vec::new(), Vec::new()))
+        };
+    }
+    SCRATCH.with_borrow_mut(|(split, out)| {
+        let half = raw.len().div_ceil(2);
+        split.clear();
+        split.resize(raw.len(), 0);
+        let (even, odd) = split.split_at_mut(half);
+        for (i, pair) in raw.chunks(2).enumerate() {
+            even[i] = pair[0];
+            if let Some(&b) = pair.get(1) {
+                odd[i] = b;
+            }
         }
-    }
-    let mut previous = split.first().copied().unwrap_or(0);
-    for byte in split.iter_mut().skip(1) {
-        let current = *byte;
-        *byte = current.wrapping_sub(previous).wrapping_add(128);
-        previous = current;
-    }
-    let mut out = vec![0u8; zlib_rs::compress_bound(split.len())];
-    let (written, code) = zlib_rs::compress_slice(&mut out, &split, config());
-    assert_eq!(
-        code,
-        zlib_rs::ReturnCode::Ok,
-        "deflating into a buffer of the bound's size cannot fail"
-    );
-    let len = written.len();
-    out.truncate(len);
-    out
+        let mut previous = split.first().copied().unwrap_or(0);
+        for byte in split.iter_mut().skip(1) {
+            let current = *byte;
+            *byte = current.wrapping_sub(previous).wrapping_add(128);
+            previous = current;
+        }
+        out.clear();
+        out.resize(zlib_rs::compress_bound(split.len()), 0);
+        let (written, code) = zlib_rs::compress_slice(out, split, config());
+        assert_eq!(
+            code,
+            zlib_rs::ReturnCode::Ok,
+            "deflating into a buffer of the bound's size cannot fail"
+        );
+        written.to_vec()
+    })
 }
 
 #[cfg(test)]
