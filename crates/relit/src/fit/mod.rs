@@ -1846,7 +1846,14 @@ fn add_block(
                 .take(SUM_ROWS)
                 .map(|run| &mut **run)
                 .collect();
-            add_weighted(&mut runs, rows, stride, first, &channels[c * len..], len);
+            let weighted = WeightedChannel {
+                rows,
+                stride,
+                first,
+                channels: &channels[c * len..],
+                len,
+            };
+            add_weighted(&mut runs, &weighted);
         }
     }
 }
@@ -1856,48 +1863,45 @@ fn add_block(
 /// them.
 const SUM_ROWS: usize = 4;
 
-/// `runs[g][p] += Σ_t rows[t·stride + first + g] · channel_t[p]` over the images `t` in
-/// order, `channel_t` at `channels[3·len·t ..][..len]`: each sum adds the images one at a
-/// time, exactly as a loop over images would (a product, then a sum; never fused).
-fn add_weighted(
-    runs: &mut [&mut [f32]],
-    rows: &[f32],
+/// What [`add_weighted`] adds into a group of planes' runs: the images' weights
+/// (`stride` a image, the group's from `first`) and their de-interleaved channel
+/// (image `t`'s at `channels[3·len·t ..][..len]`).
+struct WeightedChannel<'a> {
+    rows: &'a [f32],
     stride: usize,
     first: usize,
-    channels: &[f32],
+    channels: &'a [f32],
     len: usize,
-) {
+}
+
+/// `runs[g][p] += Σ_t rows[t·stride + first + g] · channel_t[p]` over the images `t` in
+/// order: each sum adds the images one at a time, exactly as a loop over images would
+/// (a product, then a sum; never fused).
+fn add_weighted(runs: &mut [&mut [f32]], w: &WeightedChannel) {
     #[cfg(target_arch = "x86_64")]
     if is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU has AVX2.
-        return unsafe { add_weighted_avx2(runs, rows, stride, first, channels, len) };
+        return unsafe { add_weighted_avx2(runs, w) };
     }
-    add_weighted_body(runs, rows, stride, first, channels, len)
+    add_weighted_body(runs, w)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn add_weighted_avx2(
-    runs: &mut [&mut [f32]],
-    rows: &[f32],
-    stride: usize,
-    first: usize,
-    channels: &[f32],
-    len: usize,
-) {
-    add_weighted_body(runs, rows, stride, first, channels, len)
+unsafe fn add_weighted_avx2(runs: &mut [&mut [f32]], w: &WeightedChannel) {
+    add_weighted_body(runs, w)
 }
 
 #[inline(always)]
-fn add_weighted_body(
-    runs: &mut [&mut [f32]],
-    rows: &[f32],
-    stride: usize,
-    first: usize,
-    channels: &[f32],
-    len: usize,
-) {
+fn add_weighted_body(runs: &mut [&mut [f32]], w: &WeightedChannel) {
     const LANES: usize = 8;
+    let WeightedChannel {
+        rows,
+        stride,
+        first,
+        channels,
+        len,
+    } = *w;
     let images = rows.len() / stride;
     let lanes = |slice: &[f32]| -> [f32; LANES] { slice[..LANES].try_into().expect("8 lanes") };
     let whole = len / LANES * LANES;
@@ -1908,8 +1912,8 @@ fn add_weighted_body(
         }
         for t in 0..images {
             let v = lanes(&channels[3 * len * t + p..]);
-            let w = &rows[t * stride + first..t * stride + first + SUM_ROWS];
-            for (sum, &a) in sums.iter_mut().zip(w) {
+            let weights = &rows[t * stride + first..t * stride + first + SUM_ROWS];
+            for (sum, &a) in sums.iter_mut().zip(weights) {
                 for (s, &x) in sum.iter_mut().zip(&v) {
                     *s += a * x;
                 }
