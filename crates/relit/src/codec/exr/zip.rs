@@ -20,6 +20,15 @@
 //!
 //! and on RealRTI item11's fit (rbf:25, 567×534): level 2 67 MB/s at 0.769, Huffman only
 //! 160 MB/s at 0.749. PIZ made 0.939 and reads 4.6× slower.
+//!
+//! The split's first half holds the half floats' low bytes, whose differences are
+//! nearly uniform: Huffman coding gains nothing there and one table for both halves
+//! codes the high bytes worse. So the zlib stream holds the first half as *stored*
+//! blocks and codes only the second half (raw deflate, Huffman only), then the Adler-32
+//! of both, as any zlib stream may. On RealRTI item1's fit (sg:25, 487×439, 16-line
+//! blocks): 0.7952 of the raw size with both halves coded, 0.7939 so, in 57 % of the
+//! coding time (zlib, measured in Python); the fit's file 25.55 → 25.50 MB, its deflate
+//! 23 % → 15 % of the fit's CPU samples, read back by OpenEXR's own library equal.
 
 use exr::block::chunk::{
     Chunk, CompressedBlock, CompressedScanLineBlock, CompressedTileBlock, TileCoordinates,
@@ -34,6 +43,7 @@ fn config() -> zlib_rs::DeflateConfig {
     zlib_rs::DeflateConfig {
         level: 2, // unused by Huffman-only coding, which has no matching to tune
         strategy: zlib_rs::Strategy::HuffmanOnly,
+        window_bits: -15, // raw deflate: `zip` writes the zlib wrapper itself
         ..zlib_rs::DeflateConfig::default()
     }
 }
@@ -129,15 +139,29 @@ pub(crate) fn zip(raw: &[u8]) -> Vec<u8> {
             *byte = current.wrapping_sub(previous).wrapping_add(128);
             previous = current;
         }
+        // One zlib stream: the low bytes' half as stored blocks, the high bytes' half
+        // coded Huffman only (raw deflate, its last block final), the Adler-32 of both.
+        let mut stream = Vec::with_capacity(split.len() + split.len() / 8 + 64);
+        stream.extend_from_slice(&[0x78, 0x01]);
+        let (low, high) = split.split_at(half);
+        for block in low.chunks(u16::MAX as usize) {
+            let len = block.len() as u16;
+            stream.push(0); // not final, stored; the rest of the byte is padding
+            stream.extend_from_slice(&len.to_le_bytes());
+            stream.extend_from_slice(&(!len).to_le_bytes());
+            stream.extend_from_slice(block);
+        }
         out.clear();
-        out.resize(zlib_rs::compress_bound(split.len()), 0);
-        let (written, code) = zlib_rs::compress_slice(out, split, config());
+        out.resize(zlib_rs::compress_bound(high.len()), 0);
+        let (written, code) = zlib_rs::compress_slice(out, high, config());
         assert_eq!(
             code,
             zlib_rs::ReturnCode::Ok,
             "deflating into a buffer of the bound's size cannot fail"
         );
-        written.to_vec()
+        stream.extend_from_slice(written);
+        stream.extend_from_slice(&zlib_rs::adler32::adler32(1, split).to_be_bytes());
+        stream
     })
 }
 
