@@ -87,11 +87,9 @@ impl Family for BilinearFamily {
             return Err(Error::invalid("bilinear smooth must be positive"));
         }
         let space = PcaSpace::parse(&context.option("pca", "srgb".to_string())?)?;
-        let map = match context.option("map", "octahedral".to_string())?.as_str() {
-            "square" => GridMap::Square,
-            "octahedral" => GridMap::Octahedral,
-            other => return Err(Error::parse(format!("bad bilinear map `{other}`"))),
-        };
+        let map = context.option("map", GridMap::Octahedral.name().to_string())?;
+        let map = GridMap::parse(&map)
+            .ok_or_else(|| Error::parse(format!("bad bilinear map `{map}`")))?;
         let c = g * g;
         let mut a = vec![0.0; n * c];
         for (j, d) in dirs.iter().enumerate() {
@@ -148,11 +146,10 @@ impl Family for BilinearFamily {
         }
         let map = match params.get("map") {
             None => GridMap::Square,
-            Some(v) => match v.as_str() {
-                Some("square") => GridMap::Square,
-                Some("octahedral") => GridMap::Octahedral,
-                _ => return Err(bad("`map` is `square` or `octahedral`")),
-            },
+            Some(v) => v
+                .as_str()
+                .and_then(GridMap::parse)
+                .ok_or_else(|| bad("`map` is `square` or `octahedral`"))?,
         };
         if params.len() != 2 + params.contains_key("map") as usize {
             return Err(bad("has only `grid`, `values` and `map`"));
@@ -175,6 +172,21 @@ pub enum GridMap {
 }
 
 impl GridMap {
+    /// The map's name in option strings and stored parameters.
+    pub fn name(self) -> &'static str {
+        match self {
+            GridMap::Square => "square",
+            GridMap::Octahedral => "octahedral",
+        }
+    }
+
+    /// The map named `name` ([`GridMap::name`]).
+    pub fn parse(name: &str) -> Option<GridMap> {
+        [GridMap::Square, GridMap::Octahedral]
+            .into_iter()
+            .find(|map| map.name() == name)
+    }
+
     /// `(u, v) ∈ [−1, 1]²` of the unit vector `dir`.
     fn uv(self, dir: Vec3) -> (f64, f64) {
         match self {
@@ -215,11 +227,17 @@ impl GridMap {
 
 /// `K` grids of `g × g` node values (`K × g²`, node `(i, j)` at `j·g + i`) on `map`.
 pub fn grid_basis(g: usize, values: Vec<f64>, map: GridMap) -> Result<Box<dyn Basis>> {
+    stored_spec(g, &values, map).build()
+}
+
+/// What a bilinear basis stores: `grid`, `values`, and `map` where it is not the square
+/// grid (so that files without one read as they were written).
+fn stored_spec(g: usize, values: &[f64], map: GridMap) -> BasisSpec {
     let mut params = serde_json::json!({ "grid": g, "values": values });
-    if map == GridMap::Octahedral {
-        params["map"] = "octahedral".into();
+    if map != GridMap::Square {
+        params["map"] = map.name().into();
     }
-    BasisSpec::new("bilinear", params).build()
+    BasisSpec::new("bilinear", params)
 }
 
 /// The four grid nodes around `dir`'s place on the grid and their bilinear weights.
@@ -258,11 +276,7 @@ pub struct Bilinear {
 
 impl Basis for Bilinear {
     fn spec(&self) -> BasisSpec {
-        let mut params = serde_json::json!({ "grid": self.grid, "values": self.values });
-        if self.map == GridMap::Octahedral {
-            params["map"] = "octahedral".into();
-        }
-        BasisSpec::new("bilinear", params)
+        stored_spec(self.grid, &self.values, self.map)
     }
 
     fn family(&self) -> &'static str {
@@ -315,10 +329,8 @@ mod tests {
     /// function), and a stored basis rebuilds to the same functions.
     #[test]
     fn a_grid_interpolates_bilinearly_and_round_trips() {
-        for (map, name) in [
-            (GridMap::Square, "square"),
-            (GridMap::Octahedral, "octahedral"),
-        ] {
+        for map in [GridMap::Square, GridMap::Octahedral] {
+            let name = map.name();
             let dirs = crate::sphere::hemisphere_fibonacci(60);
             let mut values = Vec::new();
             for s in 0..200 {

@@ -1787,9 +1787,8 @@ fn plane_blocks(data: &mut [f32], npix: usize) -> Vec<Vec<&mut [f32]>> {
 /// adds the images in batch order, as a pixel-major loop would.
 fn accumulate(acc: &mut CoefficientMaps, design: &Design, indices: &[usize], images: &[&[f32]]) {
     let npix = acc.pixels();
-    let k = design.k;
     // Each image's weights, padded with zeros to whole groups of `SUM_ROWS`.
-    let stride = k.div_ceil(SUM_ROWS) * SUM_ROWS;
+    let stride = summed_rows(design.k);
     let mut rows = vec![0f32; indices.len() * stride];
     for (&j, row) in indices.iter().zip(rows.chunks_exact_mut(stride)) {
         for (w, &v) in row.iter_mut().zip(design.row(j)) {
@@ -1800,9 +1799,8 @@ fn accumulate(acc: &mut CoefficientMaps, design: &Design, indices: &[usize], ima
         .into_par_iter()
         .enumerate()
         .for_each(|(block, mut planes)| {
-            SUM_SCRATCH.with_borrow_mut(|channels| {
-                add_block(channels, &mut planes, block, images, &rows, stride, k)
-            })
+            SUM_SCRATCH
+                .with_borrow_mut(|channels| add_block(channels, &mut planes, block, images, &rows))
         });
 }
 
@@ -1813,16 +1811,22 @@ thread_local! {
     static SUM_SCRATCH: std::cell::RefCell<Vec<f32>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
-/// One block of [`accumulate`]: block `block`'s runs of every plane, `planes`.
+/// Weights an image has in [`accumulate`]'s rows: its `k` padded to whole groups.
+fn summed_rows(k: usize) -> usize {
+    k.div_ceil(SUM_ROWS) * SUM_ROWS
+}
+
+/// One block of [`accumulate`]: block `block`'s runs of every plane (`3k` of them),
+/// `planes`; `rows` the images' weights, [`summed_rows`] each.
 fn add_block(
     channels: &mut Vec<f32>,
     planes: &mut [&mut [f32]],
     block: usize,
     images: &[&[f32]],
     rows: &[f32],
-    stride: usize,
-    k: usize,
 ) {
+    let k = planes.len() / 3;
+    let stride = summed_rows(k);
     let p0 = block * SUM_BLOCK;
     let len = planes[0].len();
     // The block's pixels of every image a channel at a time (image `t`'s

@@ -359,6 +359,7 @@ impl Spill {
         let (piece, _) = self.piece(s);
         let count = piece.pixels();
         let tables = self.tables(values)?;
+        let sample = self.samples.pixel_bytes();
         buffer.clear();
         buffer.resize(count * 3 * self.images, 0.0);
         // The images' parts in parallel, each reading its bytes into a buffer of one
@@ -368,24 +369,12 @@ impl Spill {
             .par_chunks_mut(count * 3)
             .enumerate()
             .try_for_each_init(
-                || vec![0u8; count * self.samples.pixel_bytes()],
+                || vec![0u8; count * sample],
                 |bytes, (j, image)| -> Result<()> {
                     read_at(&self.file, bytes, self.offset(s, j))?;
-                    match tables {
-                        None => {
-                            for (d, b) in image.iter_mut().zip(bytes.chunks_exact(4)) {
-                                *d = f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
-                            }
-                        }
-                        Some(tables) => {
-                            let (r, rest) = tables[j].split_at(256);
-                            let (g, b) = rest.split_at(256);
-                            for (d, px) in image.chunks_exact_mut(3).zip(bytes.chunks_exact(3)) {
-                                d[0] = r[px[0] as usize];
-                                d[1] = g[px[1] as usize];
-                                d[2] = b[px[2] as usize];
-                            }
-                        }
+                    let table = tables.map(|t| t[j].as_slice());
+                    for (dst, src) in image.chunks_exact_mut(3).zip(bytes.chunks_exact(sample)) {
+                        decode_sample(src, dst, table);
                     }
                     Ok(())
                 },

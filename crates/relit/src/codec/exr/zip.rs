@@ -115,14 +115,11 @@ fn chunk_block(
 /// OpenEXR's ZIP of little-endian block bytes `raw`.
 pub(crate) fn zip(raw: &[u8]) -> Vec<u8> {
     thread_local! {
-        // The split bytes and the deflated stream, reused block after block: a block is
-        // about a megabyte, which the allocator would map and unmap (and the kernel
-        // zero) every time.
-        static SCRATCH: std::cell::RefCell<(Vec<u8>, Vec<u8>)> = const {
-            std::cell::RefCell::new((Vec::new(), Vec::new()))
-        };
+        // The split bytes, reused block after block: a block is about a megabyte, which
+        // the allocator would map and unmap (and the kernel zero) every time.
+        static SPLIT: std::cell::RefCell<Vec<u8>> = const { std::cell::RefCell::new(Vec::new()) };
     }
-    SCRATCH.with_borrow_mut(|(split, out)| {
+    SPLIT.with_borrow_mut(|split| {
         let half = raw.len().div_ceil(2);
         split.clear();
         split.resize(raw.len(), 0);
@@ -140,10 +137,13 @@ pub(crate) fn zip(raw: &[u8]) -> Vec<u8> {
             previous = current;
         }
         // One zlib stream: the low bytes' half as stored blocks, the high bytes' half
-        // coded Huffman only (raw deflate, its last block final), the Adler-32 of both.
-        let mut stream = Vec::with_capacity(split.len() + split.len() / 8 + 64);
-        stream.extend_from_slice(&[0x78, 0x01]);
+        // coded Huffman only (raw deflate, its last block final, straight into the
+        // stream), the Adler-32 of both.
         let (low, high) = split.split_at(half);
+        let bound = zlib_rs::compress_bound(high.len());
+        let mut stream =
+            Vec::with_capacity(2 + low.len() + 5 * low.len().div_ceil(0xffff) + bound + 4);
+        stream.extend_from_slice(&[0x78, 0x01]);
         for block in low.chunks(u16::MAX as usize) {
             let len = block.len() as u16;
             stream.push(0); // not final, stored; the rest of the byte is padding
@@ -151,15 +151,16 @@ pub(crate) fn zip(raw: &[u8]) -> Vec<u8> {
             stream.extend_from_slice(&(!len).to_le_bytes());
             stream.extend_from_slice(block);
         }
-        out.clear();
-        out.resize(zlib_rs::compress_bound(high.len()), 0);
-        let (written, code) = zlib_rs::compress_slice(out, high, config());
+        let start = stream.len();
+        stream.resize(start + bound, 0);
+        let (written, code) = zlib_rs::compress_slice(&mut stream[start..], high, config());
         assert_eq!(
             code,
             zlib_rs::ReturnCode::Ok,
             "deflating into a buffer of the bound's size cannot fail"
         );
-        stream.extend_from_slice(written);
+        let end = start + written.len();
+        stream.truncate(end);
         stream.extend_from_slice(&zlib_rs::adler32::adler32(1, split).to_be_bytes());
         stream
     })
