@@ -39,6 +39,11 @@ try {
   await page.goto(url);
   await page.evaluate(() => window.relit.ready);
   const info = await page.evaluate(() => window.relit.info);
+  // What the page fetched to show its first frame: the overview's layers, the depth
+  // map (the overview's in a tiled bundle, else the whole image's) and the rest.
+  const loaded = await page.evaluate(() => performance.getEntriesByType('resource').reduce((a, r) => {
+    a.bytes += r.encodedBodySize; if (r.name.endsWith('/data/depth.f32')) a.depth_bytes += r.encodedBodySize; return a;
+  }, { bytes: 0, depth_bytes: 0 }));
   const W = info.width, H = info.height;
   const whole = W * H * info.layers_per_channel * 3 * 8;
   await page.evaluate(([w, h]) => window.relit.setCanvasSize(w, h), [CW, CH]);
@@ -65,11 +70,12 @@ try {
     rows.push({ view: name, seconds, frame_ms: frame.median, tiles: after.tiles - before.tiles, bytes: after.bytes - before.bytes, server_read_bytes: rchar(server.pid) - readBefore });
   }
   const stats = await page.evaluate(() => window.relit.tileStats);
-  const result = { file: args.file, size: [W, H], k: info.k, tiles: info.tiles, file_bytes: fileBytes, whole_layer_bytes: whole, canvas: [CW, CH], server_startup: startup, server_peak_mib: rss(server.pid), views: rows, totals: stats };
+  const result = { file: args.file, size: [W, H], k: info.k, tiles: info.tiles, file_bytes: fileBytes, whole_layer_bytes: whole, canvas: [CW, CH], server_startup: startup, load: loaded, depth: info.depth, server_peak_mib: rss(server.pid), views: rows, totals: stats };
   if (args.json) console.log(JSON.stringify(result, null, 2));
   else {
     console.log(`${args.file}: ${W}×${H}, k = ${info.k}, file ${(fileBytes / 1e6).toFixed(1)} MB, whole layers ${(whole / 1e6).toFixed(1)} MB; tiles ${info.tiles ? info.tiles.side + ' px, overview level ' + info.tiles.overview : 'none'}`);
     console.log(`server start ${startup.seconds.toFixed(1)} s, read ${(startup.read_bytes / 1e6).toFixed(1)} MB, peak ${startup.peak_mib.toFixed(0)} MiB (at the end: ${result.server_peak_mib.toFixed(0)} MiB)`);
+    console.log(`page load fetched ${(loaded.bytes / 1e6).toFixed(1)} MB, of it the depth map ${(loaded.depth_bytes / 1e6).toFixed(1)} MB${info.depth ? ` (${info.depth.width || W}×${info.depth.height || H})` : ''}`);
     console.log('| view (1280×720 canvas) | s until every tile arrived (2 frames included) | frame ms | tiles | MB fetched | % of whole layers | MB the server read |');
     console.log('|---|---:|---:|---:|---:|---:|---:|');
     for (const r of rows) console.log(`| ${r.view} | ${r.seconds.toFixed(2)} | ${r.frame_ms != null ? r.frame_ms.toFixed(0) : '—'} | ${r.tiles} | ${(r.bytes / 1e6).toFixed(1)} | ${(100 * r.bytes / whole).toFixed(2)} | ${r.server_read_bytes != null ? (r.server_read_bytes / 1e6).toFixed(1) : '—'} |`);

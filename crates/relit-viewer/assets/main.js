@@ -305,5 +305,8 @@ window.relit = {
    *  transfer alone turn it off). */
   setProgressive: (on) => { app.progressive = !!on; },
   get tileStats() { return renderer.tileStats || null; },
+  /** What a click at canvas position (cx, cy) finds: its pixel, depth, ray and surface
+   *  point (renderer.pick). */
+  pick: (cx, cy) => renderer.pick(app.view, cx, cy),
   loadSlide: async (name, url) => { await renderer.loadSlide(name, url); app.changed(false); },
 };

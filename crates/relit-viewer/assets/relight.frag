@@ -24,6 +24,7 @@ uniform highp usampler2D uIndices;
 uniform highp sampler2DArray uTable;
 uniform int uTableN;            // cells per side N
 uniform highp sampler2D uDepth;
+uniform vec2 uDepthSize;        // uDepth's size: the image's, or a tiled bundle's overview's
 uniform sampler2D uSlide0;
 uniform sampler2D uSlide1;
 uniform sampler2D uSlide2;
@@ -56,6 +57,7 @@ uniform int uLevel;             // the level tiles are read from; −1: the over
 uniform vec2 uLevelSize;
 uniform int uTileSide;
 uniform int uSlotsPerRow;
+uniform highp sampler2D uDepthAtlas; // each held tile's depth, in its slot
 #endif
 
 uniform int uViewMode;          // 0 flat pan/zoom, 1 perspective view of a panorama
@@ -210,34 +212,6 @@ vec2 cranleyPatterson(uint pixel) {
   return vec2(float(h.x), float(h.y)) * (1.0 / 4294967296.0);
 }
 
-// The depth of texel t; columns wrap on panoramas, other edges clamp.
-float depthTexel(ivec2 t) {
-  ivec2 size = ivec2(uImage);
-  t.x = uWrapX ? (t.x % size.x + size.x) % size.x : clamp(t.x, 0, size.x - 1);
-  t.y = clamp(t.y, 0, size.y - 1);
-  return texelFetch(uDepth, t, 0).r;
-}
-
-// Depth at pos and the image position its surface point is taken at: bilinear between
-// the four nearest texel centres where they agree within 15 % (one continuous surface),
-// otherwise the nearest texel's depth at its centre, so that no point floats between a
-// foreground edge and the background. At texel centres both are that texel exactly.
-float surfaceDepth(vec2 pos, ivec2 t, out vec2 at) {
-  if (uSmooth) {
-    vec2 q = pos - 0.5, f = q - floor(q);
-    ivec2 i = ivec2(floor(q));
-    float d00 = depthTexel(i), d10 = depthTexel(i + ivec2(1, 0));
-    float d01 = depthTexel(i + ivec2(0, 1)), d11 = depthTexel(i + ivec2(1, 1));
-    float lo = min(min(d00, d10), min(d01, d11)), hi = max(max(d00, d10), max(d01, d11));
-    if (lo > 0.0 && hi <= 1.15 * lo) {
-      at = pos;
-      return mix(mix(d00, d10, f.x), mix(d01, d11, f.x), f.y);
-    }
-  }
-  at = vec2(t) + 0.5;
-  return texelFetch(uDepth, t, 0).r;
-}
-
 #if TILED
 // Texel p of level uLevel (columns wrapped on panoramas, edges clamped, as the planes
 // texture's sampler does) in the atlas; x < 0 where its tile is not held.
@@ -277,6 +251,55 @@ bool tiledCoefficients(vec2 pos, out vec4 C[3 * N_LAYERS]) {
   return true;
 }
 #endif
+
+// The depth of texel t of uDepth; columns wrap on panoramas, other edges clamp.
+float depthTexel(ivec2 t) {
+  ivec2 size = ivec2(uDepthSize);
+  t.x = uWrapX ? (t.x % size.x + size.x) % size.x : clamp(t.x, 0, size.x - 1);
+  t.y = clamp(t.y, 0, size.y - 1);
+  return texelFetch(uDepth, t, 0).r;
+}
+
+// The depth of texel t of the level depth is read at: the tiles of uLevel (fromTiles;
+// −1 where its tile is not held) or uDepth.
+float levelDepth(ivec2 t, bool fromTiles) {
+#if TILED
+  if (fromTiles) {
+    ivec2 a = atlasTexel(t);
+    return a.x < 0 ? -1.0 : texelFetch(uDepthAtlas, a, 0).r;
+  }
+#endif
+  return depthTexel(t);
+}
+
+// The depth at pos, read at a level of `size` texels, and the image position its surface
+// point is taken at: bilinear between the four nearest texel centres where they agree
+// within 15 % (one continuous surface), otherwise the nearest texel's depth at its
+// centre, so that no point floats between a foreground edge and the background. At
+// texel centres both are that texel exactly. False where a tile it needs is not held.
+bool surfaceDepth(vec2 pos, vec2 size, bool fromTiles, out float depth, out vec2 at) {
+  vec2 s = size / uImage, p = pos * s;
+  depth = 0.0;
+  at = pos;
+  if (uSmooth) {
+    vec2 q = p - 0.5, f = q - floor(q);
+    ivec2 i = ivec2(floor(q));
+    float d00 = levelDepth(i, fromTiles), d10 = levelDepth(i + ivec2(1, 0), fromTiles);
+    float d01 = levelDepth(i + ivec2(0, 1), fromTiles), d11 = levelDepth(i + ivec2(1, 1), fromTiles);
+    float lo = min(min(d00, d10), min(d01, d11)), hi = max(max(d00, d10), max(d01, d11));
+    if (lo < 0.0) return false;
+    if (lo > 0.0 && hi <= 1.15 * lo) {
+      depth = mix(mix(d00, d10, f.x), mix(d01, d11, f.x), f.y);
+      return true;
+    }
+  }
+  ivec2 t = min(ivec2(floor(p)), ivec2(size) - 1);
+  float d = levelDepth(t, fromTiles);
+  if (d < 0.0) return false;
+  depth = d;
+  at = (vec2(t) + 0.5) / s;
+  return true;
+}
 
 void main() {
   vec2 pos;
@@ -372,8 +395,15 @@ void main() {
     }
   }
   if (uNumLights > 0) {
-    vec2 at;
-    float depth = uHasDepth ? surfaceDepth(pos, t, at) : 0.0;
+    // Depth from the tiles of the level drawn where they are held (a tiled bundle),
+    // otherwise from uDepth.
+    vec2 at = pos;
+    float depth = 0.0;
+    bool gotDepth = !uHasDepth;
+#if TILED
+    if (!gotDepth && uLevel >= 0) gotDepth = surfaceDepth(pos, uLevelSize, true, depth, at);
+#endif
+    if (!gotDepth) surfaceDepth(pos, uDepthSize, false, depth, at);
     bool hasPoint = depth > 0.0;
     vec3 P = hasPoint ? surfacePoint(at, depth) : vec3(0.0);
     vec4 Y[N_LAYERS];

@@ -16,6 +16,8 @@ const ATLAS_UNIT = INDEX_UNIT + 1, PAGES_UNIT = ATLAS_UNIT + 1;
 // Environment lights of display-referred maps: a float texture of two rows (directions,
 // RGB), as many columns as lights (four environments of the 64 lights a bundle ships).
 const ENV_UNIT = PAGES_UNIT + 1, MAX_ENV_LIGHTS = 256;
+// A tiled bundle's depth of the resident tiles, in the atlas's slots.
+const DEPTH_ATLAS_UNIT = ENV_UNIT + 1;
 /** Tiles fetched at once. */
 const TILE_FETCHES = 6;
 /** Most GPU memory the atlas of tiles takes. */
@@ -163,9 +165,13 @@ export class Renderer {
     gl.bindTexture(gl.TEXTURE_2D, this.depthTex);
     this.setNearest(gl.TEXTURE_2D);
     if (info.depth) {
+      // The image's size, or a tiled bundle's overview's (its tiles carry the rest).
+      const DW = info.depth.width || W, DH = info.depth.height || H;
       const buf = await fetchOk(base + info.depth.file, 'buffer');
+      if (buf.byteLength !== DW * DH * 4) throw new Error(`${info.depth.file}: ${buf.byteLength} bytes, expected ${DW * DH * 4}`);
       this.depth = new Float32Array(buf);
-      gl.texImage2D(gl.TEXTURE_2D, 0, gl.R32F, W, H, 0, gl.RED, gl.FLOAT, this.depth);
+      this.depthSize = [DW, DH];
+      gl.texImage2D(gl.TEXTURE_2D, 0, gl.R32F, DW, DH, 0, gl.RED, gl.FLOAT, this.depth);
     } else {
       this.depth = null;
       gl.texImage2D(gl.TEXTURE_2D, 0, gl.R32F, 1, 1, 0, gl.RED, gl.FLOAT, new Float32Array([0]));
@@ -193,11 +199,12 @@ export class Renderer {
   setupTiles(base) {
     const gl = this.gl, t = this.tiles, T = t.side, layers = this.info.layers.length;
     const maxSide = Math.floor(gl.getParameter(gl.MAX_TEXTURE_SIZE) / T);
-    // Enough slots for twice the tiles a screen-sized view needs at 1:1, within
-    // ATLAS_BYTES and the GPU's texture size.
+    // Enough slots for twice the tiles a screen-sized (or canvas-sized, if larger)
+    // view needs at 1:1, within ATLAS_BYTES and the GPU's texture size.
     const dpr = window.devicePixelRatio || 1;
-    const screenTiles = (Math.ceil((screen.width * dpr) / T) + 1) * (Math.ceil((screen.height * dpr) / T) + 1);
-    const fit = Math.max(4, Math.floor(ATLAS_BYTES / (T * T * 8 * layers)));
+    const sw = Math.max(screen.width * dpr, this.canvas.width), sh = Math.max(screen.height * dpr, this.canvas.height);
+    const screenTiles = (Math.ceil(sw / T) + 1) * (Math.ceil(sh / T) + 1);
+    const fit = Math.max(4, Math.floor(ATLAS_BYTES / (T * T * (8 * layers + (this.depth ? 4 : 0)))));
     const want = Math.max(4, Math.min(2 * screenTiles, fit, maxSide * maxSide));
     const perRow = Math.min(maxSide, Math.ceil(Math.sqrt(want)));
     const rows = Math.ceil(want / perRow);
@@ -206,6 +213,12 @@ export class Renderer {
     gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.atlas.tex);
     gl.texStorage3D(gl.TEXTURE_2D_ARRAY, 1, gl.RGBA16F, perRow * T, rows * T, layers);
     this.setNearest(gl.TEXTURE_2D_ARRAY);
+    // Each tile's depth beside its coefficients, in the same slot (1×1 without depth).
+    this.depthAtlas = gl.createTexture();
+    gl.activeTexture(gl.TEXTURE0 + DEPTH_ATLAS_UNIT);
+    gl.bindTexture(gl.TEXTURE_2D, this.depthAtlas);
+    gl.texStorage2D(gl.TEXTURE_2D, 1, gl.R32F, this.depth ? perRow * T : 1, this.depth ? rows * T : 1);
+    this.setNearest(gl.TEXTURE_2D);
     const [cols, lines] = this.tileGrid(0);
     this.pages = { data: new Uint16Array(cols * lines), tex: gl.createTexture() };
     gl.activeTexture(gl.TEXTURE0 + PAGES_UNIT);
@@ -262,14 +275,22 @@ export class Renderer {
   }
 
   /** Mark the tiles `view` needs, start fetching those missing, and fill the page
-   *  table of the level drawn; returns that level (−1: the overview alone). */
+   *  table of the level drawn; returns that level (−1: the overview alone). A view that
+   *  needs more tiles than the atlas holds (a canvas larger than the screen it was
+   *  sized for) is drawn from the next coarser level whose tiles fit, rather than
+   *  evicting tiles it needs and fetching them again forever. */
   updateTiles(view) {
-    const gl = this.gl, level = this.tileLevel(view);
+    const gl = this.gl;
+    let level = this.tileLevel(view);
     this.frame++;
     this.wanted = [];
     if (level < 0) return level;
-    const needed = this.visibleTiles(view, level);
-    if (needed.size > this.atlas.slots) this.tileStats.overflowed++;
+    let needed = this.visibleTiles(view, level);
+    if (needed.size > this.atlas.slots) {
+      this.tileStats.overflowed++;
+      while (needed.size > this.atlas.slots && level + 1 < this.tiles.overview) needed = this.visibleTiles(view, ++level);
+      if (needed.size > this.atlas.slots) return -1;
+    }
     const [cols, lines] = this.tileGrid(level);
     const pages = this.pages.data.subarray(0, cols * lines).fill(0);
     for (const key of needed) {
@@ -318,7 +339,9 @@ export class Renderer {
     const tw = Math.min(T, lw - x * T), th = Math.min(T, lh - y * T);
     const url = this.tileBase + t.path.replace('{level}', level).replace('{x}', x).replace('{y}', y);
     const buf = await fetchOk(url, 'buffer');
-    if (buf.byteLength !== tw * th * 8 * layers) throw new Error(`${buf.byteLength} bytes, expected ${tw * th * 8 * layers}`);
+    // The layers, then the tile's depth where the file has one (crates/relit-viewer/src/tiles.rs).
+    const coefficientBytes = tw * th * 8 * layers, expected = coefficientBytes + (this.depth ? tw * th * 4 : 0);
+    if (buf.byteLength !== expected) throw new Error(`${buf.byteLength} bytes, expected ${expected}`);
     this.tileStats.tiles++;
     this.tileStats.bytes += buf.byteLength;
     let slot = this.freeSlots.pop();
@@ -329,14 +352,23 @@ export class Renderer {
       this.resident.delete(oldest[0]);
       slot = oldest[1].slot;
     }
-    const halves = new Uint16Array(buf);
+    const halves = new Uint16Array(buf, 0, coefficientBytes / 2);
     const sx = (slot % this.atlas.perRow) * T, sy = Math.floor(slot / this.atlas.perRow) * T;
     gl.activeTexture(gl.TEXTURE0 + ATLAS_UNIT);
     gl.bindTexture(gl.TEXTURE_2D_ARRAY, this.atlas.tex);
     for (let l = 0; l < layers; l++) {
       gl.texSubImage3D(gl.TEXTURE_2D_ARRAY, 0, sx, sy, l, tw, th, 1, gl.RGBA, gl.HALF_FLOAT, halves.subarray(l * tw * th * 4, (l + 1) * tw * th * 4));
     }
-    this.resident.set(key, { slot, used: 0 });
+    // Kept on the CPU too, for picking.
+    const depth = this.depth ? new Float32Array(buf, coefficientBytes, tw * th) : null;
+    if (depth) {
+      gl.activeTexture(gl.TEXTURE0 + DEPTH_ATLAS_UNIT);
+      gl.bindTexture(gl.TEXTURE_2D, this.depthAtlas);
+      gl.texSubImage2D(gl.TEXTURE_2D, 0, sx, sy, tw, th, gl.RED, gl.FLOAT, depth);
+    }
+    // A tile the latest frame wants is in use by it: evicting it for the next one that
+    // frame wants would fetch the two in turn for ever (a view needing most slots).
+    this.resident.set(key, { slot, used: this.wanted.includes(key) ? this.frame : 0, depth, width: tw });
   }
 
   /** The basis' weight table (half floats): decoded for directional and environment
@@ -413,11 +445,6 @@ export class Renderer {
     c.pose = pose;
     this.cam = c;
     this.isPanorama = c.proj >= 2;
-  }
-
-  /** World surface point of pixel (i, j) at depth d, and the ray origin. */
-  surfacePoint(i, j, d) {
-    return this.rayAt(i + 0.5, j + 0.5, d);
   }
 
   /** The world ray (origin, unit dir) through continuous image position (x, y) of the
@@ -505,11 +532,35 @@ export class Renderer {
 
   /** Depth and surface point at canvas position, or null where nothing was hit. */
   pick(view, cx, cy) {
-    const px = this.sourcePixel(view, cx, cy);
-    if (!px) return null;
-    const d = this.depth ? this.depth[px[1] * this.info.width + px[0]] : 0;
-    if (!(d > 0)) return { pixel: px, depth: 0 };
-    return { pixel: px, depth: d, ...this.surfacePoint(px[0], px[1], d) };
+    const p = this.sourcePosition(view, cx, cy);
+    if (!p) return null;
+    const px = [Math.floor(p[0]), Math.floor(p[1])];
+    const at = this.depthAt(p);
+    if (!at || !(at.depth > 0)) return { pixel: px, depth: 0 };
+    return { pixel: px, depth: at.depth, ...this.rayAt(at.x, at.y, at.depth) };
+  }
+
+  /** The depth at image position p as relight.frag reads it unsmoothed, and the image
+   *  position of its texel's centre: from the tile of the level drawn where it is held,
+   *  otherwise from the depth texture (level 0's, or a tiled bundle's overview's). */
+  depthAt(p) {
+    if (!this.depth) return null;
+    const W = this.info.width, H = this.info.height;
+    const texel = (size, read) => {
+      const tx = Math.min(Math.floor((p[0] * size[0]) / W), size[0] - 1), ty = Math.min(Math.floor((p[1] * size[1]) / H), size[1] - 1);
+      const depth = read(tx, ty);
+      return depth === undefined ? null : { depth, x: ((tx + 0.5) * W) / size[0], y: ((ty + 0.5) * H) / size[1] };
+    };
+    const level = this.tiles ? this.drawnLevel : -1;
+    if (level >= 0) {
+      const T = this.tiles.side;
+      const held = texel(this.tiles.levels[level], (tx, ty) => {
+        const r = this.resident.get(`${level}/${Math.floor(tx / T)}/${Math.floor(ty / T)}`);
+        return r && r.depth ? r.depth[(ty % T) * r.width + (tx % T)] : undefined;
+      });
+      if (held) return held;
+    }
+    return texel(this.depthSize, (tx, ty) => this.depth[ty * this.depthSize[0] + tx]);
   }
 
   /** Load a slide image (URL or Blob) for projectors under `name`. */
@@ -675,6 +726,7 @@ export class Renderer {
     }
     this.minifying = minify;
     const level = this.tiles ? this.updateTiles(view) : -1;
+    this.drawnLevel = level;
     gl.activeTexture(gl.TEXTURE1); gl.bindTexture(gl.TEXTURE_2D, this.depthTex);
     set('uPlanes', 'uniform1i', 0);
     set('uDepth', 'uniform1i', 1);
@@ -699,6 +751,7 @@ export class Renderer {
     set('uHasUniform', 'uniform1i', p.hasUniform ? 1 : 0);
     set('uDisplay', 'uniform1i', p.display ? 1 : 0);
     set('uHasDepth', 'uniform1i', this.depth ? 1 : 0);
+    if (this.depth) set('uDepthSize', 'uniform2f', ...this.depthSize);
     set('uImage', 'uniform2f', info.width, info.height);
     set('uSmooth', 'uniform1i', this.smooth ? 1 : 0);
     // Levels between the image and the planes texture (a tiled bundle's overview).
@@ -715,6 +768,8 @@ export class Renderer {
       if (level >= 0) set('uLevelSize', 'uniform2f', ...this.tiles.levels[level]);
       set('uTileSide', 'uniform1i', this.tiles.side);
       set('uSlotsPerRow', 'uniform1i', this.atlas.perRow);
+      gl.activeTexture(gl.TEXTURE0 + DEPTH_ATLAS_UNIT); gl.bindTexture(gl.TEXTURE_2D, this.depthAtlas);
+      set('uDepthAtlas', 'uniform1i', DEPTH_ATLAS_UNIT);
     }
     const flat = view.mode === 'flat' || !this.isPanorama;
     set('uViewMode', 'uniform1i', flat ? 0 : 1);

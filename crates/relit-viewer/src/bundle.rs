@@ -43,8 +43,10 @@
 //! level as tiles of all layers, read from the file as they are asked for.
 //!
 //! The depth map (when the file has one) is `width × height` little-endian `f32`
-//! (`data/depth.f32`), 0 where nothing was hit; with the camera in `info.json` the
-//! viewer recomputes each pixel's surface point `P = O + d·V` exactly as the CPU engine.
+//! (`data/depth.f32`, `info.json` `depth` naming its size), 0 where nothing was hit; with
+//! the camera in `info.json` the viewer recomputes each pixel's surface point
+//! `P = O + d·V` exactly as the CPU engine. A tiled bundle's is the overview's, and each
+//! tile carries its own.
 //!
 //! Environment maps are shipped as the quadrature the library integrates maps of
 //! bases other than SH with (`relit::envmap::quadrature`): at most
@@ -199,6 +201,7 @@ impl WebBundle {
             height,
             meta: &image.meta,
             depth: image.depth.as_deref(),
+            depth_size: (image.maps.width, image.maps.height),
         };
         let source = Arc::new(opened.source);
         let mut bundle = Self::assemble(
@@ -249,6 +252,7 @@ impl WebBundle {
             height: image.height,
             meta: &entries.meta,
             depth,
+            depth_size: (image.width, image.height),
         };
         // The entries as a CODEBOOK_WIDTH-wide texture, the last row padded with the
         // last entry (which leaves every plane's range, and so its coding, as it is).
@@ -343,14 +347,7 @@ impl WebBundle {
                 .collect(),
         );
         if let Some(depth) = shape.depth {
-            let bytes: Vec<u8> = depth
-                .iter()
-                .flat_map(|&d| {
-                    let d = if d.is_finite() && d > 0.0 { d } else { 0.0 };
-                    d.to_le_bytes()
-                })
-                .collect();
-            files.insert("data/depth.f32".to_string(), bytes);
+            files.insert("data/depth.f32".to_string(), depth_bytes(depth));
         }
         for env in environments {
             files.insert(format!("data/{}", env.info.file), env.quadrature);
@@ -438,6 +435,17 @@ fn tile_side(
 /// The weight table's file under `data/`.
 const WEIGHTS_FILE: &str = "weights.f16";
 
+/// A depth map as the viewer reads it: little-endian `f32`, 0 where nothing was hit.
+pub(crate) fn depth_bytes(depth: &[f32]) -> Vec<u8> {
+    depth
+        .iter()
+        .flat_map(|&d| {
+            let d = if d.is_finite() && d > 0.0 { d } else { 0.0 };
+            d.to_le_bytes()
+        })
+        .collect()
+}
+
 /// A codebook image's indices under `data/`.
 const INDICES_FILE: &str = "indices.u16";
 
@@ -451,6 +459,8 @@ struct Shape<'a> {
     height: usize,
     meta: &'a Metadata,
     depth: Option<&'a [f32]>,
+    /// The depth map's size: the image's, or a tiled bundle's overview's.
+    depth_size: (usize, usize),
 }
 
 impl<'a> Shape<'a> {
@@ -460,6 +470,7 @@ impl<'a> Shape<'a> {
             height: image.height(),
             meta: &image.meta,
             depth: image.depth.as_deref(),
+            depth_size: (image.width(), image.height()),
         }
     }
 
@@ -526,7 +537,7 @@ fn check_shape(
         return Err(invalid("the coefficient maps have the wrong length"));
     }
     if let Some(d) = shape.depth {
-        if d.len() != w * h {
+        if d.len() != shape.depth_size.0 * shape.depth_size.1 {
             return Err(invalid("the depth map has the wrong length"));
         }
     }
@@ -626,7 +637,12 @@ fn info_json_with(
         "storage": options.precision,
         "layers_per_channel": n,
         "layers": layers,
-        "depth": shape.depth.map(|_| json!({ "file": "depth.f32", "format": "f32le" })),
+        "depth": shape.depth.map(|_| json!({
+            "file": "depth.f32",
+            "format": "f32le",
+            "width": shape.depth_size.0,
+            "height": shape.depth_size.1,
+        })),
         "environments": environments.iter().map(|e| &e.info).collect::<Vec<_>>(),
     }))
 }

@@ -6,8 +6,9 @@
 //!   weight table (the viewer knows no basis), a float depth map and the camera, plus
 //!   environment maps as radiance.
 //! * [`assets`] holds the viewer itself (HTML, ES modules, GLSL), embedded in the binary.
-//! * [`tiles`] sends a big file a tile at a time: an overview level held whole, finer
-//!   levels read by region from the EXR when the view asks for them.
+//! * [`tiles`] sends a big file a tile at a time: an overview level (and its depth) held
+//!   whole, finer levels (each tile with its depth) read by region from the EXR or
+//!   `.rlz` file when the view asks for them.
 //! * [`server`] serves the embedded assets and an in-memory bundle over HTTP
 //!   ([`serve`]); [`export`] writes the same files as a static folder ([`export_web`]).
 //!

@@ -12,15 +12,19 @@
 //! * tiles of every finer level, `data/tiles/L/X_Y.f16`: the `side × side` pixels (fewer
 //!   at the right and bottom edges) from column `X·side`, row `Y·side` of level `L`, all
 //!   layers of the bundle one after the other, each row-major RGBA half floats, the
-//!   layout of a whole layer. The server reads each from the file when it is asked for.
+//!   layout of a whole layer; then, where the file has depth, the tile's depth
+//!   (row-major little-endian `f32`, 0 where nothing was hit). The server reads each
+//!   from the file when it is asked for.
 //!
 //! Level `L` is the pyramid of `relit convert --mip-tiles` (OpenEXR's rounding down,
 //! [`exr::mip_sizes`]): each pixel the mean of the `2^L × 2^L` pixels of level 0 it
-//! covers (relighting is linear, so a level relights to the means of level 0's frame).
+//! covers (relighting is linear, so a level relights to the means of level 0's frame),
+//! and its depth the mean of the hit ones among them, as the file's own levels hold it.
 //! Levels the file holds are read as they are, by region; others are the means of
 //! level 0's region, read in bands of rows, so a request never holds more than a band.
-//! The depth map stays whole (4 bytes a pixel): lights with a position need it
-//! wherever they fall, and the CPU picks on it.
+//! Depth travels the same way: the overview's depth (`data/depth.f32`, the overview's
+//! size) stands in where a tile has not arrived, and no part of the bundle holds the
+//! whole of level 0's depth (an 8192×2048 map alone is 64 MiB).
 
 use crate::bundle::encode_layer;
 use crate::{invalid, Result};
@@ -114,6 +118,8 @@ pub struct TileSource {
     /// Levels the file holds (1: level 0 alone).
     file_levels: usize,
     k: usize,
+    /// Whether the file has depth (each tile then carries its own).
+    depth: bool,
     bytes_read: AtomicU64,
     tiles_read: AtomicU64,
     /// Tiles being read now, at most [`TileSource::readers`]: each holds a tile's maps
@@ -125,7 +131,7 @@ pub struct TileSource {
 }
 
 /// What [`TileSource::open`] reads once: the overview's maps with the file's metadata,
-/// and the whole depth map where the file has one.
+/// and its depth (the overview's size) where the file has one.
 pub struct Opened {
     pub source: TileSource,
     pub overview: RelightableImage,
@@ -133,7 +139,7 @@ pub struct Opened {
 
 impl TileSource {
     /// Open `path` (a relit EXR, or a `.rlz` file of planes) for tiles of `side`, its
-    /// overview the finest level within `overview_bytes`; read the overview and the
+    /// overview the finest level within `overview_bytes`; read the overview with its
     /// depth.
     pub fn open(path: &Path, side: usize, overview_bytes: usize) -> Result<Opened> {
         use relit::codec::{packed, FileForm};
@@ -184,33 +190,14 @@ impl TileSource {
             sizes: all[..=overview].to_vec(),
             file_levels,
             k,
+            depth: has_depth,
             bytes_read: AtomicU64::new(0),
             tiles_read: AtomicU64::new(0),
             reading: (Mutex::new(0), Condvar::new()),
             peak_readers: AtomicUsize::new(0),
         };
         let (ow, oh) = all[overview];
-        let mut depth = has_depth.then(|| vec![0.0f32; w * h]);
-        // One pass reads the depth and makes the overview when the file lacks its
-        // level and its pixels cover the whole image (sides divisible by 2^level).
-        // (A compressed file's depth is its own sections.)
-        let (ex, ey) = source.shifts(overview);
-        let one_pass =
-            form == Form::Exr && overview >= file_levels && ow << ex == w && oh << ey == h;
-        let maps = if !one_pass {
-            if has_depth && form == Form::Packed {
-                depth = packed::read_depth(path)?;
-            } else if let Some(depth) = depth.as_mut() {
-                source.stream(0, (0, 0, w, h), true, |(_, y), _, d| {
-                    // EXR bands span the image's width.
-                    let d = d.unwrap_or(&[]);
-                    depth[y * w..y * w + d.len()].copy_from_slice(d);
-                })?;
-            }
-            source.read_level(overview, (0, 0, ow, oh), None)?
-        } else {
-            source.read_level(overview, (0, 0, ow, oh), depth.as_deref_mut())?
-        };
+        let (maps, depth) = source.read_level(overview, (0, 0, ow, oh))?;
         Ok(Opened {
             overview: RelightableImage { meta, maps, depth },
             source,
@@ -258,7 +245,7 @@ impl TileSource {
     /// The bytes of tile `(level, x, y)` (of this source's, [`Self::parse_path`]).
     pub fn tile_bytes(&self, level: usize, x: usize, y: usize) -> usize {
         let (_, _, w, h) = self.tile_rect(level, x, y);
-        w * h * texel_bytes(self.k)
+        w * h * (texel_bytes(self.k) + if self.depth { 4 } else { 0 })
     }
 
     /// The pixels of tile `(level, x, y)` in its level: `(x0, y0, width, height)`.
@@ -295,17 +282,20 @@ impl TileSource {
             return Err(invalid(format!("no tile {level}/{x}_{y}")));
         }
         let rect = self.tile_rect(level, x, y);
-        let maps = {
+        let (maps, depth) = {
             let _turn = self.turn();
-            self.read_level(level, rect, None)?
+            self.read_level(level, rect)?
         };
         self.tiles_read.fetch_add(1, Ordering::Relaxed);
         let n = crate::bundle::layers_per_channel(self.k);
-        let mut bytes = Vec::with_capacity(maps.pixels() * texel_bytes(self.k));
+        let mut bytes = Vec::with_capacity(self.tile_bytes(level, x, y));
         for c in 0..3 {
             for j in 0..n {
                 bytes.extend(encode_layer(&maps, c, j, Precision::F16)?);
             }
+        }
+        if let Some(depth) = depth {
+            bytes.extend(crate::bundle::depth_bytes(&depth));
         }
         Ok(bytes)
     }
@@ -332,20 +322,17 @@ impl TileSource {
         Turn(&self.reading)
     }
 
-    /// The maps of `rect` of `level`: read from the file where it holds the level,
-    /// otherwise the means of level 0's pixels under each, read in bands of rows (and
-    /// level 0's depth copied into `depth` on the way, when given and the rect is the
-    /// whole level).
+    /// The maps of `rect` of `level`, with its depth where the file has one: read from
+    /// the file where it holds the level, otherwise the means of level 0's pixels under
+    /// each (the depth: of the hit ones), read in bands of rows.
     fn read_level(
         &self,
         level: usize,
         rect: (usize, usize, usize, usize),
-        mut depth: Option<&mut [f32]>,
-    ) -> Result<CoefficientMaps> {
-        if level < self.file_levels && depth.is_none() {
-            return Ok(self.read(level, rect, false)?.0);
+    ) -> Result<(CoefficientMaps, Option<Vec<f32>>)> {
+        if level < self.file_levels {
+            return self.read(level, rect, self.depth);
         }
-        let w0 = self.sizes[0].0;
         // A level's pixel covers 2^e level-0 pixels along an axis, e stopping where the
         // side reached 1 (OpenEXR's rounding down keeps that side at 1).
         let (ex, ey) = self.shifts(level);
@@ -354,9 +341,10 @@ impl TileSource {
         let k = self.k;
         let n = rw * rh;
         let mut sums = vec![0.0f64; 3 * k * n];
-        let with_depth = depth.is_some();
-        self.stream(level, from, with_depth, |(x0, y), band, band_depth| {
+        let mut hits = vec![(0.0f64, 0u32); if self.depth { n } else { 0 }];
+        self.stream(level, from, self.depth, |(x0, y), band, band_depth| {
             let m = band.pixels();
+            let column = |x: usize| ((x0 + x) >> ex) - rx;
             for j in 0..3 * k {
                 let plane = &band.data[j * m..(j + 1) * m];
                 let out = &mut sums[j * n..(j + 1) * n];
@@ -364,21 +352,41 @@ impl TileSource {
                     let oy = ((y + row) >> ey) - ry;
                     let out = &mut out[oy * rw..(oy + 1) * rw];
                     for (x, &v) in line.iter().enumerate() {
-                        out[((x0 + x) >> ex) - rx] += v as f64;
+                        out[column(x)] += v as f64;
                     }
                 }
             }
-            if let (Some(depth), Some(d)) = (depth.as_deref_mut(), band_depth) {
-                depth[y * w0..y * w0 + d.len()].copy_from_slice(d);
+            let band_depth = band_depth.unwrap_or(&[]);
+            for (row, line) in band_depth.chunks_exact(band.width).enumerate() {
+                let oy = ((y + row) >> ey) - ry;
+                for (x, &d) in line.iter().enumerate() {
+                    if d.is_finite() && d > 0.0 {
+                        let hit = &mut hits[oy * rw + column(x)];
+                        hit.0 += d as f64;
+                        hit.1 += 1;
+                    }
+                }
             }
         })?;
         let scale = 1.0 / (1u64 << (ex + ey)) as f64;
-        Ok(CoefficientMaps {
+        let maps = CoefficientMaps {
             width: rw,
             height: rh,
             k,
             data: sums.iter().map(|&s| (s * scale) as f32).collect(),
-        })
+        };
+        let depth = self.depth.then(|| {
+            hits.iter()
+                .map(|&(sum, count)| {
+                    if count > 0 {
+                        (sum / count as f64) as f32
+                    } else {
+                        0.0
+                    }
+                })
+                .collect()
+        });
+        Ok((maps, depth))
     }
 
     /// How many times level `level` halved each side: a pixel of it covers `2^ex × 2^ey`
@@ -389,26 +397,32 @@ impl TileSource {
         (shift(w0), shift(h0))
     }
 
-    /// `rect` of `level` (one the file holds) as stored, with its depth when asked for
-    /// and the file keeps it beside the coefficients (EXR); counts the bytes read.
+    /// `rect` of `level` (one the file holds) as stored, with its depth when asked for;
+    /// counts the bytes read.
     fn read(
         &self,
         level: usize,
         rect: (usize, usize, usize, usize),
         depth: bool,
     ) -> Result<(CoefficientMaps, Option<Vec<f32>>)> {
-        let (image, bytes) = match self.form {
+        let (maps, depth, bytes) = match self.form {
             Form::Exr => {
                 let read = exr::read_region_with(&self.path, level, rect, depth)?;
-                (read.image, read.bytes_read)
+                (read.image.maps, read.image.depth, read.bytes_read)
             }
             Form::Packed => {
-                let (image, bytes, _) = relit::codec::packed::read_region(&self.path, rect)?;
-                (image, bytes)
+                use relit::codec::packed;
+                let (image, bytes, _) = packed::read_region(&self.path, rect)?;
+                let (depth, depth_bytes) = if depth {
+                    packed::read_depth_region(&self.path, rect)?
+                } else {
+                    (None, 0)
+                };
+                (image.maps, depth, bytes + depth_bytes)
             }
         };
         self.bytes_read.fetch_add(bytes, Ordering::Relaxed);
-        Ok((image.maps, image.depth))
+        Ok((maps, depth))
     }
 
     /// Read `rect` of level 0 a block of the file at a time (rows: at least `2^level`,

@@ -43,6 +43,40 @@ fn expected(image: &RelightableImage, level: usize, j: usize, x: usize, y: usize
     sum / (s * s) as f64
 }
 
+/// The depth of level `level` at (x, y): the mean of the hit depths (finite, positive)
+/// of level 0's 2^l × 2^l block, 0 where none is hit; or, `stored`, as a file's levels
+/// hold it, each level the mean of the hit ones of the 2×2 below.
+fn expected_depth(image: &RelightableImage, level: usize, x: usize, y: usize, stored: bool) -> f32 {
+    let depth = image.depth.as_deref().unwrap();
+    let w = image.maps.width;
+    if level == 0 {
+        return depth[y * w + x];
+    }
+    let below = |sx: usize, sy: usize| {
+        if stored {
+            expected_depth(image, level - 1, sx, sy, true)
+        } else {
+            depth[sy * w + sx]
+        }
+    };
+    let s = if stored { 2 } else { 1 << level };
+    let (mut sum, mut n) = (0.0f64, 0);
+    for sy in y * s..(y + 1) * s {
+        for sx in x * s..(x + 1) * s {
+            let d = below(sx, sy);
+            if d.is_finite() && d > 0.0 {
+                sum += d as f64;
+                n += 1;
+            }
+        }
+    }
+    if n > 0 {
+        (sum / n as f64) as f32
+    } else {
+        0.0
+    }
+}
+
 fn halves(bytes: &[u8]) -> Vec<f32> {
     bytes
         .chunks_exact(2)
@@ -50,7 +84,8 @@ fn halves(bytes: &[u8]) -> Vec<f32> {
         .collect()
 }
 
-/// Check every tile of `source` against `image`'s levels (half-float rounding).
+/// Check every tile of `source` against `image`'s levels (half-float rounding), and
+/// its depth, which follows the layers (`image` has depth).
 fn check_tiles(source: &TileSource, image: &RelightableImage) {
     let k = image.maps.k;
     let layers = 3 * k.div_ceil(4);
@@ -58,9 +93,21 @@ fn check_tiles(source: &TileSource, image: &RelightableImage) {
     for (level, tx, ty) in source.tiles() {
         let bytes = source.tile(level, tx, ty).unwrap();
         assert_eq!(bytes.len(), source.tile_bytes(level, tx, ty));
-        let values = halves(&bytes);
         let (lw, lh) = source.sizes()[level];
         let (tw, th) = (SIDE.min(lw - tx * SIDE), SIDE.min(lh - ty * SIDE));
+        let (coefficients, depth) = bytes.split_at(layers * tw * th * 8);
+        assert_eq!(depth.len(), tw * th * 4);
+        for (p, d) in depth.chunks_exact(4).enumerate() {
+            let d = f32::from_le_bytes([d[0], d[1], d[2], d[3]]);
+            let (x, y) = (tx * SIDE + p % tw, ty * SIDE + p / tw);
+            // Levels 0 and 1: a file's own level 1 is the direct mean too.
+            let want = expected_depth(image, level, x, y, false);
+            assert!(
+                (d - want).abs() <= 1e-6 * want,
+                "level {level} tile {tx}_{ty} pixel ({x}, {y}) depth {d} vs {want}"
+            );
+        }
+        let values = halves(coefficients);
         assert_eq!(values.len(), layers * tw * th * 4);
         for (l, layer) in values.chunks_exact(tw * th * 4).enumerate() {
             let (c, jl) = (l / k.div_ceil(4), l % k.div_ceil(4));
@@ -95,7 +142,7 @@ fn tiles_hold_each_level_from_files_with_and_without_mip_levels() {
         let source = &opened.source;
         assert_eq!(source.overview_level(), 2, "{}", path.display());
         assert_eq!(source.sizes(), &[(300, 100), (150, 50), (75, 25)]);
-        // The overview: level 2's means; the depth whole, as the file has it.
+        // The overview: level 2's means, and its depth (no more: tiles carry the rest).
         let overview = &opened.overview.maps;
         assert_eq!((overview.width, overview.height), (75, 25));
         for j in 0..3 * image.maps.k {
@@ -107,7 +154,7 @@ fn tiles_hold_each_level_from_files_with_and_without_mip_levels() {
                 }
             }
         }
-        assert_eq!(opened.overview.depth, image.depth);
+        check_overview_depth(&opened.overview, &image, path == &mips);
         check_tiles(source, &image);
         assert_eq!(source.counters().1, 13);
     }
@@ -121,6 +168,23 @@ fn tiles_hold_each_level_from_files_with_and_without_mip_levels() {
     // Tiles exist only below the overview and inside each level.
     for (level, x, y) in [(2, 0, 0), (0, 5, 0), (0, 0, 2), (1, 3, 0)] {
         assert!(opened.source.tile(level, x, y).is_err());
+    }
+}
+
+/// The overview's depth is level 2's: the mean of the hit ones of each 4×4 block, or as
+/// a file with levels holds it (`stored`).
+fn check_overview_depth(overview: &RelightableImage, image: &RelightableImage, stored: bool) {
+    let depth = overview.depth.as_deref().expect("the overview's depth");
+    assert_eq!(depth.len(), 75 * 25);
+    for y in 0..25 {
+        for x in 0..75 {
+            let want = expected_depth(image, 2, x, y, stored);
+            let got = depth[y * 75 + x];
+            assert!(
+                (got - want).abs() <= 1e-6 * want,
+                "overview depth ({x}, {y}): {got} vs {want}"
+            );
+        }
     }
 }
 
@@ -168,16 +232,23 @@ fn the_server_hands_out_tiles_and_whole_layers_stay_the_default_for_small_files(
         (info["width"].as_u64(), info["height"].as_u64()),
         (Some(300), Some(100))
     );
-    // The layers hold the overview; the depth stays whole.
+    // The layers and the depth hold the overview; tiles carry the rest of both.
     let layer = &bundle.files["data/planes/L00.f16"];
     assert_eq!(layer.len(), 75 * 25 * 8);
-    assert_eq!(bundle.files["data/depth.f32"].len(), 300 * 100 * 4);
+    assert_eq!(bundle.files["data/depth.f32"].len(), 75 * 25 * 4);
+    assert_eq!(
+        (
+            info["depth"]["width"].as_u64(),
+            info["depth"]["height"].as_u64()
+        ),
+        (Some(75), Some(25))
+    );
     let source = bundle.tiles.as_ref().unwrap();
     let got = respond(&bundle, "GET", "/data/tiles/1/2_0.f16");
     assert_eq!(got.status, 200);
     assert_eq!(&*got.body, &source.tile(1, 2, 0).unwrap()[..]);
     let head = respond(&bundle, "HEAD", "/data/tiles/0/4_1.f16");
-    assert_eq!((head.status, head.body.len()), (200, 44 * 36 * 9 * 8));
+    assert_eq!((head.status, head.body.len()), (200, 44 * 36 * (9 * 8 + 4)));
     for path in [
         "/data/tiles/2/0_0.f16",
         "/data/tiles/0/5_0.f16",
@@ -227,7 +298,7 @@ fn a_compressed_files_tiles_hold_its_decoded_levels() {
     let decoded = relit::codec::packed::read(&rlz).unwrap();
     let opened = TileSource::open(&rlz, SIDE, OVERVIEW).unwrap();
     assert_eq!(opened.source.overview_level(), 2);
-    assert_eq!(opened.overview.depth, decoded.depth);
+    check_overview_depth(&opened.overview, &decoded, false);
     assert_eq!(opened.overview.meta.basis, decoded.meta.basis);
     check_tiles(&opened.source, &decoded);
     let bundle = WebBundle::read(&rlz, &options(Tiling::Tiles(SIDE))).unwrap();

@@ -959,12 +959,17 @@ try {
       ['flat ÷4 (level 2 tiles)', { mode: 'flat', center: [512, 128], zoom: 0.25 }, true, 40],
       ['flat ÷16 (the overview)', { mode: 'flat', center: [512, 128], zoom: 1 / 16 }, true, 40],
     ];
-    const frames = {};
+    const frames = {}, picks = {};
     for (const tiled of [false, true]) {
       await open(exr, tiled ? ['--tiles', '64', '--overview-mib', '0.5'] : ['--tiles', 'off'], size);
       const t = current.info.tiles;
       if (tiled) expect('a tiled bundle: 64-pixel tiles, overview level 3', t && t.side === 64 && t.overview === 3, t);
       else expect('--tiles off: whole layers', !t, t);
+      // The depth map arrives whole only with whole layers; a tiled bundle ships the
+      // overview's and each tile carries its own.
+      const d = current.info.depth;
+      expect(`${tiled ? 'a tiled bundle ships the overview\'s depth (128×32)' : 'whole layers ship the whole depth (1024×256)'}`,
+        d && (tiled ? d.width === 128 && d.height === 32 : d.width === 1024 && d.height === 256), d);
       await setRig({ lights });
       await page.evaluate(() => window.relit.settle()); // the first view's tiles, counted apart
       for (const [name, v, smooth] of views) {
@@ -979,6 +984,7 @@ try {
         }
         const g = await canvas();
         frames[`${tiled} ${name}`] = g;
+        picks[`${tiled} ${name}`] = await page.evaluate(() => window.relit.pick(128.3, 64.6));
         if (tiled) {
           fs.writeFileSync(path.join(out, `tiled ${name}.viewer.png`), encodePng(g.w, g.h, g.rgb));
           results.comparisons[`tiled ${name} fetched`] = { tiles: stats.tiles - before.tiles, bytes: stats.bytes - before.bytes };
@@ -992,6 +998,22 @@ try {
       if (want === 'equal') expect(`tiled ${name}: the frame equals the whole bundle's (max |diff| ≤ 1)`, r.max_abs <= 1, r);
       else expect(`tiled ${name}: the frame matches the whole bundle's (≥ ${want} dB)`, r.psnr >= want, r);
     }
+    // Picking reads the depth the view draws with: at level 0 the tiles' own, equal to
+    // the whole map's; coarser, a level's mean of the hit depths under the texel.
+    let hits = 0;
+    for (const [name, , , want] of views) {
+      const [a, b] = [picks[`false ${name}`], picks[`true ${name}`]];
+      const rel = Math.abs(b.depth - a.depth) / a.depth;
+      results.comparisons[`tiled ${name} pick`] = { whole: a.depth, tiled: b.depth, relative: rel };
+      if (want === 'equal') {
+        if (a.depth > 0) hits++;
+        expect(`tiled ${name}: a click finds the whole map's depth and point`, b.depth === a.depth &&
+          (!(a.depth > 0) || a.point.every((v, k) => Math.abs(v - b.point[k]) < 1e-9)), { whole: a, tiled: b });
+      } else {
+        expect(`tiled ${name}: a click finds a depth (a coarser level's, within 25 % of the whole map's)`, b.depth > 0 && rel < 0.25, { whole: a, tiled: b });
+      }
+    }
+    expect('the clicks at level 0 hit a surface in three views or more', hits >= 3, hits);
     const zoomed = results.comparisons['tiled flat ×4 bilinear fetched'];
     expect('zoomed ×4 into a 256×128 canvas: at most 4 tiles of level 0 fetched, under 8 % of the whole layers',
       zoomed.tiles <= 4 && zoomed.bytes < 0.08 * whole, { ...zoomed, whole_layers_bytes: whole, fraction: zoomed.bytes / whole });

@@ -112,6 +112,18 @@ pub fn read_depth(path: &Path) -> Result<Option<Vec<f32>>> {
         .map_err(|e| Error::new(e.kind(), format!("{}: {e}", path.display())))
 }
 
+/// The depth of `region` `(x, y, w, h)` of a compressed file, when it has one, reading
+/// only the depth sections the region touches; with the bytes read.
+pub fn read_depth_region(
+    path: &Path,
+    region: (usize, usize, usize, usize),
+) -> Result<(Option<Vec<f32>>, u64)> {
+    let (packed, read, _) = read_sections(path, &|h, s| compress::depth_section_in(h, s, region))?;
+    let depth = compress::unpack_depth_region(&packed, region)
+        .map_err(|e| Error::new(e.kind(), format!("{}: {e}", path.display())))?;
+    Ok((depth, read))
+}
+
 /// Write `packed` to `path` (atomically: a temporary file renamed into place).
 pub fn write_packed(path: &Path, packed: &Packed) -> Result<()> {
     let bytes = to_bytes(packed)?;

@@ -1583,6 +1583,55 @@ pub fn unpack_depth(packed: &Packed) -> Result<Option<Vec<f32>>> {
     depth(packed)
 }
 
+/// Whether section `s` holds the depth of a tile that `region` `(x, y, w, h)` touches.
+pub fn depth_section_in(header: &Header, s: usize, region: (usize, usize, usize, usize)) -> bool {
+    let base = header.plane_sections();
+    depth_section(header, s) && tile_overlap(header, s - base, region).is_some()
+}
+
+/// The depth of `region` `(x, y, w, h)` of a file whose sections
+/// [`depth_section_in`] names were read (the others may be empty), when it has depth:
+/// the crop of [`unpack_depth`].
+pub fn unpack_depth_region(
+    packed: &Packed,
+    region: (usize, usize, usize, usize),
+) -> Result<Option<Vec<f32>>> {
+    let header = &packed.header;
+    if packed.sections.len() != header.sections() {
+        return Err(Error::parse("compressed file: wrong number of sections"));
+    }
+    if !header.depth {
+        return Ok(None);
+    }
+    let (x, y, w, h) = region;
+    if w == 0
+        || h == 0
+        || x.checked_add(w).is_none_or(|e| e > header.width)
+        || y.checked_add(h).is_none_or(|e| e > header.height)
+    {
+        return Err(Error::invalid(format!(
+            "region {x},{y} {w}×{h} is not inside the {}×{} image",
+            header.width, header.height
+        )));
+    }
+    let base = header.plane_sections();
+    let tiles = header.tiles().0 * header.tiles().1;
+    let mut depth = vec![0.0f32; w * h];
+    for t in 0..tiles {
+        let Some((ox, oy, ow, oh)) = tile_overlap(header, t, region) else {
+            continue;
+        };
+        let (tx, ty, tw, th) = header.tile_rect(t);
+        let part = decode_floats(&packed.sections[base + t], tw * th)?;
+        for r in 0..oh {
+            let from = (oy + r - ty) * tw + ox - tx;
+            let to = (oy + r - y) * w + ox - x;
+            depth[to..to + ow].copy_from_slice(&part[from..from + ow]);
+        }
+    }
+    Ok(Some(depth))
+}
+
 /// The depth map, when the file has one (its tiles follow the planes').
 fn depth(packed: &Packed) -> Result<Option<Vec<f32>>> {
     let header = &packed.header;

@@ -519,7 +519,35 @@ fn a_region_reads_only_its_tiles_and_equals_that_crop_of_the_whole_file() {
                     assert_eq!(row, got, "{layout:?} {codebook:?} {region:?} plane {plane}");
                 }
             }
+            // The region's depth, from the depth sections it touches alone.
+            let mut cursor = std::io::Cursor::new(&bytes[..]);
+            let (sparse_depth, depth_read) =
+                packed::read_from(&mut cursor, bytes.len() as u64, "test", &|h, s| {
+                    depth_section_in(h, s, region)
+                })
+                .unwrap();
+            let depth = unpack_depth_region(&sparse_depth, region).unwrap().unwrap();
+            let full = whole.depth.as_deref().expect("the test image has depth");
+            for r in 0..h {
+                assert_eq!(
+                    &depth[r * w..(r + 1) * w],
+                    &full[(y + r) * 70 + x..][..w],
+                    "{layout:?} {region:?} depth row {r}"
+                );
+            }
             let all = region == (0, 0, 70, 45);
+            let header_and_index =
+                bytes.len() - packed_image.sections.iter().map(Vec::len).sum::<usize>();
+            assert!(
+                depth_read as usize <= header_and_index + depth_bytes,
+                "{region:?}: {depth_read} bytes read for depth"
+            );
+            if !all {
+                assert!(
+                    (depth_read as usize) < header_and_index + depth_bytes,
+                    "{region:?}"
+                );
+            }
             if codebook.is_none() && !all {
                 // One tile of fifteen, or six; the header and index (a few KiB on this
                 // small image) are read whole.
