@@ -547,7 +547,9 @@ export class Renderer {
     if (!this.depth) return null;
     const W = this.info.width, H = this.info.height;
     const texel = (size, read) => {
-      const tx = Math.min(Math.floor((p[0] * size[0]) / W), size[0] - 1), ty = Math.min(Math.floor((p[1] * size[1]) / H), size[1] - 1);
+      // Level 0's texel exactly as floor(p) (a scaling there could round across an edge).
+      const at = (v, n, full) => Math.min(Math.floor(n === full ? v : (v * n) / full), n - 1);
+      const tx = at(p[0], size[0], W), ty = at(p[1], size[1], H);
       const depth = read(tx, ty);
       return depth === undefined ? null : { depth, x: ((tx + 0.5) * W) / size[0], y: ((ty + 0.5) * H) / size[1] };
     };

@@ -105,13 +105,6 @@ pub fn read_region(
     Ok((image, read, len))
 }
 
-/// The depth map of a compressed file, when it has one, reading only its sections.
-pub fn read_depth(path: &Path) -> Result<Option<Vec<f32>>> {
-    let (packed, _, _) = read_sections(path, &compress::depth_section)?;
-    compress::unpack_depth(&packed)
-        .map_err(|e| Error::new(e.kind(), format!("{}: {e}", path.display())))
-}
-
 /// The depth of `region` `(x, y, w, h)` of a compressed file, when it has one, reading
 /// only the depth sections the region touches; with the bytes read.
 pub fn read_depth_region(

@@ -1574,15 +1574,6 @@ pub fn depth_section(header: &Header, s: usize) -> bool {
     header.depth && (base..base + across * down).contains(&s)
 }
 
-/// The depth map of a file whose depth sections ([`depth_section`]) were read, when it
-/// has one.
-pub fn unpack_depth(packed: &Packed) -> Result<Option<Vec<f32>>> {
-    if packed.sections.len() != packed.header.sections() {
-        return Err(Error::parse("compressed file: wrong number of sections"));
-    }
-    depth(packed)
-}
-
 /// Whether section `s` holds the depth of a tile that `region` `(x, y, w, h)` touches.
 pub fn depth_section_in(header: &Header, s: usize, region: (usize, usize, usize, usize)) -> bool {
     let base = header.plane_sections();
@@ -1591,7 +1582,7 @@ pub fn depth_section_in(header: &Header, s: usize, region: (usize, usize, usize,
 
 /// The depth of `region` `(x, y, w, h)` of a file whose sections
 /// [`depth_section_in`] names were read (the others may be empty), when it has depth:
-/// the crop of [`unpack_depth`].
+/// that crop of [`unpack`]'s depth.
 pub fn unpack_depth_region(
     packed: &Packed,
     region: (usize, usize, usize, usize),
