@@ -1368,17 +1368,8 @@ fn tile_overlap(
     (x1 > x0 && y1 > y0).then_some((x0, y0, x1 - x0, y1 - y0))
 }
 
-/// The region `(x, y, w, h)` of a file's maps, from the sections
-/// [`section_needed`] names (the others may be empty): the tiles it touches, decoded
-/// and cropped. The result is a `w × h` image with no camera or depth, for lights
-/// that are the same at every pixel (directional, environment); it equals that crop
-/// of [`unpack`].
-pub fn unpack_region(
-    packed: &Packed,
-    region: (usize, usize, usize, usize),
-) -> Result<RelightableImage> {
-    let header = &packed.header;
-    let (x, y, w, h) = region;
+/// Refuse a region `(x, y, w, h)` that is empty or not inside the file's image.
+fn check_region(header: &Header, (x, y, w, h): (usize, usize, usize, usize)) -> Result<()> {
     if w == 0
         || h == 0
         || x.checked_add(w).is_none_or(|e| e > header.width)
@@ -1389,6 +1380,21 @@ pub fn unpack_region(
             header.width, header.height
         )));
     }
+    Ok(())
+}
+
+/// The region `(x, y, w, h)` of a file's maps, from the sections
+/// [`section_needed`] names (the others may be empty): the tiles it touches, decoded
+/// and cropped. The result is a `w × h` image with no camera or depth, for lights
+/// that are the same at every pixel (directional, environment); it equals that crop
+/// of [`unpack`].
+pub fn unpack_region(
+    packed: &Packed,
+    region: (usize, usize, usize, usize),
+) -> Result<RelightableImage> {
+    let header = &packed.header;
+    check_region(header, region)?;
+    let (x, y, w, h) = region;
     let crop = |image: RelightableImage| {
         let maps = &image.maps;
         let mut out = CoefficientMaps::zeros(w, h, maps.k);
@@ -1594,17 +1600,8 @@ pub fn unpack_depth_region(
     if !header.depth {
         return Ok(None);
     }
+    check_region(header, region)?;
     let (x, y, w, h) = region;
-    if w == 0
-        || h == 0
-        || x.checked_add(w).is_none_or(|e| e > header.width)
-        || y.checked_add(h).is_none_or(|e| e > header.height)
-    {
-        return Err(Error::invalid(format!(
-            "region {x},{y} {w}×{h} is not inside the {}×{} image",
-            header.width, header.height
-        )));
-    }
     let base = header.plane_sections();
     let tiles = header.tiles().0 * header.tiles().1;
     let mut depth = vec![0.0f32; w * h];

@@ -577,6 +577,10 @@ fn a_region_reads_only_its_tiles_and_equals_that_crop_of_the_whole_file() {
         let sparse = packed::from_bytes(&bytes, "test").unwrap();
         for outside in [(60, 40, 11, 5), (0, 0, 0, 1), (usize::MAX, 0, 2, 2)] {
             assert!(unpack_region(&sparse, outside).is_err(), "{outside:?}");
+            assert!(
+                unpack_depth_region(&sparse, outside).is_err(),
+                "{outside:?}"
+            );
         }
     }
 }
