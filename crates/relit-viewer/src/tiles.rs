@@ -411,14 +411,9 @@ impl TileSource {
                 (read.image.maps, read.image.depth, read.bytes_read)
             }
             Form::Packed => {
-                use relit::codec::packed;
-                let (image, bytes, _) = packed::read_region(&self.path, rect)?;
-                let (depth, depth_bytes) = if depth {
-                    packed::read_depth_region(&self.path, rect)?
-                } else {
-                    (None, 0)
-                };
-                (image.maps, depth, bytes + depth_bytes)
+                let (image, bytes, _) =
+                    relit::codec::packed::read_region_with(&self.path, rect, depth)?;
+                (image.maps, image.depth, bytes)
             }
         };
         self.bytes_read.fetch_add(bytes, Ordering::Relaxed);

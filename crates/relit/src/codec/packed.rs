@@ -99,22 +99,27 @@ pub fn read_region(
     path: &Path,
     region: (usize, usize, usize, usize),
 ) -> Result<(RelightableImage, u64, u64)> {
-    let (packed, read, len) = read_sections(path, &|h, s| compress::section_needed(h, s, region))?;
-    let image = compress::unpack_region(&packed, region)
-        .map_err(|e| Error::new(e.kind(), format!("{}: {e}", path.display())))?;
-    Ok((image, read, len))
+    read_region_with(path, region, false)
 }
 
-/// The depth of `region` `(x, y, w, h)` of a compressed file, when it has one, reading
-/// only the depth sections the region touches; with the bytes read.
-pub fn read_depth_region(
+/// [`read_region`], and with `depth` the region's depth too where the file has one
+/// (its depth sections the region touches, in the same pass): what a tiled viewer
+/// needs, as `exr::read_region_with` gives it.
+pub fn read_region_with(
     path: &Path,
     region: (usize, usize, usize, usize),
-) -> Result<(Option<Vec<f32>>, u64)> {
-    let (packed, read, _) = read_sections(path, &|h, s| compress::depth_section_in(h, s, region))?;
-    let depth = compress::unpack_depth_region(&packed, region)
-        .map_err(|e| Error::new(e.kind(), format!("{}: {e}", path.display())))?;
-    Ok((depth, read))
+    depth: bool,
+) -> Result<(RelightableImage, u64, u64)> {
+    let (packed, read, len) = read_sections(path, &|h, s| {
+        compress::section_needed(h, s, region)
+            || (depth && compress::depth_section_in(h, s, region))
+    })?;
+    let in_file = |e: Error| Error::new(e.kind(), format!("{}: {e}", path.display()));
+    let mut image = compress::unpack_region(&packed, region).map_err(in_file)?;
+    if depth {
+        image.depth = compress::unpack_depth_region(&packed, region).map_err(in_file)?;
+    }
+    Ok((image, read, len))
 }
 
 /// Write `packed` to `path` (atomically: a temporary file renamed into place).

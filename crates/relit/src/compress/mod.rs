@@ -1601,23 +1601,7 @@ pub fn unpack_depth_region(
         return Ok(None);
     }
     check_region(header, region)?;
-    let (x, y, w, h) = region;
-    let base = header.plane_sections();
-    let tiles = header.tiles().0 * header.tiles().1;
-    let mut depth = vec![0.0f32; w * h];
-    for t in 0..tiles {
-        let Some((ox, oy, ow, oh)) = tile_overlap(header, t, region) else {
-            continue;
-        };
-        let (tx, ty, tw, th) = header.tile_rect(t);
-        let part = decode_floats(&packed.sections[base + t], tw * th)?;
-        for r in 0..oh {
-            let from = (oy + r - ty) * tw + ox - tx;
-            let to = (oy + r - y) * w + ox - x;
-            depth[to..to + ow].copy_from_slice(&part[from..from + ow]);
-        }
-    }
-    Ok(Some(depth))
+    depth_in(packed, region).map(Some)
 }
 
 /// The depth map, when the file has one (its tiles follow the planes').
@@ -1626,25 +1610,37 @@ fn depth(packed: &Packed) -> Result<Option<Vec<f32>>> {
     if !header.depth {
         return Ok(None);
     }
-    let (w, h) = (header.width, header.height);
-    let tiles = header.tiles().0 * header.tiles().1;
+    depth_in(packed, (0, 0, header.width, header.height)).map(Some)
+}
+
+/// The depth of `region` (inside the image) of a file with depth: the depth tiles it
+/// touches, decoded side by side and cropped into place.
+fn depth_in(packed: &Packed, region: (usize, usize, usize, usize)) -> Result<Vec<f32>> {
+    let header = &packed.header;
+    let (x, y, w, h) = region;
     let base = header.plane_sections();
-    let parts: Vec<Vec<f32>> = (0..tiles)
-        .into_par_iter()
-        .map(|t| {
+    let tiles = header.tiles().0 * header.tiles().1;
+    let touched: Vec<usize> = (0..tiles)
+        .filter(|&t| tile_overlap(header, t, region).is_some())
+        .collect();
+    let parts: Vec<Vec<f32>> = touched
+        .par_iter()
+        .map(|&t| {
             let (_, _, tw, th) = header.tile_rect(t);
             decode_floats(&packed.sections[base + t], tw * th)
         })
         .collect::<Result<_>>()?;
     let mut depth = vec![0.0f32; w * h];
-    for (t, part) in parts.iter().enumerate() {
-        let (x0, y0, tw, th) = header.tile_rect(t);
-        for y in 0..th {
-            depth[(y0 + y) * w + x0..(y0 + y) * w + x0 + tw]
-                .copy_from_slice(&part[y * tw..(y + 1) * tw]);
+    for (&t, part) in touched.iter().zip(&parts) {
+        let (tx, ty, tw, _) = header.tile_rect(t);
+        let (ox, oy, ow, oh) = tile_overlap(header, t, region).expect("a touched tile");
+        for r in 0..oh {
+            let from = (oy + r - ty) * tw + ox - tx;
+            let to = (oy + r - y) * w + ox - x;
+            depth[to..to + ow].copy_from_slice(&part[from..from + ow]);
         }
     }
-    Ok(Some(depth))
+    Ok(depth)
 }
 
 /// RGB coefficient maps of `w × h` pixels from the stored planes (`plane_values(p,
