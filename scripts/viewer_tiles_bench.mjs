@@ -4,7 +4,7 @@
 // (its /proc/PID/io `rchar`, an independent count) and the time until every tile the
 // view needs had arrived, against the whole layers' bytes.
 //
-//   node scripts/viewer_tiles_bench.mjs --relit target/release/relit --file BIG.exr \
+//   node scripts/viewer_tiles_bench.mjs --relit target/release/relit --file BIG.exr|BIG.rlz \
 //        --playwright target/viewer-node [--chromium /usr/bin/chromium] [--tiles auto] [--json]
 import { createRequire } from 'node:module';
 import { spawn } from 'node:child_process';
@@ -53,6 +53,7 @@ try {
     ['flat 1:1, centre', { mode: 'flat', center: [W / 2, H / 2], zoom: 1 }],
     ['flat 1:1, another place', { mode: 'flat', center: [W / 5, H / 3], zoom: 1 }],
     ['flat ×4', { mode: 'flat', center: [W / 3, H / 2], zoom: 4 }],
+    ['flat ×1/4 (level 2)', { mode: 'flat', center: [W / 2, H / 2], zoom: 0.25 }],
     ['perspective, 60° field', { mode: 'pano', yaw: 20, pitch: 0, fov: 60 }],
     ['flat, whole width', { mode: 'flat', center: [W / 2, H / 2], zoom: CW / W }],
   ].filter(([name]) => !name.startsWith('perspective') || ['cylindrical', 'equirectangular'].includes(info.projection.type));

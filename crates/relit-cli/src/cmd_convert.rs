@@ -35,7 +35,8 @@ pub struct Args {
     #[arg(long, default_value = "f16")]
     pub storage: Precision,
     /// Write an EXR output tiled (tiles of this side, default 256) with mip levels, so
-    /// that `relit relight --roi/--level` reads only the tiles a view needs.
+    /// that `relit relight --roi/--level` and the viewer read only the tiles a view
+    /// needs; a `.rlz` output in tiles of this side with mip levels (`--mip`).
     #[arg(long, num_args = 0..=1, default_missing_value = "256")]
     pub mip_tiles: Option<usize>,
     /// Print the summary as JSON.
@@ -46,8 +47,8 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let form = FileForm::for_output(&args.output);
     anyhow::ensure!(
-        args.mip_tiles.is_none() || form == FileForm::Exr,
-        "--mip-tiles is for EXR outputs"
+        args.mip_tiles.is_none() || matches!(form, FileForm::Exr | FileForm::Compressed),
+        "--mip-tiles is for EXR and .rlz outputs"
     );
     let output = if form == FileForm::Web {
         Output::folder(&args.output)
@@ -84,7 +85,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             )
         }
         FileForm::Compressed => {
-            let settings = args.compress.settings();
+            let settings = args.compress.settings_with_mip_tiles(args.mip_tiles);
             codec::packed::write(&args.output, &image, &settings)
                 .with_context(|| format!("writing {}", args.output.display()))?;
             settings.describe()

@@ -35,7 +35,8 @@ pub struct Args {
     /// Write the EXR tiled (tiles of this side, default 256) with mip levels, as `relit
     /// convert --mip-tiles` does, so that viewers and `relit relight --roi/--level` read
     /// only the tiles and level a view needs: the fit goes to a temporary file beside
-    /// the output, which is then made into the pyramid a tile at a time.
+    /// the output, which is then made into the pyramid a tile at a time. A `.rlz`
+    /// output: tiles of this side with mip levels (`--mip`).
     #[arg(long, num_args = 0..=1, default_missing_value = "256")]
     pub mip_tiles: Option<usize>,
     /// Fit only part I of N (`I/N`, from 0): that band of rows, with the whole capture's
@@ -103,9 +104,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     anyhow::ensure!(
         args.mip_tiles.is_none()
             || (args.part.is_none()
-                && relit::codec::FileForm::for_output(&args.output) == relit::codec::FileForm::Exr),
-        "--mip-tiles writes a whole EXR file: name the output `*.exr`, and tile the merged \
-         file of parts (`relit convert merged.exr -o X.exr --mip-tiles`)"
+                && matches!(
+                    relit::codec::FileForm::for_output(&args.output),
+                    relit::codec::FileForm::Exr | relit::codec::FileForm::Compressed
+                )),
+        "--mip-tiles writes a whole EXR or .rlz file: name the output `*.exr` or `*.rlz`, \
+         and tile the merged file of parts (`relit convert merged.exr -o X.exr --mip-tiles`)"
+    );
+    anyhow::ensure!(
+        args.budget.is_none() || args.mip_tiles.is_none(),
+        "--budget chooses the whole compression: give its file mip levels afterwards \
+         (`relit convert X.rlz -o Y.rlz --mip-tiles` with the settings it reports)"
     );
     let outputs = [Output::file(&args.output)];
     let inputs: Vec<PathBuf> = std::iter::once(args.capture.clone())
@@ -307,7 +316,7 @@ fn write_whole(
             storage: args.storage,
             compress: relit::compress::Settings {
                 directions: Some(capture.directions()),
-                ..args.compress.settings()
+                ..args.compress.settings_with_mip_tiles(args.mip_tiles)
             },
             ..Default::default()
         },

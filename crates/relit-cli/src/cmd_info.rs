@@ -113,10 +113,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     header.tile
                 ),
                 None => format!(
-                    "{} planes of ≤ {levels} levels, {} tiles of {}²",
+                    "{} planes of ≤ {levels} levels, {} tiles of {}²{}",
                     header.planes.len(),
                     header.codec.name(),
-                    header.tile
+                    header.tile,
+                    if header.levels > 1 {
+                        format!(", {} mip levels", header.levels)
+                    } else {
+                        String::new()
+                    }
                 ),
             };
             let gain = if header.gain {

@@ -51,7 +51,7 @@ pub struct Args {
     /// that region alone (`w × h`), equal to the same crop of the full frame.
     #[arg(long)]
     pub roi: Option<String>,
-    /// Relight mip level L of a tiled EXR (`relit convert --mip-tiles`): level 0 is the
+    /// Relight mip level L of a tiled EXR or `.rlz` file (`relit convert --mip-tiles`): level 0 is the
     /// image, each level half the one above (2×2 means); `--roi` is then in the level's
     /// pixels. Only the tiles the frame needs are read (directional and environment
     /// lights).
@@ -204,10 +204,12 @@ fn relight_codebook(
     {
         return Ok(None);
     }
-    let packed = relit::codec::packed::read_packed(&args.file)?;
-    if !packed.header.indexed_pixels() {
+    // The header tells a codebook file; a file of planes is read by the caller (whole,
+    // or the tiles of a region or level).
+    if !relit::codec::packed::read_header(&args.file)?.indexed_pixels() {
         return Ok(None);
     }
+    let packed = relit::codec::packed::read_packed(&args.file)?;
     let Some(output) = args.output.as_ref() else {
         return Ok(None);
     };
@@ -277,15 +279,6 @@ fn single_frame(rig_file: Option<&RigFile>, extra: &[Light]) -> Option<LightRig>
         None => {}
     }
     Some(LightRig::new(lights))
-}
-
-/// Whether `--roi` on this file and these lights reads only the region's tiles: a
-/// compressed file of planes, under lights that are the same at every pixel (lights
-/// with a position need the whole image's camera and depth), one frame.
-fn reads_region(args: &Args, uniform: bool) -> anyhow::Result<bool> {
-    Ok(uniform
-        && args.file_space.is_none()
-        && relit::codec::FileForm::of(&args.file)? == relit::codec::FileForm::Compressed)
 }
 
 /// Write the frame and say so (`how` it was drawn, after the time).
@@ -360,10 +353,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return Ok(result);
     }
     let requested = args.roi.as_deref().map(Roi::parse).transpose()?;
-    // A relit EXR reads a region of its blocks: of any mip level of a tiled file with
-    // levels, of level 0 of any other.
-    let tiled = match relit::codec::FileForm::of(&args.file)? {
+    // A relit EXR reads a region of its blocks, a compressed file of its tiles: of any
+    // mip level of a file with levels, of level 0 of any other.
+    let form = relit::codec::FileForm::of(&args.file)?;
+    let tiled = match form {
         relit::codec::FileForm::Exr => Some(relit::codec::exr::levels(&args.file)?),
+        relit::codec::FileForm::Compressed => {
+            let header = relit::codec::packed::read_header(&args.file)?;
+            Some((0..header.levels).map(|l| header.level_size(l)).collect())
+        }
         _ => None,
     };
     // One frame of lights that are the same at every pixel: what region reads serve.
@@ -372,7 +370,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.level.is_some() {
         anyhow::ensure!(
             tiled.as_ref().is_some_and(|sizes| sizes.len() > 1),
-            "--level needs a tiled EXR with mip levels (relit convert X -o Y.exr --mip-tiles)"
+            "--level needs a file with mip levels (relit convert X -o Y.exr --mip-tiles, or \
+             -o Y.rlz --mip-tiles)"
         );
         anyhow::ensure!(
             uniform && args.file_space.is_none(),
@@ -388,14 +387,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 format!("--level: the file has levels 0 to {}", sizes.len() - 1)
             })?;
             let rect = roi.map_or((0, 0, lw, lh), |r| (r.x, r.y, r.width, r.height));
-            let read = relit::codec::exr::read_region(&args.file, level, rect).context("--roi")?;
-            (Some(read.image), Some((read.bytes_read, read.file_bytes)))
-        }
-        (Some(roi), _) if reads_region(&args, uniform)? => {
-            let (image, read, total) = relit::codec::packed::read_region(
-                &args.file,
-                (roi.x, roi.y, roi.width, roi.height),
-            )
+            let (image, read, total) = if form == relit::codec::FileForm::Exr {
+                let read = relit::codec::exr::read_region(&args.file, level, rect);
+                read.map(|r| (r.image, r.bytes_read, r.file_bytes))
+            } else {
+                relit::codec::packed::read_level_region(&args.file, level, rect, false)
+            }
             .context("--roi")?;
             (Some(image), Some((read, total)))
         }

@@ -229,6 +229,12 @@ pub struct CompressArgs {
     /// chroma its own), for (K′ + chroma) × K numbers a block (not with --codebook).
     #[arg(long = "pca-block", value_parser = clap::value_parser!(u32).range(16..=4096))]
     pub pca_block: Option<u32>,
+    /// Store mip levels too (each the 2×2 means of the one above, coded with level 0's
+    /// planes and quantisers: about a third more bytes), so that the viewer and `relit
+    /// relight --level` read a zoomed-out view's tiles from its level (not with
+    /// --codebook or --pca-block).
+    #[arg(long)]
+    pub mip: bool,
 }
 
 impl CompressArgs {
@@ -246,7 +252,19 @@ impl CompressArgs {
             directions: None,
             gain: self.gain,
             pca_block: self.pca_block.map(|b| b as usize),
+            mip_levels: self.mip,
         }
+    }
+
+    /// [`CompressArgs::settings`], with `--mip-tiles N` (of `relit fit` and `relit
+    /// convert`): mip levels in tiles of N.
+    pub fn settings_with_mip_tiles(&self, mip_tiles: Option<usize>) -> relit::compress::Settings {
+        let mut settings = self.settings();
+        if let Some(tile) = mip_tiles {
+            settings.tile = tile;
+            settings.mip_levels = true;
+        }
+        settings
     }
 }
 

@@ -496,7 +496,7 @@ fn a_tiled_exr_is_read_by_region_and_level() {
             &light,
         ]
         .concat(),
-        "tiled EXR",
+        "mip levels",
     );
     refused(
         &[
@@ -520,10 +520,10 @@ fn a_tiled_exr_is_read_by_region_and_level() {
         "directional and environment",
     );
     refused(
-        &["convert", "scene.exr", "-o", "x.rlz", "--mip-tiles"],
-        "EXR outputs",
+        &["convert", "scene.exr", "-o", "x.ptm", "--mip-tiles"],
+        "EXR and .rlz outputs",
     );
-    assert!(!d.join("x.exr").exists() && !d.join("x.rlz").exists());
+    assert!(!d.join("x.exr").exists() && !d.join("x.ptm").exists());
     // `relit fit --mip-tiles` writes the pyramid itself: the same file as converting the
     // plain fit (levels equal), and no temporary file left beside it.
     let fit = [
@@ -579,11 +579,109 @@ fn a_tiled_exr_is_read_by_region_and_level() {
         .collect();
     assert!(left.is_empty(), "{left:?}");
     refused(
-        &[&fit[..], &["-o", "x.rlz", "--mip-tiles"]].concat(),
-        "whole EXR",
+        &[&fit[..], &["-o", "x.ptm", "--mip-tiles"]].concat(),
+        "whole EXR or .rlz",
     );
     refused(
         &[&fit[..], &["-o", "x.exr", "--mip-tiles", "--tile", "0/2"]].concat(),
-        "whole EXR",
+        "whole EXR or .rlz",
     );
+
+    // A `.rlz` file with mip levels (`--mip-tiles` of convert and fit): `--level` relights
+    // the file's own level like the EXR's, reading that level's tiles alone, and `--roi`
+    // the region's tiles of its level.
+    let said = relit(
+        d,
+        &[
+            "convert",
+            "scene.exr",
+            "-o",
+            "mip.rlz",
+            "--mip-tiles",
+            "16",
+            "--bits",
+            "16",
+        ],
+    );
+    assert!(said.contains(" mip "), "{said}");
+    let said = relit(d, &["info", "mip.rlz"]);
+    assert!(said.contains("tiles of 16², 5 mip levels"), "{said}");
+    let bytes_read = |said: &str| -> u64 {
+        assert!(said.starts_with("read "), "{said}");
+        said.split_whitespace().nth(1).unwrap().parse().unwrap()
+    };
+    let total = std::fs::metadata(d.join("mip.rlz")).unwrap().len();
+    let mut read_level = Vec::new();
+    for level in ["0", "1", "2"] {
+        let relight = |file: &str, out: &str| {
+            relit(
+                d,
+                &[&["relight", file, "--level", level, "-o", out][..], &light].concat(),
+            )
+        };
+        read_level.push(bytes_read(&relight("mip.rlz", "level_rlz.exr")));
+        relight("mip.exr", "level_exr.exr");
+        let a = relit::image::load_linear(&d.join("level_rlz.exr"), None).unwrap();
+        let b = relit::image::load_linear(&d.join("level_exr.exr"), None).unwrap();
+        assert_eq!((a.width, a.height), (b.width, b.height));
+        let peak = b.data.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+        let worst = a
+            .data
+            .iter()
+            .zip(&b.data)
+            .fold(0.0f32, |m, (x, y)| m.max((x - y).abs()));
+        assert!(worst <= 1e-3 * peak, "level {level}: {worst} of {peak}");
+    }
+    // Each coarser level reads fewer bytes: its own tiles, not level 0's.
+    assert!(
+        read_level[2] < read_level[1] && read_level[1] < read_level[0] && read_level[0] < total,
+        "{read_level:?} of {total}"
+    );
+    let said = relit(
+        d,
+        &[
+            &[
+                "relight", "mip.rlz", "--level", "0", "--roi", "17,3,5,4", "-o", "p.exr",
+            ][..],
+            &light,
+        ]
+        .concat(),
+    );
+    assert!(bytes_read(&said) < read_level[0], "{said}");
+    relit(
+        d,
+        &[
+            &["relight", "mip.rlz", "--level", "0", "-o", "l0.exr"][..],
+            &light,
+        ]
+        .concat(),
+    );
+    let level_zero = relit::image::load_linear(&d.join("l0.exr"), None).unwrap();
+    let part = relit::image::load_linear(&d.join("p.exr"), None).unwrap();
+    assert_eq!((part.width, part.height), (5, 4));
+    for y in 0..4 {
+        for x in 0..5 {
+            let want = &level_zero.data[3 * ((y + 3) * level_zero.width + x + 17)..][..3];
+            assert_eq!(&part.data[3 * (y * 5 + x)..][..3], want, "({x},{y})");
+        }
+    }
+    relit(
+        d,
+        &[&fit[..], &["-o", "fitmip.rlz", "--mip-tiles", "16"]].concat(),
+    );
+    let header = relit::codec::packed::read_header(&d.join("fitmip.rlz")).unwrap();
+    assert_eq!((header.levels, header.tile), (5, 16));
+    refused(
+        &[
+            "convert",
+            "scene.exr",
+            "-o",
+            "x.rlz",
+            "--mip",
+            "--codebook",
+            "8",
+        ],
+        "codebook",
+    );
+    assert!(!d.join("x.rlz").exists());
 }

@@ -178,6 +178,20 @@ fn no_file_reader_panics_on_mutated_files() {
         let _ = relit::codec::read(p);
         let _ = relit::codec::packed::read_region(p, (3, 2, 6, 5));
     }));
+    // A file with mip levels: level 0 whole, and a region of level 1 with its depth.
+    let mip_packed = relit::compress::pack(
+        &fitted.image,
+        &relit::compress::Settings {
+            mip_levels: true,
+            ..zstd_settings.clone()
+        },
+    )
+    .unwrap();
+    let rlz_mip = relit::codec::packed::to_bytes(&mip_packed).unwrap();
+    crashes.extend(fuzz(d, "maps-mip.rlz", &rlz_mip, |p| {
+        let _ = relit::codec::read(p);
+        let _ = relit::codec::packed::read_level_region(p, 1, (1, 1, 4, 3), true);
+    }));
     // A codebook file, read both ways: expanded into maps, and as entries and indices.
     let vq_settings = relit::compress::Settings {
         codebook: Some(12),
@@ -234,6 +248,7 @@ fn no_file_reader_panics_on_mutated_files() {
     for (name, seed) in [
         ("header.json", &packed),
         ("header-residual.json", &residual_packed),
+        ("header-mip.json", &mip_packed),
     ] {
         let path = d.join(name).with_extension("sections");
         std::fs::write(path, seed.sections.concat()).unwrap();
@@ -251,7 +266,14 @@ fn no_file_reader_panics_on_mutated_files() {
             let sections = (0..count)
                 .map(|i| all[i * size..(i + 1) * size].to_vec())
                 .collect();
-            let _ = relit::compress::unpack(&relit::compress::Packed { header, sections });
+            let packed = relit::compress::Packed { header, sections };
+            let _ = relit::compress::unpack(&packed);
+            let levels = packed.header.levels;
+            for level in [1, levels.saturating_sub(1), levels, usize::MAX] {
+                if let Ok(level) = packed.clone().level(level) {
+                    let _ = relit::compress::unpack(&level);
+                }
+            }
         }));
     }
     let q = &packed.header.planes[0].quantizer;

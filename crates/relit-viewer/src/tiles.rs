@@ -100,7 +100,7 @@ impl std::str::FromStr for Tiling {
 enum Form {
     /// A relit EXR: any level it holds, by region.
     Exr,
-    /// A compressed `.rlz` file of planes (not a codebook): level 0, by tile.
+    /// A compressed `.rlz` file of planes (not a codebook): any level it holds, by tile.
     Packed,
 }
 
@@ -164,8 +164,8 @@ impl TileSource {
                 }
                 let k = header.meta.basis.build()?.len();
                 let (_, _, tw, th) = header.tile_rect(0);
-                let size = vec![(header.width, header.height)];
-                (Form::Packed, header.meta, k, header.depth, size, (tw, th))
+                let sizes = (0..header.levels).map(|l| header.level_size(l)).collect();
+                (Form::Packed, header.meta, k, header.depth, sizes, (tw, th))
             }
             _ => {
                 return Err(invalid(format!(
@@ -412,7 +412,7 @@ impl TileSource {
             }
             Form::Packed => {
                 let (image, bytes, _) =
-                    relit::codec::packed::read_region_with(&self.path, rect, depth)?;
+                    relit::codec::packed::read_level_region(&self.path, level, rect, depth)?;
                 (image.maps, image.depth, bytes)
             }
         };

@@ -87,7 +87,23 @@ fn halves(bytes: &[u8]) -> Vec<f32> {
 /// Check every tile of `source` against `image`'s levels (half-float rounding), and
 /// its depth, which follows the layers (`image` has depth).
 fn check_tiles(source: &TileSource, image: &RelightableImage) {
-    let k = image.maps.k;
+    check_tiles_with(
+        source,
+        image.maps.k,
+        |level, j, x, y| expected(image, level, j, x, y),
+        // Levels 0 and 1: a file's own level 1 is the direct mean too.
+        |level, x, y| expected_depth(image, level, x, y, false),
+    );
+}
+
+/// Check every tile of `source` (`k` coefficients) against `want(level, plane, x, y)`
+/// (half-float rounding), and its depth against `want_depth(level, x, y)`.
+fn check_tiles_with(
+    source: &TileSource,
+    k: usize,
+    want: impl Fn(usize, usize, usize, usize) -> f64,
+    want_depth: impl Fn(usize, usize, usize) -> f32,
+) {
     let layers = 3 * k.div_ceil(4);
     let mut count = 0;
     for (level, tx, ty) in source.tiles() {
@@ -100,8 +116,7 @@ fn check_tiles(source: &TileSource, image: &RelightableImage) {
         for (p, d) in depth.chunks_exact(4).enumerate() {
             let d = f32::from_le_bytes([d[0], d[1], d[2], d[3]]);
             let (x, y) = (tx * SIDE + p % tw, ty * SIDE + p / tw);
-            // Levels 0 and 1: a file's own level 1 is the direct mean too.
-            let want = expected_depth(image, level, x, y, false);
+            let want = want_depth(level, x, y);
             assert!(
                 (d - want).abs() <= 1e-6 * want,
                 "level {level} tile {tx}_{ty} pixel ({x}, {y}) depth {d} vs {want}"
@@ -119,7 +134,7 @@ fn check_tiles(source: &TileSource, image: &RelightableImage) {
                         assert_eq!(v, 0.0);
                         continue;
                     }
-                    let want = expected(image, level, 3 * i + c, x, y);
+                    let want = want(level, 3 * i + c, x, y);
                     assert!(
                         (v as f64 - want).abs() <= 1e-3 * want.abs().max(0.25),
                         "level {level} tile {tx}_{ty} pixel ({x}, {y}) coefficient {i} channel {c}: {v} vs {want}"
@@ -308,6 +323,61 @@ fn a_compressed_files_tiles_hold_its_decoded_levels() {
         info["basis"]["name"],
         decoded.meta.basis.build().unwrap().name()
     );
+}
+
+/// A `.rlz` file with mip levels: each level's tiles and the overview are the file's
+/// own levels as it decodes them, read from that level's sections (level 0 is not read
+/// to open it or to serve a coarser tile).
+#[test]
+fn a_compressed_file_with_mip_levels_serves_its_own_levels() {
+    let dir = tempfile::tempdir().unwrap();
+    let image = common::sample_image(300, 100, 3);
+    let rlz = dir.path().join("levels.rlz");
+    let settings = relit::compress::Settings {
+        tile: 40,
+        mip_levels: true,
+        ..Default::default()
+    };
+    relit::codec::packed::write(&rlz, &image, &settings).unwrap();
+    let packed = relit::codec::packed::read_packed(&rlz).unwrap();
+    let levels: Vec<RelightableImage> = (0..3)
+        .map(|l| relit::compress::unpack(&packed.clone().level(l).unwrap()).unwrap())
+        .collect();
+    // Level 1 as stored is not level 0's means as decoded (each is quantised alone): the
+    // last check tells them apart.
+    let opened = TileSource::open(&rlz, SIDE, OVERVIEW).unwrap();
+    assert_eq!(opened.source.overview_level(), 2);
+    assert_eq!(opened.source.sizes(), &[(300, 100), (150, 50), (75, 25)]);
+    let (opened_bytes, _) = opened.source.counters();
+    let level_zero: usize = packed
+        .clone()
+        .level(0)
+        .unwrap()
+        .sections
+        .iter()
+        .map(Vec::len)
+        .sum();
+    assert!(
+        (opened_bytes as usize) < level_zero / 8,
+        "{opened_bytes} bytes read to open, level 0 is {level_zero}"
+    );
+    let overview = &levels[2];
+    assert_eq!(opened.overview.maps, overview.maps);
+    assert_eq!(opened.overview.depth, overview.depth);
+    let at = |level: usize, j: usize, x: usize, y: usize| {
+        let maps = &levels[level].maps;
+        maps.data[j * maps.pixels() + y * maps.width + x] as f64
+    };
+    let depth_at = |level: usize, x: usize, y: usize| {
+        levels[level].depth.as_ref().unwrap()[y * levels[level].maps.width + x]
+    };
+    check_tiles_with(&opened.source, image.maps.k, at, depth_at);
+    let differs = (0..levels[1].maps.pixels()).any(|p| {
+        let (x, y) = (p % 150, p / 150);
+        (0..3 * image.maps.k)
+            .any(|j| (at(1, j, x, y) - expected(&levels[0], 1, j, x, y)).abs() > 1e-5)
+    });
+    assert!(differs, "level 1 is the file's own, not level 0's means");
 }
 
 #[test]

@@ -690,6 +690,36 @@ fn halve(
     out
 }
 
+/// The next mip level of `image`, of size `to` (one of [`mip_sizes`] after the
+/// image's): the 2×2 means of every coefficient plane, and of the depth's hits.
+pub fn halved(image: &RelightableImage, to: (usize, usize)) -> RelightableImage {
+    use rayon::prelude::*;
+    let maps = &image.maps;
+    let from = (maps.width, maps.height);
+    let data: Vec<f32> = (0..3 * maps.k)
+        .into_par_iter()
+        .flat_map_iter(|j| {
+            halve(
+                &maps.data[j * maps.pixels()..][..maps.pixels()],
+                from,
+                to,
+                f32::is_finite,
+            )
+        })
+        .collect();
+    let hit: fn(f32) -> bool = |d| d.is_finite() && d > 0.0;
+    RelightableImage {
+        meta: image.meta.clone(),
+        maps: CoefficientMaps {
+            width: to.0,
+            height: to.1,
+            k: maps.k,
+            data,
+        },
+        depth: image.depth.as_ref().map(|d| halve(d, from, to, hit)),
+    }
+}
+
 /// Write `image` as a tiled OpenEXR file (`tile`-pixel tiles) with mip levels
 /// (MIPMAP_LEVELS, rounding down): each level holds the 2×2 means of the level above —
 /// relighting is linear in the coefficients, so a level relights to the 2×2 means of

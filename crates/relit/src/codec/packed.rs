@@ -86,10 +86,11 @@ pub fn read_header(path: &Path) -> Result<compress::Header> {
     read_sections(path, &|_, _| false).map(|(packed, _, _)| packed.header)
 }
 
-/// Read a compressed file as ordinary maps (in its projected basis).
+/// Read a compressed file as ordinary maps (in its projected basis): level 0, its
+/// finer levels' sections left unread.
 pub fn read(path: &Path) -> Result<RelightableImage> {
-    compress::unpack(&read_packed(path)?)
-        .map_err(|e| Error::new(e.kind(), format!("{}: {e}", path.display())))
+    let (packed, _, _) = read_sections(path, &|h, s| h.section_level(s).0 == 0)?;
+    compress::unpack(&packed).map_err(|e| Error::new(e.kind(), format!("{}: {e}", path.display())))
 }
 
 /// The region `(x, y, w, h)` of a compressed file's maps, reading only the sections
@@ -110,11 +111,28 @@ pub fn read_region_with(
     region: (usize, usize, usize, usize),
     depth: bool,
 ) -> Result<(RelightableImage, u64, u64)> {
+    read_level_region(path, 0, region, depth)
+}
+
+/// [`read_region_with`] of mip level `level` (`region` in its pixels), reading only
+/// that level's sections the region touches ([`compress::Header::levels`]).
+pub fn read_level_region(
+    path: &Path,
+    level: usize,
+    region: (usize, usize, usize, usize),
+    depth: bool,
+) -> Result<(RelightableImage, u64, u64)> {
+    // The level's header, made once for all the sections asked about.
+    let at = std::cell::OnceCell::new();
     let (packed, read, len) = read_sections(path, &|h, s| {
-        compress::section_needed(h, s, region)
-            || (depth && compress::depth_section_in(h, s, region))
+        let (l, own) = h.section_level(s);
+        let at = at.get_or_init(|| h.at_level(level));
+        l == level
+            && (compress::section_needed(at, own, region)
+                || (depth && compress::depth_section_in(at, own, region)))
     })?;
     let in_file = |e: Error| Error::new(e.kind(), format!("{}: {e}", path.display()));
+    let packed = packed.level(level).map_err(in_file)?;
     let mut image = compress::unpack_region(&packed, region).map_err(in_file)?;
     if depth {
         image.depth = compress::unpack_depth_region(&packed, region).map_err(in_file)?;

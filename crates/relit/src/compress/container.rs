@@ -11,14 +11,16 @@ pub const MAGIC: [u8; 8] = *b"\x89RLZ\r\n\x1a\n";
 /// The newest layout version this build writes and reads. Version 2 added the codebook
 /// (vector quantisation) and WebP tiles, version 3 the perceptual gain, version 4
 /// principal components per block, version 5 a codebook of the residual beside the
-/// planes; a file is written with the oldest version that holds it, so that older
-/// readers keep reading what they can.
-pub const VERSION: u32 = 5;
+/// planes, version 6 mip levels; a file is written with the oldest version that holds
+/// it, so that older readers keep reading what they can.
+pub const VERSION: u32 = 6;
 
 /// The version a header needs.
 fn version_of(header: &Header) -> u32 {
     let webp = matches!(header.codec, super::TileCodec::Webp { .. });
-    if !header.residual.is_empty() {
+    if header.levels > 1 {
+        6
+    } else if !header.residual.is_empty() {
         5
     } else if header.pca_block.is_some() {
         4
@@ -119,7 +121,7 @@ pub fn read_from<R: Read + Seek>(
     let header: Header = serde_json::from_slice(&json).map_err(|e| bad(format!("header: {e}")))?;
     if version < version_of(&header) {
         return Err(bad(format!(
-            "a version {version} file cannot hold a codebook, WebP tiles (version 2 added them), a gain plane (version 3), principal components per block (version 4) or a codebook of the residual (version 5)"
+            "a version {version} file cannot hold a codebook, WebP tiles (version 2 added them), a gain plane (version 3), principal components per block (version 4), a codebook of the residual (version 5) or mip levels (version 6)"
         )));
     }
     let sections = u32_at(&take(&mut file, 4, "section count")?) as usize;

@@ -48,6 +48,10 @@ const PCA_PIXELS: usize = 1 << 16;
 /// or 256.
 const BLOCK_PCA_PIXELS: usize = 1 << 12;
 
+/// The most mip levels a file may hold: those of a side of 2^16 pixels, the largest
+/// [`Header`] allows.
+const MAX_LEVELS: usize = 17;
+
 /// Tile sides a file may use.
 pub const TILE_SIDES: std::ops::RangeInclusive<usize> = 16..=4096;
 
@@ -83,6 +87,9 @@ pub struct Settings {
     /// Find the principal components per block of this many pixels a side instead of
     /// once for the file ([`Header::pca_block`]); `None`: once.
     pub pca_block: Option<usize>,
+    /// Store mip levels too ([`Header::levels`]), so that a zoomed-out view reads a
+    /// coarse level's tiles instead of level 0's.
+    pub mip_levels: bool,
 }
 
 impl Default for Settings {
@@ -101,6 +108,7 @@ impl Default for Settings {
             directions: None,
             gain: false,
             pca_block: None,
+            mip_levels: false,
         }
     }
 }
@@ -125,8 +133,9 @@ impl Settings {
         };
         let gain = if self.gain { " gain" } else { "" };
         let block = self.pca_block.map_or(String::new(), |b| format!(" pca{b}"));
+        let mip = if self.mip_levels { " mip" } else { "" };
         format!(
-            "{} k{k}{chroma}{bits}{vq}{gain}{block} {}",
+            "{} k{k}{chroma}{bits}{vq}{gain}{block}{mip} {}",
             self.layout.name(),
             self.codec.name()
         )
@@ -205,6 +214,22 @@ pub struct Header {
     pub pca_block: Option<usize>,
     /// Whether depth follows the planes (f32, lossless).
     pub depth: bool,
+    /// Mip levels the file holds, level 0 included (OpenEXR's MIPMAP_LEVELS sizes,
+    /// rounding down: [`crate::codec::exr::mip_sizes`]). Level `L ≥ 1` holds the 2×2
+    /// means of level `L − 1`'s maps (and of its depth's hits), coded with level 0's
+    /// planes, projection and quantisers, so that one basis relights every level. Its
+    /// sections follow all of level 0's: its planes' tiles, then its depth's. Files of
+    /// planes with one projection only (no codebook, no projection a block).
+    #[serde(default = "one_level", skip_serializing_if = "is_one_level")]
+    pub levels: usize,
+}
+
+fn one_level() -> usize {
+    1
+}
+
+fn is_one_level(levels: &usize) -> bool {
+    *levels == 1
 }
 
 impl Header {
@@ -234,8 +259,64 @@ impl Header {
     /// plane's tiles; or both, the planes' first, for a codebook of the residual), then
     /// depth's, then the blocks' principal components when they are found per block.
     pub fn sections(&self) -> usize {
+        let finer = (1..self.levels.min(MAX_LEVELS)).map(|l| self.level_sections(l).len());
+        self.level_zero_sections() + finer.sum::<usize>()
+    }
+
+    /// Level 0's sections: [`Header::sections`] of a file without levels.
+    fn level_zero_sections(&self) -> usize {
         let (a, d) = self.tiles();
         self.plane_sections() + self.depth as usize * a * d + self.pca_block.is_some() as usize
+    }
+
+    /// The size of level `level` (level 0: the image's).
+    pub fn level_size(&self, level: usize) -> (usize, usize) {
+        let shift = level.min(usize::BITS as usize - 1);
+        ((self.width >> shift).max(1), (self.height >> shift).max(1))
+    }
+
+    /// The sections of level `level ≥ 1` in the file: its planes' tiles, then its
+    /// depth's.
+    pub fn level_sections(&self, level: usize) -> std::ops::Range<usize> {
+        let mut start = self.level_zero_sections();
+        for l in 1..=level {
+            let (w, h) = self.level_size(l);
+            let tiles = w.div_ceil(self.tile) * h.div_ceil(self.tile);
+            let len = tiles.saturating_mul(self.planes.len() + self.depth as usize);
+            if l == level {
+                return start..start.saturating_add(len);
+            }
+            start = start.saturating_add(len);
+        }
+        start..start
+    }
+
+    /// Level `level`'s header, as a file of that one level would have it: its size,
+    /// and level 0's planes and quantisers ([`Packed::level`] gives its sections).
+    pub fn at_level(&self, level: usize) -> Header {
+        let (width, height) = self.level_size(level);
+        Header {
+            width,
+            height,
+            levels: 1,
+            ..self.clone()
+        }
+    }
+
+    /// The level and its own section number (as [`Header::at_level`]'s file numbers
+    /// them) of the file's section `s`.
+    pub fn section_level(&self, s: usize) -> (usize, usize) {
+        let zero = self.level_zero_sections();
+        if s < zero {
+            return (0, s);
+        }
+        for level in 1..self.levels.min(MAX_LEVELS) {
+            let range = self.level_sections(level);
+            if range.contains(&s) {
+                return (level, s - range.start);
+            }
+        }
+        (self.levels, s)
     }
 
     /// Whether every pixel is only an index (a codebook file without planes): frames
@@ -331,6 +412,18 @@ impl Header {
             if !TILE_SIDES.contains(&b) {
                 return Err(bad(format!("bad block side {b}")));
             }
+        }
+        let most = crate::codec::exr::mip_sizes(self.width, self.height).len();
+        if self.levels == 0 || self.levels > most {
+            return Err(bad(format!(
+                "{} mip levels of a {}×{} image (1 to {most})",
+                self.levels, self.width, self.height
+            )));
+        }
+        if self.levels > 1 && (self.codebook.is_some() || self.pca_block.is_some()) {
+            return Err(bad(
+                "mip levels with a codebook or a projection a block".into()
+            ));
         }
         let functions = self.layout.channels().0;
         let per_pixel = self.per_pixel_channels();
@@ -431,6 +524,37 @@ impl Packed {
     pub fn payload_bytes(&self) -> usize {
         self.sections.iter().map(Vec::len).sum()
     }
+
+    /// Mip level `level` as a file of that one level ([`Header::at_level`]): what
+    /// [`unpack`], [`unpack_region`] and [`unpack_depth_region`] read. Level 0 is the
+    /// file without its finer levels' sections; any other takes its own sections out of
+    /// `self`.
+    pub fn level(mut self, level: usize) -> Result<Packed> {
+        let header = &self.header;
+        header.check()?;
+        if self.sections.len() != header.sections() {
+            return Err(Error::parse("compressed file: wrong number of sections"));
+        }
+        if level >= header.levels {
+            return Err(Error::invalid(format!(
+                "level {level} of a file of {} mip level{}",
+                header.levels,
+                if header.levels == 1 { "" } else { "s" }
+            )));
+        }
+        let at = header.at_level(level);
+        let sections = if level == 0 {
+            self.sections.truncate(header.level_zero_sections());
+            self.sections
+        } else {
+            let range = header.level_sections(level);
+            self.sections.drain(range).collect()
+        };
+        Ok(Packed {
+            header: at,
+            sections,
+        })
+    }
 }
 
 /// The basis stored as an inner basis and a map onto it: `(inner, P)` with `P` the
@@ -460,6 +584,47 @@ pub fn pack_with_gain(
     settings: &Settings,
     perceptual_gain: Option<&[f32]>,
 ) -> Result<Packed> {
+    if settings.mip_levels && (settings.codebook.is_some() || settings.pca_block.is_some()) {
+        return Err(Error::invalid(
+            "mip levels are coded with level 0's projection and quantisers: a codebook or \
+             principal components per block do not combine with them",
+        ));
+    }
+    let (mut packed, fixed) = pack_level(image, settings, perceptual_gain, None)?;
+    if settings.mip_levels {
+        let sizes = crate::codec::exr::mip_sizes(image.width(), image.height());
+        let mut finer: Option<RelightableImage> = None;
+        for pair in sizes.windows(2) {
+            let level = crate::codec::exr::halved(finer.as_ref().unwrap_or(image), pair[1]);
+            let (coded, _) = pack_level(&level, settings, None, Some(&fixed))?;
+            if coded.header.meta.basis != packed.header.meta.basis {
+                return Err(Error::invalid(
+                    "a mip level was coded in another basis than level 0",
+                ));
+            }
+            packed.sections.extend(coded.sections);
+            finer = Some(level);
+        }
+        packed.header.levels = sizes.len();
+    }
+    Ok(packed)
+}
+
+/// What level 0 of a file fixes for its finer mip levels: the projection (per
+/// projection group) and every plane's quantiser.
+struct Fixed {
+    principals: Vec<projection::Principal>,
+    planes: Vec<PlaneEntry>,
+}
+
+/// [`pack_with_gain`] of one level: `fixed` (level 0's) gives the projection and the
+/// quantisers, where `None` finds them from `image`. Returns what it fixed.
+fn pack_level(
+    image: &RelightableImage,
+    settings: &Settings,
+    perceptual_gain: Option<&[f32]>,
+    fixed: Option<&Fixed>,
+) -> Result<(Packed, Fixed)> {
     if !(2..=16).contains(&settings.bits) {
         return Err(Error::invalid(format!(
             "bits must be 2–16, not {}",
@@ -535,12 +700,14 @@ pub fn pack_with_gain(
             Some(_) => return Err(Error::invalid("the gain has the wrong number of pixels")),
             None => gain::perceptual(maps, basis.as_ref(), settings.directions.as_deref()).into(),
         };
-        let quantizer = match settings.codec {
-            TileCodec::Zstd { .. } => {
+        let fixed_gain = fixed.and_then(|f| f.planes.iter().find(|p| p.channel == gain::CHANNEL));
+        let quantizer = match (fixed_gain, settings.codec) {
+            (Some(entry), _) => entry.quantizer,
+            (None, TileCodec::Zstd { .. }) => {
                 let r = crate::storage::FiniteRange::of(values.iter().copied());
                 Quantizer::spanning(r.lo, r.hi, (r.hi - r.lo) / 255.0, max_levels)
             }
-            TileCodec::Jpeg { .. } | TileCodec::Webp { .. } => {
+            (None, TileCodec::Jpeg { .. } | TileCodec::Webp { .. }) => {
                 plane_quantizer(&values, settings.codec, 0.0, max_levels)
             }
         };
@@ -612,11 +779,16 @@ pub fn pack_with_gain(
         projection::principal(&gram, &vectors, k, counts[channels[0]] + extra)
     };
     let width = maps.width;
-    let all: Vec<usize> = (0..n).collect();
-    let whole: Vec<projection::Principal> = (0..groups.len())
-        .map(|g| principal_of(&all, g, PCA_PIXELS))
-        .collect::<Result<_>>()?;
-    drop(all);
+    let whole: Vec<projection::Principal> = match fixed {
+        Some(f) => f.principals.clone(),
+        None => {
+            let all: Vec<usize> = (0..n).collect();
+            (0..groups.len())
+                .map(|g| principal_of(&all, g, PCA_PIXELS))
+                .collect::<Result<_>>()?
+        }
+    };
+    let fixed_principals = whole.clone();
     let principals: Vec<Vec<projection::Principal>> = match settings.pca_block {
         None => vec![whole],
         // Each block's directions turned to point the way the file's do (a direction's
@@ -791,6 +963,16 @@ pub fn pack_with_gain(
             a,
         ));
     }
+    if let Some(f) = fixed {
+        // A finer level: level 0's quantisers (its values are means of level 0's, within
+        // their ranges where the planes are linear in the coefficients; clamped where not).
+        for ((entry, _), given) in entries.iter_mut().zip(&f.planes) {
+            if (entry.channel.as_str(), entry.index) != (given.channel.as_str(), given.index) {
+                return Err(Error::invalid("a mip level has other planes than level 0"));
+            }
+            entry.quantizer = given.quantizer;
+        }
+    }
     if let Some((values, quantizer)) = &gain_plane {
         entries.push((
             PlaneEntry {
@@ -877,6 +1059,7 @@ pub fn pack_with_gain(
         gain: settings.gain,
         pca_block: settings.pca_block,
         depth: image.depth.is_some(),
+        levels: 1,
     };
     let (across, down) = header.tiles();
     let tiles = across * down;
@@ -953,7 +1136,11 @@ pub fn pack_with_gain(
                 .collect(),
         );
     }
-    Ok(Packed { header, sections })
+    let fixed = Fixed {
+        principals: fixed_principals,
+        planes: header.planes.clone(),
+    };
+    Ok((Packed { header, sections }, fixed))
 }
 
 /// The function channels that share one projection, group by group: every channel of
@@ -1254,7 +1441,7 @@ fn block_maps(packed: &Packed, kp: usize, k: usize) -> Result<Vec<f32>> {
     let (across, down) = header.pca_blocks();
     let per_block: usize = block_rows(header, kp).iter().map(|r| r * k).sum();
     let want = across * down * per_block * 4;
-    let bytes = &packed.sections[header.sections() - 1];
+    let bytes = &packed.sections[header.level_zero_sections() - 1];
     if header.pca_block.is_none() || bytes.len() != want {
         return Err(Error::parse(format!(
             "compressed file: the blocks' projections take {} bytes, not {want}",
@@ -1338,7 +1525,7 @@ pub fn section_needed(header: &Header, s: usize, region: (usize, usize, usize, u
     if header.indexed_pixels() {
         return true;
     }
-    if header.pca_block.is_some() && s + 1 == header.sections() {
+    if header.pca_block.is_some() && s + 1 == header.level_zero_sections() {
         return true;
     }
     let (across, down) = header.tiles();

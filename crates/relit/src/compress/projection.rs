@@ -19,6 +19,7 @@ use crate::{Error, ErrorKind, Result};
 const GRAM_DIRECTIONS: usize = 4096;
 
 /// The encoding `E = V Rᵀ` and the projected basis' map `P = V R⁻¹`, both `K′ × K`.
+#[derive(Clone)]
 pub struct Principal {
     pub k: usize,
     pub components: usize,

@@ -980,3 +980,180 @@ fn a_codebook_of_the_residual_adds_its_components_to_the_planes() {
     damaged.header.residual.swap(0, 1);
     assert!(unpack(&damaged).is_err());
 }
+
+/// Level `level` of `img` computed directly: each pixel the mean of the block of level 0
+/// under it, `2^level` a side until the side reached 1 (what repeated 2×2 means with
+/// rounding down give), and the depth's mean of the same block.
+fn block_means(img: &RelightableImage, level: usize) -> RelightableImage {
+    let (w, h) = (img.width(), img.height());
+    let (lw, lh) = ((w >> level).max(1), (h >> level).max(1));
+    let side = |n: usize| 1usize << level.min(n.ilog2() as usize);
+    let (bw, bh) = (side(w), side(h));
+    let mean = |plane: &[f32], x: usize, y: usize| -> f32 {
+        let mut sum = 0.0f64;
+        for sy in y * bh..(y + 1) * bh {
+            for sx in x * bw..(x + 1) * bw {
+                sum += plane[sy * w + sx] as f64;
+            }
+        }
+        (sum / (bw * bh) as f64) as f32
+    };
+    let mut maps = CoefficientMaps::zeros(lw, lh, img.maps.k);
+    for j in 0..3 * img.maps.k {
+        let plane = &img.maps.data[j * w * h..(j + 1) * w * h];
+        for y in 0..lh {
+            for x in 0..lw {
+                maps.data[j * lw * lh + y * lw + x] = mean(plane, x, y);
+            }
+        }
+    }
+    let depth = img.depth.as_ref().map(|d| {
+        (0..lw * lh)
+            .map(|p| mean(d, p % lw, p / lw))
+            .collect::<Vec<f32>>()
+    });
+    RelightableImage {
+        meta: img.meta.clone(),
+        maps,
+        depth,
+    }
+}
+
+#[test]
+fn a_file_with_mip_levels_holds_each_level_in_level_zeros_planes_and_reads_it_by_region() {
+    let img = image("sh:9", 70, 45);
+    let jpeg = TileCodec::parse("jpeg:90").unwrap();
+    let zstd = TileCodec::Zstd { level: 12 };
+    for (layout, codec, gain) in [
+        (Layout::Rgb, zstd, false),
+        (Layout::Ycc, jpeg, false),
+        (Layout::Lrgb, zstd, true),
+    ] {
+        let flat = Settings {
+            layout,
+            codec,
+            gain,
+            components: Some(5),
+            tile: 16,
+            ..Settings::default()
+        };
+        let settings = Settings {
+            mip_levels: true,
+            ..flat.clone()
+        };
+        let single = pack(&img, &flat).unwrap();
+        let packed_image = pack(&img, &settings).unwrap();
+        let header = &packed_image.header;
+        let sizes = crate::codec::exr::mip_sizes(70, 45);
+        assert_eq!(header.levels, sizes.len());
+        // Level 0 is the file without levels, to the byte.
+        assert_eq!(header.at_level(0), single.header);
+        let zero = packed_image.clone().level(0).unwrap();
+        assert!(
+            zero == single,
+            "{layout:?}: level 0 is the single-level file"
+        );
+        let bytes = packed::to_bytes(&packed_image).unwrap();
+        let again = packed::from_bytes(&bytes, "test").unwrap();
+        assert!(
+            again == packed_image,
+            "the file reads back what was written"
+        );
+        // Every level relights like the block means of the maps, about as closely as
+        // level 0 relights like the maps, or as the level packed alone (its own
+        // projection and quantisers: lrgb's one colour a pixel holds a coarse level's
+        // mixed colours less well) relights like them.
+        let error_zero = relit_error(&unpack(&again).unwrap(), &img);
+        for (level, &(lw, lh)) in sizes.iter().enumerate().skip(1) {
+            assert_eq!(header.level_size(level), (lw, lh));
+            let expected = block_means(&img, level);
+            let got = unpack(&again.clone().level(level).unwrap()).unwrap();
+            assert_eq!((got.width(), got.height()), (lw, lh));
+            let error = relit_error(&got, &expected);
+            let alone = relit_error(
+                &unpack(&pack(&expected, &flat).unwrap()).unwrap(),
+                &expected,
+            );
+            assert!(
+                error < 2.0 * error_zero.max(alone) + 1e-3,
+                "{layout:?} level {level}: {error} against {error_zero} at level 0, {alone} alone"
+            );
+            // Depth is lossless: the block means of level 0's.
+            let (got_depth, want_depth) = (got.depth.unwrap(), expected.depth.unwrap());
+            for (g, w) in got_depth.iter().zip(&want_depth) {
+                assert!(
+                    (g - w).abs() <= 1e-5 * w.abs(),
+                    "level {level} depth {g} ≠ {w}"
+                );
+            }
+        }
+        // A region of level 1 reads that level's tiles it touches alone and equals that
+        // crop of the whole level.
+        let level = 1;
+        let whole = unpack(&again.clone().level(level).unwrap()).unwrap();
+        let (lw, _) = header.level_size(level);
+        let at = header.at_level(level);
+        let region = (20, 5, 10, 12);
+        let mut cursor = std::io::Cursor::new(&bytes[..]);
+        let (sparse, read) = packed::read_from(&mut cursor, bytes.len() as u64, "test", &|h, s| {
+            let (l, own) = h.section_level(s);
+            l == level && (section_needed(&at, own, region) || depth_section_in(&at, own, region))
+        })
+        .unwrap();
+        let level_bytes: usize = packed_image.sections[header.level_sections(level)]
+            .iter()
+            .map(Vec::len)
+            .sum();
+        let header_and_index = bytes.len() - packed_image.payload_bytes();
+        assert!(
+            (read as usize) < header_and_index + level_bytes / 2,
+            "{layout:?}: {read} bytes read of a level of {level_bytes}"
+        );
+        let sparse = sparse.level(level).unwrap();
+        let part = unpack_region(&sparse, region).unwrap();
+        let depth = unpack_depth_region(&sparse, region).unwrap().unwrap();
+        let (x, y, w, h) = region;
+        for r in 0..h {
+            for plane in 0..3 * whole.maps.k {
+                let (i, c) = (plane / 3, plane % 3);
+                let want = &whole.maps.plane(i, c)[(y + r) * lw + x..][..w];
+                assert_eq!(&part.maps.plane(i, c)[r * w..][..w], want);
+            }
+            let want = &whole.depth.as_ref().unwrap()[(y + r) * lw + x..][..w];
+            assert_eq!(&depth[r * w..][..w], want);
+        }
+        assert!(again.clone().level(sizes.len()).is_err());
+    }
+    // Levels are coded with one projection and level 0's quantisers: no codebook, no
+    // projection a block; a header that claims more levels than the image has is refused.
+    for settings in [
+        Settings {
+            mip_levels: true,
+            codebook: Some(16),
+            ..Settings::default()
+        },
+        Settings {
+            mip_levels: true,
+            pca_block: Some(32),
+            components: Some(4),
+            ..Settings::default()
+        },
+    ] {
+        assert!(pack(&img, &settings).is_err());
+    }
+    let mut packed_image = pack(
+        &img,
+        &Settings {
+            mip_levels: true,
+            tile: 16,
+            ..Settings::default()
+        },
+    )
+    .unwrap();
+    packed_image.header.levels = 8;
+    packed_image
+        .sections
+        .resize(packed_image.header.sections(), Vec::new());
+    let err = unpack(&packed_image).unwrap_err().to_string();
+    assert!(err.contains("mip levels"), "{err}");
+}
