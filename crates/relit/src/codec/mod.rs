@@ -165,7 +165,8 @@ pub fn read_compact(
 ) -> Result<(RelightableImage, CompactPlanes)> {
     match FileForm::of(path)? {
         FileForm::Exr => exr::read_compact(path, precision),
-        FileForm::Compressed | FileForm::Ptm | FileForm::Rti | FileForm::Web => {
+        FileForm::Compressed => packed::read_compact(path, precision),
+        FileForm::Ptm | FileForm::Rti | FileForm::Web => {
             let mut image = read(path)?;
             let planes = CompactPlanes::from_maps(&image.maps, precision)?;
             image.maps.data = Vec::new();

@@ -20,6 +20,7 @@
 use crate::compress::{self, Packed};
 use crate::fsutil::write_atomically;
 use crate::maps::RelightableImage;
+use crate::storage::{CompactPlanes, FiniteRange, PlaneCoding, Precision};
 use crate::{Error, ErrorKind, Result};
 use std::io::{Read, Write};
 use std::path::Path;
@@ -138,6 +139,119 @@ pub fn read_level_region(
         image.depth = compress::unpack_depth_region(&packed, region).map_err(in_file)?;
     }
     Ok((image, read, len))
+}
+
+/// A pixel rectangle `(x, y, w, h)`.
+type Rect = (usize, usize, usize, usize);
+
+/// Bytes of f32 maps [`read_compact`] decodes at once: a run of tiles of one row of
+/// tiles (at least one tile), so that its peak is the compact planes and this.
+const COMPACT_RUN_BYTES: usize = 64 << 20;
+
+/// Level 0 of a compressed file as compact planes (f16 or u8, as
+/// [`crate::storage::CompactPlanes::from_maps`] makes them from the decoded maps),
+/// without holding the f32 maps or the file's bytes: runs of tiles are read and decoded
+/// one after another (u8 reads them twice, first for each plane's range). The image
+/// holds the metadata and depth, no maps. A codebook file is expanded whole.
+pub fn read_compact(
+    path: &Path,
+    precision: Precision,
+) -> Result<(RelightableImage, CompactPlanes)> {
+    read_compact_in_runs(path, precision, COMPACT_RUN_BYTES)
+}
+
+/// [`read_compact`], decoding at most `run_bytes` of f32 maps at once (at least a tile).
+pub(crate) fn read_compact_in_runs(
+    path: &Path,
+    precision: Precision,
+    run_bytes: usize,
+) -> Result<(RelightableImage, CompactPlanes)> {
+    let precision = precision.require(&[Precision::F16, Precision::U8], "read_compact")?;
+    let header = read_header(path)?;
+    if header.indexed_pixels() {
+        let mut image = read(path)?;
+        let planes = CompactPlanes::from_maps(&image.maps, precision)?;
+        image.maps.data = Vec::new();
+        return Ok((image, planes));
+    }
+    let k = header.meta.basis.build()?.len();
+    let (w, h, tile) = (header.width, header.height, header.tile);
+    let (pixels, count) = (w * h, 3 * k);
+    let tiles_a_run = (run_bytes / (tile * tile * count * 4)).max(1);
+    let runs: Vec<Rect> = (0..h.div_ceil(tile))
+        .flat_map(|ty| {
+            (0..w.div_ceil(tile * tiles_a_run)).map(move |r| {
+                let (x, y) = (r * tile * tiles_a_run, ty * tile);
+                (x, y, (tile * tiles_a_run).min(w - x), tile.min(h - y))
+            })
+        })
+        .collect();
+    // Each run's maps handed to `f` with its rectangle, in order.
+    let each_run = |f: &mut dyn FnMut(Rect, &crate::maps::CoefficientMaps)| {
+        runs.iter().try_for_each(|&rect| {
+            let (image, _, _) = read_region_with(path, rect, false)?;
+            f(rect, &image.maps);
+            Ok::<(), Error>(())
+        })
+    };
+    let oom =
+        |what: &str| Error::invalid(format!("{}: {what} could not be allocated", path.display()));
+    let planes = match precision {
+        Precision::F16 => {
+            let mut bits: Vec<u16> = Vec::new();
+            bits.try_reserve_exact(pixels * count)
+                .map_err(|_| oom("the f16 planes"))?;
+            bits.resize(pixels * count, 0);
+            each_run(&mut |(x, y, rw, rh), maps| {
+                for (j, plane) in maps.data.chunks_exact(rw * rh).enumerate() {
+                    for r in 0..rh {
+                        let at = j * pixels + (y + r) * w + x;
+                        crate::storage::to_f16_bits(&plane[r * rw..][..rw], &mut bits[at..at + rw]);
+                    }
+                }
+            })?;
+            CompactPlanes::from_f16_bits(bits, pixels, count)
+        }
+        _ => {
+            let mut ranges = vec![FiniteRange::EMPTY; count];
+            each_run(&mut |_, maps| {
+                for (range, plane) in ranges.iter_mut().zip(maps.data.chunks_exact(maps.pixels())) {
+                    *range = plane.iter().fold(*range, |r, &v| r.with(v));
+                }
+            })?;
+            let coding: Vec<PlaneCoding> = ranges.into_iter().map(PlaneCoding::u8).collect();
+            let mut data: Vec<u8> = Vec::new();
+            data.try_reserve_exact(pixels * count)
+                .map_err(|_| oom("the u8 planes"))?;
+            data.resize(pixels * count, 0);
+            each_run(&mut |(x, y, rw, rh), maps| {
+                for (j, plane) in maps.data.chunks_exact(rw * rh).enumerate() {
+                    for r in 0..rh {
+                        let at = j * pixels + (y + r) * w + x;
+                        let (src, dst) = (&plane[r * rw..][..rw], &mut data[at..at + rw]);
+                        dst.iter_mut()
+                            .zip(src)
+                            .for_each(|(q, &v)| *q = coding[j].quantize(v));
+                    }
+                }
+            })?;
+            CompactPlanes::from_u8(data, coding, pixels, count)
+        }
+    }
+    .expect("the planes were sized from the header");
+    let (depth_sections, _, _) = read_sections(path, &|h, s| compress::depth_section(h, s))?;
+    let depth = compress::unpack_depth_region(&depth_sections.level(0)?, (0, 0, w, h))?;
+    let image = RelightableImage {
+        meta: header.meta,
+        maps: crate::maps::CoefficientMaps {
+            width: w,
+            height: h,
+            k,
+            data: Vec::new(),
+        },
+        depth,
+    };
+    Ok((image, planes))
 }
 
 /// Write `packed` to `path` (atomically: a temporary file renamed into place).
