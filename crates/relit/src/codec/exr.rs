@@ -650,75 +650,8 @@ pub const DEFAULT_TILE: usize = 256;
 /// The tile sides a tiled file may have.
 pub const TILE_SIDES: std::ops::RangeInclusive<usize> = 16..=4096;
 
-/// The sizes of a `w × h` image's mip levels, level 0 first: OpenEXR's MIPMAP_LEVELS
-/// rounding down, each side halved until both are 1.
-pub fn mip_sizes(w: usize, h: usize) -> Vec<(usize, usize)> {
-    let count = (usize::BITS - w.max(h).max(1).leading_zeros()) as usize;
-    (0..count)
-        .map(|l| ((w >> l).max(1), (h >> l).max(1)))
-        .collect()
-}
-
-/// The means of the 2×2 blocks of a `from`-sized plane at each pixel of a `to`-sized
-/// one (rounded-down levels: an odd last row or column is left out; a side of 1 stays
-/// 1), over the values `keep` accepts (0 where it accepts none).
-fn halve(
-    plane: &[f32],
-    from: (usize, usize),
-    to: (usize, usize),
-    keep: fn(f32) -> bool,
-) -> Vec<f32> {
-    let (w, h) = from;
-    let mut out = vec![0.0; to.0 * to.1];
-    for y in 0..to.1 {
-        for x in 0..to.0 {
-            let (mut sum, mut n) = (0.0f64, 0u32);
-            for sy in (2 * y..2 * y + 2).filter(|&v| v < h) {
-                for sx in (2 * x..2 * x + 2).filter(|&v| v < w) {
-                    let v = plane[sy * w + sx];
-                    if keep(v) {
-                        sum += v as f64;
-                        n += 1;
-                    }
-                }
-            }
-            if n > 0 {
-                out[y * to.0 + x] = (sum / n as f64) as f32;
-            }
-        }
-    }
-    out
-}
-
-/// The next mip level of `image`, of size `to` (one of [`mip_sizes`] after the
-/// image's): the 2×2 means of every coefficient plane, and of the depth's hits.
-pub fn halved(image: &RelightableImage, to: (usize, usize)) -> RelightableImage {
-    use rayon::prelude::*;
-    let maps = &image.maps;
-    let from = (maps.width, maps.height);
-    let data: Vec<f32> = (0..3 * maps.k)
-        .into_par_iter()
-        .flat_map_iter(|j| {
-            halve(
-                &maps.data[j * maps.pixels()..][..maps.pixels()],
-                from,
-                to,
-                f32::is_finite,
-            )
-        })
-        .collect();
-    let hit: fn(f32) -> bool = |d| d.is_finite() && d > 0.0;
-    RelightableImage {
-        meta: image.meta.clone(),
-        maps: CoefficientMaps {
-            width: to.0,
-            height: to.1,
-            k: maps.k,
-            data,
-        },
-        depth: image.depth.as_ref().map(|d| halve(d, from, to, hit)),
-    }
-}
+use crate::maps::halve;
+pub use crate::maps::{halved, mip_sizes};
 
 /// Write `image` as a tiled OpenEXR file (`tile`-pixel tiles) with mip levels
 /// (MIPMAP_LEVELS, rounding down): each level holds the 2×2 means of the level above —

@@ -277,3 +277,112 @@ pub fn write(
     write_packed(path, &packed)?;
     Ok(packed)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::compress::{Layout, Settings, TileCodec};
+
+    /// A 9-coefficient SH image of smooth, varied pixels with depth.
+    fn sample(w: usize, h: usize) -> RelightableImage {
+        let basis = crate::basis::BasisChoice::parse("sh:9")
+            .unwrap()
+            .build(&crate::sphere::hemisphere_fibonacci(32), None)
+            .unwrap();
+        let mut maps = crate::maps::CoefficientMaps::zeros(w, h, 9);
+        for (j, plane) in maps.data.chunks_exact_mut(w * h).enumerate() {
+            for (p, v) in plane.iter_mut().enumerate() {
+                let (x, y) = ((p % w) as f32 / w as f32, (p / w) as f32 / h as f32);
+                *v = ((j as f32 + 1.0) * x + y * y).sin() / (1.0 + (j / 3) as f32);
+            }
+        }
+        let mut meta = crate::maps::Metadata::new(
+            basis.spec(),
+            crate::maps::MapSpace::Linear,
+            crate::camera::Projection::Planar {
+                fov_y_deg: Some(50.0),
+            },
+        );
+        meta.fit = None;
+        RelightableImage {
+            meta,
+            maps,
+            depth: Some((0..w * h).map(|p| 1.0 + p as f32 * 0.01).collect()),
+        }
+    }
+
+    /// `read_compact` of a compressed file decodes it a run of tiles at a time into the
+    /// planes `CompactPlanes::from_maps` makes from the whole decoded maps: the same values
+    /// (and u8 codings) in every layout, with a projection a block and with a codebook.
+    #[test]
+    fn compact_planes_read_by_runs_of_tiles_equal_those_of_the_decoded_maps() {
+        let dir = tempfile::tempdir().unwrap();
+        let img = sample(70, 45);
+        for (i, settings) in [
+            Settings {
+                components: Some(5),
+                tile: 16,
+                ..Settings::default()
+            },
+            Settings {
+                layout: Layout::Ycc,
+                codec: TileCodec::parse("jpeg:90").unwrap(),
+                pca_block: Some(24),
+                components: Some(4),
+                tile: 32,
+                mip_levels: false,
+                ..Settings::default()
+            },
+            Settings {
+                layout: Layout::Lrgb,
+                gain: true,
+                tile: 16,
+                mip_levels: true,
+                ..Settings::default()
+            },
+            Settings {
+                codebook: Some(16),
+                tile: 16,
+                ..Settings::default()
+            },
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let path = dir.path().join(format!("f{i}.rlz"));
+            super::write(&path, &img, &settings).unwrap();
+            let whole = super::read(&path).unwrap();
+            // Runs of one tile, and whole rows of tiles.
+            for (precision, run_bytes) in [
+                (Precision::F16, 1),
+                (Precision::U8, 1),
+                (Precision::F16, 1 << 26),
+                (Precision::U8, 1 << 26),
+            ] {
+                let (image, planes) =
+                    super::read_compact_in_runs(&path, precision, run_bytes).unwrap();
+                let want = CompactPlanes::from_maps(&whole.maps, precision).unwrap();
+                assert_eq!((image.width(), image.height()), (70, 45));
+                assert_eq!(image.maps.k, whole.maps.k);
+                assert!(image.maps.data.is_empty(), "no f32 maps are kept");
+                assert_eq!(image.meta, whole.meta);
+                assert_eq!(image.depth, whole.depth);
+                assert_eq!(planes.bytes(), want.bytes());
+                for j in 0..3 * whole.maps.k {
+                    assert_eq!(
+                        planes.coding(j),
+                        want.coding(j),
+                        "{i} {precision:?} plane {j}"
+                    );
+                    for p in 0..70 * 45 {
+                        assert_eq!(
+                            planes.value(j, p).to_bits(),
+                            want.value(j, p).to_bits(),
+                            "{i} {precision:?} plane {j} pixel {p}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+}

@@ -215,7 +215,7 @@ pub struct Header {
     /// Whether depth follows the planes (f32, lossless).
     pub depth: bool,
     /// Mip levels the file holds, level 0 included (OpenEXR's MIPMAP_LEVELS sizes,
-    /// rounding down: [`crate::codec::exr::mip_sizes`]). Level `L ≥ 1` holds the 2×2
+    /// rounding down: [`crate::maps::mip_sizes`]). Level `L ≥ 1` holds the 2×2
     /// means of level `L − 1`'s maps (and of its depth's hits), coded with level 0's
     /// planes, projection and quantisers, so that one basis relights every level. Its
     /// sections follow all of level 0's: its planes' tiles, then its depth's. Files of
@@ -413,7 +413,7 @@ impl Header {
                 return Err(bad(format!("bad block side {b}")));
             }
         }
-        let most = crate::codec::exr::mip_sizes(self.width, self.height).len();
+        let most = crate::maps::mip_sizes(self.width, self.height).len();
         if self.levels == 0 || self.levels > most {
             return Err(bad(format!(
                 "{} mip levels of a {}×{} image (1 to {most})",
@@ -592,10 +592,10 @@ pub fn pack_with_gain(
     }
     let (mut packed, fixed) = pack_level(image, settings, perceptual_gain, None)?;
     if settings.mip_levels {
-        let sizes = crate::codec::exr::mip_sizes(image.width(), image.height());
+        let sizes = crate::maps::mip_sizes(image.width(), image.height());
         let mut finer: Option<RelightableImage> = None;
         for pair in sizes.windows(2) {
-            let level = crate::codec::exr::halved(finer.as_ref().unwrap_or(image), pair[1]);
+            let level = crate::maps::halved(finer.as_ref().unwrap_or(image), pair[1]);
             let (coded, _) = pack_level(&level, settings, None, Some(&fixed))?;
             if coded.header.meta.basis != packed.header.meta.basis {
                 return Err(Error::invalid(

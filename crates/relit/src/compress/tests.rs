@@ -1044,7 +1044,7 @@ fn a_file_with_mip_levels_holds_each_level_in_level_zeros_planes_and_reads_it_by
         let single = pack(&img, &flat).unwrap();
         let packed_image = pack(&img, &settings).unwrap();
         let header = &packed_image.header;
-        let sizes = crate::codec::exr::mip_sizes(70, 45);
+        let sizes = crate::maps::mip_sizes(70, 45);
         assert_eq!(header.levels, sizes.len());
         // Level 0 is the file without levels, to the byte.
         assert_eq!(header.at_level(0), single.header);
@@ -1156,80 +1156,4 @@ fn a_file_with_mip_levels_holds_each_level_in_level_zeros_planes_and_reads_it_by
         .resize(packed_image.header.sections(), Vec::new());
     let err = unpack(&packed_image).unwrap_err().to_string();
     assert!(err.contains("mip levels"), "{err}");
-}
-
-/// `read_compact` of a compressed file decodes it a run of tiles at a time into the
-/// planes `CompactPlanes::from_maps` makes from the whole decoded maps: the same values
-/// (and u8 codings) in every layout, with a projection a block and with a codebook.
-#[test]
-fn compact_planes_read_by_runs_of_tiles_equal_those_of_the_decoded_maps() {
-    use crate::storage::{CompactPlanes, Precision};
-    let dir = tempfile::tempdir().unwrap();
-    let img = image("sh:9", 70, 45);
-    for (i, settings) in [
-        Settings {
-            components: Some(5),
-            tile: 16,
-            ..Settings::default()
-        },
-        Settings {
-            layout: Layout::Ycc,
-            codec: TileCodec::parse("jpeg:90").unwrap(),
-            pca_block: Some(24),
-            components: Some(4),
-            tile: 32,
-            mip_levels: false,
-            ..Settings::default()
-        },
-        Settings {
-            layout: Layout::Lrgb,
-            gain: true,
-            tile: 16,
-            mip_levels: true,
-            ..Settings::default()
-        },
-        Settings {
-            codebook: Some(16),
-            tile: 16,
-            ..Settings::default()
-        },
-    ]
-    .into_iter()
-    .enumerate()
-    {
-        let path = dir.path().join(format!("f{i}.rlz"));
-        crate::codec::packed::write(&path, &img, &settings).unwrap();
-        let whole = crate::codec::packed::read(&path).unwrap();
-        // Runs of one tile, and whole rows of tiles.
-        for (precision, run_bytes) in [
-            (Precision::F16, 1),
-            (Precision::U8, 1),
-            (Precision::F16, 1 << 26),
-            (Precision::U8, 1 << 26),
-        ] {
-            let (image, planes) =
-                crate::codec::packed::read_compact_in_runs(&path, precision, run_bytes).unwrap();
-            let want = CompactPlanes::from_maps(&whole.maps, precision).unwrap();
-            assert_eq!((image.width(), image.height()), (70, 45));
-            assert_eq!(image.maps.k, whole.maps.k);
-            assert!(image.maps.data.is_empty(), "no f32 maps are kept");
-            assert_eq!(image.meta, whole.meta);
-            assert_eq!(image.depth, whole.depth);
-            assert_eq!(planes.bytes(), want.bytes());
-            for j in 0..3 * whole.maps.k {
-                assert_eq!(
-                    planes.coding(j),
-                    want.coding(j),
-                    "{i} {precision:?} plane {j}"
-                );
-                for p in 0..70 * 45 {
-                    assert_eq!(
-                        planes.value(j, p).to_bits(),
-                        want.value(j, p).to_bits(),
-                        "{i} {precision:?} plane {j} pixel {p}"
-                    );
-                }
-            }
-        }
-    }
 }
