@@ -35,7 +35,8 @@ pub struct Args {
     pub storage: Option<Precision>,
     /// relit's viewer only: whole coefficient layers (`off`), tiles of N pixels with a
     /// mip pyramid, read at the level and region a view needs (64 to 1024, a relit EXR
-    /// only; half floats), or `auto`: tiles of 256 when whole layers would pass 512 MiB.
+    /// or a `.rlz` file of planes; half floats), or `auto`: tiles of 256 when whole
+    /// layers would pass 512 MiB.
     #[arg(long, default_value = "auto")]
     pub tiles: Tiling,
     /// With tiles: the MiB the overview (the coarse level always held, drawn where a

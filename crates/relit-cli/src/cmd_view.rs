@@ -21,7 +21,8 @@ pub struct Args {
     #[arg(long, default_value = "f16")]
     pub storage: Precision,
     /// Whole coefficient layers (`off`), tiles of N pixels with a mip pyramid, sent at
-    /// the level and region the view needs (64 to 1024; a relit EXR only; half floats),
+    /// the level and region the view needs (64 to 1024; a relit EXR or a `.rlz` file of
+    /// planes, read from its own mip levels where it has them; half floats),
     /// or `auto`: tiles of 256 when whole layers would pass 512 MiB.
     #[arg(long, default_value = "auto")]
     pub tiles: Tiling,

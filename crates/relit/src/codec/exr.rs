@@ -1083,7 +1083,7 @@ enum Sink {
 
 /// A zeroed vector of `len` values, or an error naming what needed it when the memory
 /// cannot be had: sizes come from a file's header, which must not abort the process.
-fn try_zeroed<T: Copy + Default>(len: Option<usize>, what: &str) -> Result<Vec<T>> {
+pub(crate) fn try_zeroed<T: Copy + Default>(len: Option<usize>, what: &str) -> Result<Vec<T>> {
     let bytes = len.and_then(|n| n.checked_mul(std::mem::size_of::<T>()));
     let (Some(len), Some(bytes)) = (len, bytes) else {
         return Err(Error::invalid(format!("{what}: the size overflows")));

@@ -194,21 +194,14 @@ pub(crate) fn read_compact_in_runs(
             Ok::<(), Error>(())
         })
     };
-    let oom =
-        |what: &str| Error::invalid(format!("{}: {what} could not be allocated", path.display()));
+    let what = format!("{}: the compact planes", path.display());
     let planes = match precision {
         Precision::F16 => {
-            let mut bits: Vec<u16> = Vec::new();
-            bits.try_reserve_exact(pixels * count)
-                .map_err(|_| oom("the f16 planes"))?;
-            bits.resize(pixels * count, 0);
-            each_run(&mut |(x, y, rw, rh), maps| {
-                for (j, plane) in maps.data.chunks_exact(rw * rh).enumerate() {
-                    for r in 0..rh {
-                        let at = j * pixels + (y + r) * w + x;
-                        crate::storage::to_f16_bits(&plane[r * rw..][..rw], &mut bits[at..at + rw]);
-                    }
-                }
+            let mut bits = super::exr::try_zeroed::<u16>(pixels.checked_mul(count), &what)?;
+            each_run(&mut |rect, maps| {
+                place(&mut bits, rect, w, maps, |_, from, to| {
+                    crate::storage::to_f16_bits(from, to)
+                })
             })?;
             CompactPlanes::from_f16_bits(bits, pixels, count)
         }
@@ -220,20 +213,13 @@ pub(crate) fn read_compact_in_runs(
                 }
             })?;
             let coding: Vec<PlaneCoding> = ranges.into_iter().map(PlaneCoding::u8).collect();
-            let mut data: Vec<u8> = Vec::new();
-            data.try_reserve_exact(pixels * count)
-                .map_err(|_| oom("the u8 planes"))?;
-            data.resize(pixels * count, 0);
-            each_run(&mut |(x, y, rw, rh), maps| {
-                for (j, plane) in maps.data.chunks_exact(rw * rh).enumerate() {
-                    for r in 0..rh {
-                        let at = j * pixels + (y + r) * w + x;
-                        let (src, dst) = (&plane[r * rw..][..rw], &mut data[at..at + rw]);
-                        dst.iter_mut()
-                            .zip(src)
-                            .for_each(|(q, &v)| *q = coding[j].quantize(v));
-                    }
-                }
+            let mut data = super::exr::try_zeroed::<u8>(pixels.checked_mul(count), &what)?;
+            each_run(&mut |rect, maps| {
+                place(&mut data, rect, w, maps, |j, from, to| {
+                    to.iter_mut()
+                        .zip(from)
+                        .for_each(|(q, &v)| *q = coding[j].quantize(v))
+                })
             })?;
             CompactPlanes::from_u8(data, coding, pixels, count)
         }
@@ -252,6 +238,25 @@ pub(crate) fn read_compact_in_runs(
         depth,
     };
     Ok((image, planes))
+}
+
+/// Every plane of `maps`, the maps of `rect` of an image `width` pixels wide, put into
+/// `planes` (the image's planes one after another) a row at a time by `put(plane,
+/// values, into)`.
+fn place<T>(
+    planes: &mut [T],
+    (x, y, rw, rh): Rect,
+    width: usize,
+    maps: &crate::maps::CoefficientMaps,
+    put: impl Fn(usize, &[f32], &mut [T]),
+) {
+    let pixels = planes.len() / (3 * maps.k).max(1);
+    for (j, plane) in maps.data.chunks_exact(rw * rh).enumerate() {
+        for r in 0..rh {
+            let at = j * pixels + (y + r) * width + x;
+            put(j, &plane[r * rw..][..rw], &mut planes[at..at + rw]);
+        }
+    }
 }
 
 /// Write `packed` to `path` (atomically: a temporary file renamed into place).
