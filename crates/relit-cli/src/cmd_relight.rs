@@ -51,10 +51,10 @@ pub struct Args {
     /// that region alone (`w × h`), equal to the same crop of the full frame.
     #[arg(long)]
     pub roi: Option<String>,
-    /// Relight mip level L of a tiled EXR or `.rlz` file (`relit convert --mip-tiles`): level 0 is the
-    /// image, each level half the one above (2×2 means); `--roi` is then in the level's
-    /// pixels. Only the tiles the frame needs are read (directional and environment
-    /// lights).
+    /// Relight mip level L of a tiled EXR or `.rlz` file with levels (`relit convert
+    /// --mip-tiles`): level 0 is the image, each level half the one above (2×2 means);
+    /// `--roi` is then in the level's pixels. Only the tiles the frame needs are read
+    /// (directional and environment lights).
     #[arg(long)]
     pub level: Option<usize>,
     /// Relight on the GPU (wgpu compute shaders; any Vulkan/Metal/DX12 adapter,
@@ -359,8 +359,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let tiled = match form {
         relit::codec::FileForm::Exr => Some(relit::codec::exr::levels(&args.file)?),
         relit::codec::FileForm::Compressed => {
-            let header = relit::codec::packed::read_header(&args.file)?;
-            Some((0..header.levels).map(|l| header.level_size(l)).collect())
+            Some(relit::codec::packed::read_header(&args.file)?.level_sizes())
         }
         _ => None,
     };

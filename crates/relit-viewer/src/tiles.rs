@@ -164,7 +164,7 @@ impl TileSource {
                 }
                 let k = header.meta.basis.build()?.len();
                 let (_, _, tw, th) = header.tile_rect(0);
-                let sizes = (0..header.levels).map(|l| header.level_size(l)).collect();
+                let sizes = header.level_sizes();
                 (Form::Packed, header.meta, k, header.depth, sizes, (tw, th))
             }
             _ => {

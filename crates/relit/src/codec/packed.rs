@@ -167,7 +167,10 @@ pub(crate) fn read_compact_in_runs(
     run_bytes: usize,
 ) -> Result<(RelightableImage, CompactPlanes)> {
     let precision = precision.require(&[Precision::F16, Precision::U8], "read_compact")?;
-    let header = read_header(path)?;
+    // The depth first: taking level 0 checks the header before any size from it is used.
+    let (depth_sections, _, _) = read_sections(path, &|h, s| compress::depth_section(h, s))?;
+    let depth_sections = depth_sections.level(0)?;
+    let header = depth_sections.header.clone();
     if header.indexed_pixels() {
         let mut image = read(path)?;
         let planes = CompactPlanes::from_maps(&image.maps, precision)?;
@@ -225,8 +228,7 @@ pub(crate) fn read_compact_in_runs(
         }
     }
     .expect("the planes were sized from the header");
-    let (depth_sections, _, _) = read_sections(path, &|h, s| compress::depth_section(h, s))?;
-    let depth = compress::unpack_depth_region(&depth_sections.level(0)?, (0, 0, w, h))?;
+    let depth = compress::unpack_depth_region(&depth_sections, (0, 0, w, h))?;
     let image = RelightableImage {
         meta: header.meta,
         maps: crate::maps::CoefficientMaps {

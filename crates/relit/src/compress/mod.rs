@@ -257,7 +257,8 @@ impl Header {
 
     /// The sections the file holds: every plane's tiles (or the codebook and the index
     /// plane's tiles; or both, the planes' first, for a codebook of the residual), then
-    /// depth's, then the blocks' principal components when they are found per block.
+    /// depth's, then the blocks' principal components when they are found per block;
+    /// then each finer mip level's ([`Header::level_sections`]).
     pub fn sections(&self) -> usize {
         let finer = (1..self.levels.min(MAX_LEVELS)).map(|l| self.level_sections(l).len());
         self.level_zero_sections() + finer.sum::<usize>()
@@ -273,6 +274,15 @@ impl Header {
     pub fn level_size(&self, level: usize) -> (usize, usize) {
         let shift = level.min(usize::BITS as usize - 1);
         ((self.width >> shift).max(1), (self.height >> shift).max(1))
+    }
+
+    /// The sizes of the levels the file holds, level 0 first (at most as many as the
+    /// image has: a header is not trusted before it is checked).
+    pub fn level_sizes(&self) -> Vec<(usize, usize)> {
+        let most = crate::maps::mip_sizes(self.width, self.height).len();
+        (0..self.levels.clamp(1, most))
+            .map(|l| self.level_size(l))
+            .collect()
     }
 
     /// The sections of level `level ≥ 1` in the file: its planes' tiles, then its
