@@ -1037,6 +1037,23 @@ try {
     const r = compare(rlzFrames[0].rgb, rlzFrames[1].rgb);
     results.comparisons['tiled .rlz flat ×4 vs whole'] = r;
     expect('tiled .rlz flat ×4: the frame equals the whole bundle\'s (max |diff| ≤ 1)', r.max_abs <= 1, r);
+    // A .rlz file with mip levels: zoomed out, its own level 2's tiles stand in for the
+    // whole texture's mipmaps as an EXR's levels do (the server reads that level's
+    // tiles, not level 0's).
+    const rlzMip = path.join(work, 'pano-tiled-mip.rlz');
+    run('convert', exr, '-o', rlzMip, '--layout', 'ycc', '--components', '6', '--codec', 'jpeg:90', '--mip-tiles', '64');
+    const mipFrames = [];
+    for (const [file, flags] of [[rlz, ['--tiles', 'off']], [rlzMip, ['--tiles', '64', '--overview-mib', '0.2']]]) {
+      await open(file, flags, size);
+      await setRig({ lights });
+      await page.evaluate(() => window.relit.setSmooth(true));
+      await setView(views[4][1]);
+      await page.evaluate(() => window.relit.settle());
+      mipFrames.push(await canvas());
+    }
+    const m = compare(mipFrames[0].rgb, mipFrames[1].rgb);
+    results.comparisons['tiled .rlz with mip levels ÷4 vs whole'] = m;
+    expect('tiled .rlz with mip levels, ÷4 (its level 2): the frame matches the whole bundle\'s (≥ 40 dB)', m.psnr >= 40, m);
   });
 } finally {
   await browser.close();
