@@ -87,11 +87,25 @@ pub fn read_header(path: &Path) -> Result<compress::Header> {
     read_sections(path, &|_, _| false).map(|(packed, _, _)| packed.header)
 }
 
-/// Read a compressed file as ordinary maps (in its projected basis): level 0, its
-/// finer levels' sections left unread.
+/// Read a compressed file as ordinary maps (in its projected basis): level 0, a run of
+/// tiles at a time (see [`read_compact`]), so that the file's bytes are never held
+/// beside the maps; its finer levels' sections are not read.
 pub fn read(path: &Path) -> Result<RelightableImage> {
-    let (packed, _, _) = read_sections(path, &|h, s| h.section_level(s).0 == 0)?;
-    compress::unpack(&packed).map_err(|e| Error::new(e.kind(), format!("{}: {e}", path.display())))
+    let in_file = |e: Error| Error::new(e.kind(), format!("{}: {e}", path.display()));
+    let runs = Runs::open(path, COMPACT_RUN_BYTES).map_err(in_file)?;
+    if runs.header.indexed_pixels() {
+        let (packed, _, _) = read_sections(path, &|h, s| h.section_level(s).0 == 0)?;
+        return compress::unpack(&packed).map_err(in_file);
+    }
+    let (w, count) = (runs.header.width, 3 * runs.k);
+    let what = format!("{}: the maps", path.display());
+    let mut data = super::exr::try_zeroed::<f32>(runs.pixels().checked_mul(count), &what)?;
+    runs.each(&mut |rect, maps| {
+        place(&mut data, rect, w, maps, |_, from, to| {
+            to.copy_from_slice(from)
+        })
+    })?;
+    runs.into_image(data).map_err(in_file)
 }
 
 /// The region `(x, y, w, h)` of a compressed file's maps, reading only the sections
@@ -167,36 +181,15 @@ pub(crate) fn read_compact_in_runs(
     run_bytes: usize,
 ) -> Result<(RelightableImage, CompactPlanes)> {
     let precision = precision.require(&[Precision::F16, Precision::U8], "read_compact")?;
-    // The depth first: taking level 0 checks the header before any size from it is used.
-    let (depth_sections, _, _) = read_sections(path, &|h, s| compress::depth_section(h, s))?;
-    let depth_sections = depth_sections.level(0)?;
-    let header = depth_sections.header.clone();
-    if header.indexed_pixels() {
+    let runs = Runs::open(path, run_bytes)?;
+    if runs.header.indexed_pixels() {
         let mut image = read(path)?;
         let planes = CompactPlanes::from_maps(&image.maps, precision)?;
         image.maps.data = Vec::new();
         return Ok((image, planes));
     }
-    let k = header.meta.basis.build()?.len();
-    let (w, h, tile) = (header.width, header.height, header.tile);
-    let (pixels, count) = (w * h, 3 * k);
-    let tiles_a_run = (run_bytes / (tile * tile * count * 4)).max(1);
-    let runs: Vec<Rect> = (0..h.div_ceil(tile))
-        .flat_map(|ty| {
-            (0..w.div_ceil(tile * tiles_a_run)).map(move |r| {
-                let (x, y) = (r * tile * tiles_a_run, ty * tile);
-                (x, y, (tile * tiles_a_run).min(w - x), tile.min(h - y))
-            })
-        })
-        .collect();
-    // Each run's maps handed to `f` with its rectangle, in order.
-    let each_run = |f: &mut dyn FnMut(Rect, &crate::maps::CoefficientMaps)| {
-        runs.iter().try_for_each(|&rect| {
-            let (image, _, _) = read_region_with(path, rect, false)?;
-            f(rect, &image.maps);
-            Ok::<(), Error>(())
-        })
-    };
+    let (w, pixels, count) = (runs.header.width, runs.pixels(), 3 * runs.k);
+    let each_run = |f: &mut dyn FnMut(Rect, &crate::maps::CoefficientMaps)| runs.each(f);
     let what = format!("{}: the compact planes", path.display());
     let planes = match precision {
         Precision::F16 => {
@@ -228,18 +221,76 @@ pub(crate) fn read_compact_in_runs(
         }
     }
     .expect("the planes were sized from the header");
-    let depth = compress::unpack_depth_region(&depth_sections, (0, 0, w, h))?;
-    let image = RelightableImage {
-        meta: header.meta,
-        maps: crate::maps::CoefficientMaps {
-            width: w,
-            height: h,
+    Ok((runs.into_image(Vec::new())?, planes))
+}
+
+/// Level 0 of a compressed file of planes, read a run of tiles at a time: its header,
+/// checked, and its depth, read (whole: 4 bytes a pixel).
+struct Runs<'a> {
+    path: &'a Path,
+    header: compress::Header,
+    /// Level 0 with its depth's sections alone read.
+    depth: Packed,
+    k: usize,
+    runs: Vec<Rect>,
+}
+
+impl<'a> Runs<'a> {
+    /// Runs of at most `run_bytes` of f32 maps (at least a tile), along each row of
+    /// tiles.
+    fn open(path: &'a Path, run_bytes: usize) -> Result<Runs<'a>> {
+        // Taking level 0 checks the header before any size from it is used.
+        let (depth, _, _) = read_sections(path, &|h, s| compress::depth_section(h, s))?;
+        let depth = depth.level(0)?;
+        let header = depth.header.clone();
+        let k = header.meta.basis.build()?.len();
+        let (w, h, tile) = (header.width, header.height, header.tile);
+        let tiles_a_run = (run_bytes / (tile * tile * 3 * k * 4)).max(1);
+        let runs = (0..h.div_ceil(tile))
+            .flat_map(|ty| {
+                (0..w.div_ceil(tile * tiles_a_run)).map(move |r| {
+                    let (x, y) = (r * tile * tiles_a_run, ty * tile);
+                    (x, y, (tile * tiles_a_run).min(w - x), tile.min(h - y))
+                })
+            })
+            .collect();
+        Ok(Runs {
+            path,
+            header,
+            depth,
             k,
-            data: Vec::new(),
-        },
-        depth,
-    };
-    Ok((image, planes))
+            runs,
+        })
+    }
+
+    fn pixels(&self) -> usize {
+        self.header.width * self.header.height
+    }
+
+    /// Each run's maps handed to `f` with its rectangle, in order.
+    fn each(&self, f: &mut dyn FnMut(Rect, &crate::maps::CoefficientMaps)) -> Result<()> {
+        self.runs.iter().try_for_each(|&rect| {
+            let (image, _, _) = read_region_with(self.path, rect, false)?;
+            f(rect, &image.maps);
+            Ok(())
+        })
+    }
+
+    /// The image of the file's metadata and depth with the maps `data` (empty: none).
+    fn into_image(self, data: Vec<f32>) -> Result<RelightableImage> {
+        let (w, h) = (self.header.width, self.header.height);
+        let depth = compress::unpack_depth_region(&self.depth, (0, 0, w, h))?;
+        Ok(RelightableImage {
+            maps: crate::maps::CoefficientMaps {
+                width: w,
+                height: h,
+                k: self.k,
+                data,
+            },
+            meta: self.header.meta,
+            depth,
+        })
+    }
 }
 
 /// Every plane of `maps`, the maps of `rect` of an image `width` pixels wide, put into
@@ -358,7 +409,13 @@ mod tests {
         {
             let path = dir.path().join(format!("f{i}.rlz"));
             super::write(&path, &img, &settings).unwrap();
+            // `read` decodes by runs too: the maps of the whole file decoded at once.
             let whole = super::read(&path).unwrap();
+            let at_once = compress::unpack(&read_packed(&path).unwrap()).unwrap();
+            assert!(
+                whole == at_once,
+                "{i}: read by runs equals the whole file unpacked"
+            );
             // Runs of one tile, and whole rows of tiles.
             for (precision, run_bytes) in [
                 (Precision::F16, 1),
