@@ -267,13 +267,21 @@ impl<'a> Runs<'a> {
         self.header.width * self.header.height
     }
 
-    /// Each run's maps handed to `f` with its rectangle, in order.
+    /// Each run's maps handed to `f` with its rectangle, in order. As many runs as
+    /// there are threads are read and decoded side by side: one run alone leaves cores
+    /// idle while its sections are read and its planes assembled.
     fn each(&self, f: &mut dyn FnMut(Rect, &crate::maps::CoefficientMaps)) -> Result<()> {
-        self.runs.iter().try_for_each(|&rect| {
-            let (image, _, _) = read_region_with(self.path, rect, false)?;
-            f(rect, &image.maps);
-            Ok(())
-        })
+        use rayon::prelude::*;
+        for window in self.runs.chunks(rayon::current_num_threads().max(1)) {
+            let decoded = window
+                .par_iter()
+                .map(|&rect| read_region_with(self.path, rect, false).map(|(image, _, _)| image))
+                .collect::<Result<Vec<_>>>()?;
+            for (&rect, image) in window.iter().zip(&decoded) {
+                f(rect, &image.maps);
+            }
+        }
+        Ok(())
     }
 
     /// The image of the file's metadata and depth with the maps `data` (empty: none).
@@ -296,20 +304,25 @@ impl<'a> Runs<'a> {
 /// Every plane of `maps`, the maps of `rect` of an image `width` pixels wide, put into
 /// `planes` (the image's planes one after another) a row at a time by `put(plane,
 /// values, into)`.
-fn place<T>(
+fn place<T: Send>(
     planes: &mut [T],
     (x, y, rw, rh): Rect,
     width: usize,
     maps: &crate::maps::CoefficientMaps,
-    put: impl Fn(usize, &[f32], &mut [T]),
+    put: impl Fn(usize, &[f32], &mut [T]) + Sync,
 ) {
+    use rayon::prelude::*;
     let pixels = planes.len() / (3 * maps.k).max(1);
-    for (j, plane) in maps.data.chunks_exact(rw * rh).enumerate() {
-        for r in 0..rh {
-            let at = j * pixels + (y + r) * width + x;
-            put(j, &plane[r * rw..][..rw], &mut planes[at..at + rw]);
-        }
-    }
+    planes
+        .par_chunks_mut(pixels.max(1))
+        .zip(maps.data.par_chunks(rw * rh))
+        .enumerate()
+        .for_each(|(j, (out, plane))| {
+            for r in 0..rh {
+                let at = (y + r) * width + x;
+                put(j, &plane[r * rw..][..rw], &mut out[at..at + rw]);
+            }
+        });
 }
 
 /// Write `packed` to `path` (atomically: a temporary file renamed into place).
