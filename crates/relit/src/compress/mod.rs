@@ -928,24 +928,43 @@ fn pack_level(
     let range = |v: &[f32]| crate::storage::FiniteRange::of(v.iter().copied());
     let steps = ((1u64 << settings.bits) - 1) as f32;
     let mut entries: Vec<(PlaneEntry, &[f32])> = Vec::new();
-    let function_step = match settings.codec {
-        TileCodec::Zstd { .. } => {
-            let r = range(&projected[0]);
-            ((r.hi - r.lo) / steps).max(f32::MIN_POSITIVE)
-        }
-        // JPEG codes are 8-bit: the first plane's range in 256 codes, or no shared step.
-        TileCodec::Jpeg { .. } | TileCodec::Webp { .. } => match settings.jpeg_range {
-            JpegRange::Shared => {
-                let (lo, hi) = percentiles(&projected[0], 1e-4);
-                ((hi - lo) / 255.0).max(f32::MIN_POSITIVE)
+    // A finer level takes level 0's quantisers (its values are means of level 0's,
+    // within their ranges where the planes are linear in the coefficients; clamped where
+    // not), in the same order; level 0 finds each from its plane.
+    let mut given = fixed.map(|f| f.planes.iter());
+    let mut quantizer_for =
+        |channel: &str, index: usize, fresh: &dyn Fn() -> Quantizer| -> Result<Quantizer> {
+            let Some(planes) = given.as_mut() else {
+                return Ok(fresh());
+            };
+            match planes.next() {
+                Some(p) if p.channel == channel && p.index == index => Ok(p.quantizer),
+                _ => Err(Error::invalid("a mip level has other planes than level 0")),
             }
-            JpegRange::PerPlane => 0.0,
-        },
+        };
+    let function_step = std::cell::OnceCell::new();
+    let function_step = || {
+        *function_step.get_or_init(|| match settings.codec {
+            TileCodec::Zstd { .. } => {
+                let r = range(&projected[0]);
+                ((r.hi - r.lo) / steps).max(f32::MIN_POSITIVE)
+            }
+            // JPEG codes are 8-bit: the first plane's range in 256 codes, or no shared step.
+            TileCodec::Jpeg { .. } | TileCodec::Webp { .. } => match settings.jpeg_range {
+                JpegRange::Shared => {
+                    let (lo, hi) = percentiles(&projected[0], 1e-4);
+                    ((hi - lo) / 255.0).max(f32::MIN_POSITIVE)
+                }
+                JpegRange::PerPlane => 0.0,
+            },
+        })
     };
     for (f, &count) in counts.iter().enumerate() {
         for j in 0..count {
             let plane = &projected[starts[f] + j];
-            let quantizer = plane_quantizer(plane, settings.codec, function_step, max_levels);
+            let quantizer = quantizer_for(functions[f], j, &|| {
+                plane_quantizer(plane, settings.codec, function_step(), max_levels)
+            })?;
             entries.push((
                 PlaneEntry {
                     channel: functions[f].to_string(),
@@ -957,13 +976,15 @@ fn pack_level(
         }
     }
     for (a, name) in albedo.iter().zip(per_pixel) {
-        let r = range(a);
-        // JPEG albedo planes span their own range in 256 codes.
-        let step = match settings.codec {
-            TileCodec::Zstd { .. } => ((r.hi - r.lo) / steps).max(f32::MIN_POSITIVE),
-            TileCodec::Jpeg { .. } | TileCodec::Webp { .. } => 0.0,
-        };
-        let quantizer = plane_quantizer(a, settings.codec, step, max_levels);
+        let quantizer = quantizer_for(name, 0, &|| {
+            let r = range(a);
+            // JPEG albedo planes span their own range in 256 codes.
+            let step = match settings.codec {
+                TileCodec::Zstd { .. } => ((r.hi - r.lo) / steps).max(f32::MIN_POSITIVE),
+                TileCodec::Jpeg { .. } | TileCodec::Webp { .. } => 0.0,
+            };
+            plane_quantizer(a, settings.codec, step, max_levels)
+        })?;
         entries.push((
             PlaneEntry {
                 channel: name.to_string(),
@@ -972,16 +993,6 @@ fn pack_level(
             },
             a,
         ));
-    }
-    if let Some(f) = fixed {
-        // A finer level: level 0's quantisers (its values are means of level 0's, within
-        // their ranges where the planes are linear in the coefficients; clamped where not).
-        for ((entry, _), given) in entries.iter_mut().zip(&f.planes) {
-            if (entry.channel.as_str(), entry.index) != (given.channel.as_str(), given.index) {
-                return Err(Error::invalid("a mip level has other planes than level 0"));
-            }
-            entry.quantizer = given.quantizer;
-        }
     }
     if let Some((values, quantizer)) = &gain_plane {
         entries.push((
