@@ -94,8 +94,7 @@ pub fn read(path: &Path) -> Result<RelightableImage> {
     let in_file = |e: Error| Error::new(e.kind(), format!("{}: {e}", path.display()));
     let runs = Runs::open(path, COMPACT_RUN_BYTES).map_err(in_file)?;
     if runs.header.indexed_pixels() {
-        let (packed, _, _) = read_sections(path, &|h, s| h.section_level(s).0 == 0)?;
-        return compress::unpack(&packed).map_err(in_file);
+        return read_indexed(path);
     }
     let (w, count) = (runs.header.width, 3 * runs.k);
     let what = format!("{}: the maps", path.display());
@@ -183,7 +182,7 @@ pub(crate) fn read_compact_in_runs(
     let precision = precision.require(&[Precision::F16, Precision::U8], "read_compact")?;
     let runs = Runs::open(path, run_bytes)?;
     if runs.header.indexed_pixels() {
-        let mut image = read(path)?;
+        let mut image = read_indexed(path)?;
         let planes = CompactPlanes::from_maps(&image.maps, precision)?;
         image.maps.data = Vec::new();
         return Ok((image, planes));
@@ -224,13 +223,18 @@ pub(crate) fn read_compact_in_runs(
     Ok((runs.into_image(Vec::new())?, planes))
 }
 
+/// A codebook file (every pixel an index), expanded: its level 0 read whole (its index
+/// tiles decode into one index plane).
+fn read_indexed(path: &Path) -> Result<RelightableImage> {
+    let (packed, _, _) = read_sections(path, &|h, s| h.section_level(s).0 == 0)?;
+    compress::unpack(&packed).map_err(|e| Error::new(e.kind(), format!("{}: {e}", path.display())))
+}
+
 /// Level 0 of a compressed file of planes, read a run of tiles at a time: its header,
-/// checked, and its depth, read (whole: 4 bytes a pixel).
+/// checked.
 struct Runs<'a> {
     path: &'a Path,
     header: compress::Header,
-    /// Level 0 with its depth's sections alone read.
-    depth: Packed,
     k: usize,
     runs: Vec<Rect>,
 }
@@ -240,9 +244,8 @@ impl<'a> Runs<'a> {
     /// tiles.
     fn open(path: &'a Path, run_bytes: usize) -> Result<Runs<'a>> {
         // Taking level 0 checks the header before any size from it is used.
-        let (depth, _, _) = read_sections(path, &|h, s| compress::depth_section(h, s))?;
-        let depth = depth.level(0)?;
-        let header = depth.header.clone();
+        let (file, _, _) = read_sections(path, &|_, _| false)?;
+        let header = file.level(0)?.header;
         let k = header.meta.basis.build()?.len();
         let (w, h, tile) = (header.width, header.height, header.tile);
         let tiles_a_run = (run_bytes / (tile * tile * 3 * k * 4)).max(1);
@@ -257,7 +260,6 @@ impl<'a> Runs<'a> {
         Ok(Runs {
             path,
             header,
-            depth,
             k,
             runs,
         })
@@ -284,10 +286,12 @@ impl<'a> Runs<'a> {
         Ok(())
     }
 
-    /// The image of the file's metadata and depth with the maps `data` (empty: none).
+    /// The image of the file's metadata and depth (its depth sections read now) with
+    /// the maps `data` (empty: none).
     fn into_image(self, data: Vec<f32>) -> Result<RelightableImage> {
         let (w, h) = (self.header.width, self.header.height);
-        let depth = compress::unpack_depth_region(&self.depth, (0, 0, w, h))?;
+        let (depth, _, _) = read_sections(self.path, &|h, s| compress::depth_section(h, s))?;
+        let depth = compress::unpack_depth_region(&depth.level(0)?, (0, 0, w, h))?;
         Ok(RelightableImage {
             maps: crate::maps::CoefficientMaps {
                 width: w,

@@ -279,10 +279,9 @@ impl Header {
     /// The sizes of the levels the file holds, level 0 first (at most as many as the
     /// image has: a header is not trusted before it is checked).
     pub fn level_sizes(&self) -> Vec<(usize, usize)> {
-        let most = crate::maps::mip_sizes(self.width, self.height).len();
-        (0..self.levels.clamp(1, most))
-            .map(|l| self.level_size(l))
-            .collect()
+        let mut sizes = crate::maps::mip_sizes(self.width, self.height);
+        sizes.truncate(self.levels.max(1));
+        sizes
     }
 
     /// The sections of level `level ≥ 1` in the file: its planes' tiles, then its
