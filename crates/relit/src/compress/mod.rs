@@ -23,6 +23,7 @@
 //! [`pack`] runs them; [`unpack`] undoes them into ordinary maps ([`indexed`] into an
 //! indexed image, for a codebook file).
 
+pub mod bands;
 pub mod budget;
 pub mod container;
 pub mod gain;
@@ -568,6 +569,27 @@ impl Packed {
 
 /// The basis stored as an inner basis and a map onto it: `(inner, P)` with `P` the
 /// identity for a basis that is not projected.
+/// The basis planes of `rows` components of `principal` relight with: the projection
+/// composed with the map the maps' basis `spec` already had.
+fn stored_basis(
+    spec: &BasisSpec,
+    principal: &projection::Principal,
+    rows: usize,
+) -> Result<BasisSpec> {
+    let (inner, prior) = inner_and_map(spec)?;
+    let inner_k = inner.len();
+    let k = prior.len() / inner_k;
+    let mut matrix = vec![0.0; rows * inner_k];
+    for j in 0..rows {
+        for i in 0..inner_k {
+            matrix[j * inner_k + i] = (0..k)
+                .map(|m| principal.basis_map[j * k + m] * prior[m * inner_k + i])
+                .sum();
+        }
+    }
+    Ok(Projected::new(inner, matrix)?.spec())
+}
+
 fn inner_and_map(spec: &BasisSpec) -> Result<(Box<dyn Basis>, Vec<f64>)> {
     let basis = spec.build()?;
     if let Some(p) = basis.as_any().downcast_ref::<Projected>() {
@@ -634,72 +656,19 @@ fn pack_level(
     perceptual_gain: Option<&[f32]>,
     fixed: Option<&Fixed>,
 ) -> Result<(Packed, Fixed)> {
-    if !(2..=16).contains(&settings.bits) {
-        return Err(Error::invalid(format!(
-            "bits must be 2–16, not {}",
-            settings.bits
-        )));
-    }
-    if !TILE_SIDES.contains(&settings.tile) {
-        return Err(Error::invalid(format!(
-            "tile side must be {}–{}, not {}",
-            TILE_SIDES.start(),
-            TILE_SIDES.end(),
-            settings.tile
-        )));
-    }
     let maps = &image.maps;
     let (n, k) = (maps.pixels(), maps.k);
     let basis = image.meta.basis.build()?;
     if basis.len() != k {
         return Err(Error::invalid("the maps and their basis disagree on K"));
     }
-    let components = settings.components.unwrap_or(k);
-    if components == 0 || components > k {
-        return Err(Error::invalid(format!(
-            "{components} components of a {}-coefficient basis: choose 1 to {k}",
-            k
-        )));
-    }
-    let chroma = settings
-        .chroma
-        .unwrap_or(components.div_ceil(3))
-        .clamp(1, components);
-    let extra = settings.residual.unwrap_or(0);
-    if settings.residual.is_some() {
-        if settings.codebook.is_none() {
-            return Err(Error::invalid(
-                "residual components are vector-quantised: give a codebook (--codebook) too",
-            ));
-        }
-        if extra == 0 || components + extra > k {
-            return Err(Error::invalid(format!(
-                "{components} planes and {extra} residual components of a {k}-coefficient basis: choose 1 to {} residual components",
-                k - components
-            )));
-        }
-    }
-    if settings.gain && settings.codebook.is_some() {
-        return Err(Error::invalid(
-            "a codebook and the perceptual gain do not combine: choose one",
-        ));
-    }
-    if let Some(b) = settings.pca_block {
-        if settings.codebook.is_some() {
-            return Err(Error::invalid(
-                "a codebook needs one projection for the whole file: principal components per block do not combine with it",
-            ));
-        }
-        if !TILE_SIDES.contains(&b) {
-            return Err(Error::invalid(format!(
-                "block side must be {}–{}, not {b}",
-                TILE_SIDES.start(),
-                TILE_SIDES.end()
-            )));
-        }
-    }
+    let Counts {
+        components,
+        chroma,
+        extra,
+    } = Counts::checked(settings, k)?;
     let layout = settings.layout;
-    let (functions, per_pixel) = layout.channels();
+    let (functions, _) = layout.channels();
     let max_levels = settings.codec.max_levels();
 
     // The gain as a reader will decode it (the function planes carry its error).
@@ -717,7 +686,7 @@ fn pack_level(
                 Quantizer::spanning(r.lo, r.hi, (r.hi - r.lo) / 255.0, max_levels)
             }
             (None, TileCodec::Jpeg { .. } | TileCodec::Webp { .. }) => {
-                plane_quantizer(&values, settings.codec, 0.0, max_levels)
+                plane_quantizer(&PlaneStats::of(&values), settings.codec, 0.0, max_levels)
             }
         };
         Some((values, quantizer))
@@ -736,37 +705,21 @@ fn pack_level(
 
     // Layout: the function channels' coefficient planes (plane i·F + f), per-pixel
     // planes (albedo) apart.
-    let rgb_at = |i: usize, p: usize| -> [f32; 3] {
-        [
-            maps.plane(i, 0)[p],
-            maps.plane(i, 1)[p],
-            maps.plane(i, 2)[p],
-        ]
-    };
     let gram = projection::gram(basis.as_ref(), settings.directions.as_deref());
     let fcount = functions.len();
-    let undivided_value = |i: usize, f: usize, p: usize| -> f32 {
-        match layout {
-            Layout::Rgb => maps.plane(i, f)[p],
-            Layout::Ycc => layout::ycc(rgb_at(i, p))[f],
-            Layout::Lrgb => layout::luma(rgb_at(i, p)),
-        }
-    };
+    let undivided_value = |i: usize, f: usize, p: usize| undivided(layout, maps, i, f, p);
     let function_value = |i: usize, f: usize, p: usize| -> f32 {
         match &divisor {
             Some(d) => undivided_value(i, f, p) / d[p],
             None => undivided_value(i, f, p),
         }
     };
-    let counts: Vec<usize> = (0..fcount)
-        .map(|f| {
-            if layout == Layout::Ycc && f > 0 {
-                chroma
-            } else {
-                components
-            }
-        })
-        .collect();
+    let counts = Counts {
+        components,
+        chroma,
+        extra,
+    }
+    .per_function(layout);
     // Principal components of the first function channel (R, G and B alike for rgb),
     // once for the file; or once a block for each group of function channels that
     // share a projection (ycc's chroma has its own there: the luma's leading
@@ -895,27 +848,7 @@ fn pack_level(
             .into_par_iter()
             .map_init(
                 || (vec![0.0f64; k], vec![0.0f64; k]),
-                |(l, gl), p| {
-                    for (i, li) in l.iter_mut().enumerate() {
-                        *li = undivided_value(i, 0, p) as f64;
-                    }
-                    for (i, gli) in gl.iter_mut().enumerate() {
-                        *gli = gram[i * k..(i + 1) * k]
-                            .iter()
-                            .zip(l.iter())
-                            .map(|(g, l)| g * l)
-                            .sum();
-                    }
-                    let ll: f64 = l.iter().zip(gl.iter()).map(|(a, b)| a * b).sum();
-                    std::array::from_fn(|ch| {
-                        if ll > 1e-20 {
-                            let cl: f64 = (0..k).map(|i| maps.plane(i, ch)[p] as f64 * gl[i]).sum();
-                            (cl / ll) as f32
-                        } else {
-                            1.0
-                        }
-                    })
-                },
+                |scratch, p| albedo_at(maps, &gram, p, scratch),
             )
             .collect();
         albedo = (0..3)
@@ -925,74 +858,26 @@ fn pack_level(
 
     // Quantisers.
     let range = |v: &[f32]| crate::storage::FiniteRange::of(v.iter().copied());
-    let steps = ((1u64 << settings.bits) - 1) as f32;
-    let mut entries: Vec<(PlaneEntry, &[f32])> = Vec::new();
-    // A finer level takes level 0's quantisers (its values are means of level 0's,
-    // within their ranges where the planes are linear in the coefficients; clamped where
-    // not), in the same order; level 0 finds each from its plane.
-    let mut given = fixed.map(|f| f.planes.iter());
-    let mut quantizer_for =
-        |channel: &str, index: usize, fresh: &dyn Fn() -> Quantizer| -> Result<Quantizer> {
-            let Some(planes) = given.as_mut() else {
-                return Ok(fresh());
-            };
-            match planes.next() {
-                Some(p) if p.channel == channel && p.index == index => Ok(p.quantizer),
-                _ => Err(Error::invalid("a mip level has other planes than level 0")),
-            }
-        };
-    let function_step = std::cell::OnceCell::new();
-    let function_step = || {
-        *function_step.get_or_init(|| match settings.codec {
-            TileCodec::Zstd { .. } => {
-                let r = range(&projected[0]);
-                ((r.hi - r.lo) / steps).max(f32::MIN_POSITIVE)
-            }
-            // JPEG codes are 8-bit: the first plane's range in 256 codes, or no shared step.
-            TileCodec::Jpeg { .. } | TileCodec::Webp { .. } => match settings.jpeg_range {
-                JpegRange::Shared => {
-                    let (lo, hi) = percentiles(&projected[0], 1e-4);
-                    ((hi - lo) / 255.0).max(f32::MIN_POSITIVE)
-                }
-                JpegRange::PerPlane => 0.0,
-            },
-        })
-    };
-    for (f, &count) in counts.iter().enumerate() {
-        for j in 0..count {
-            let plane = &projected[starts[f] + j];
-            let quantizer = quantizer_for(functions[f], j, &|| {
-                plane_quantizer(plane, settings.codec, function_step(), max_levels)
-            })?;
-            entries.push((
-                PlaneEntry {
-                    channel: functions[f].to_string(),
-                    index: j,
-                    quantizer,
-                },
-                plane,
-            ));
+    let function_planes: usize = counts.iter().sum();
+    let plane_values = |i: usize| -> &[f32] {
+        if i < function_planes {
+            &projected[i]
+        } else {
+            &albedo[i - function_planes]
         }
-    }
-    for (a, name) in albedo.iter().zip(per_pixel) {
-        let quantizer = quantizer_for(name, 0, &|| {
-            let r = range(a);
-            // JPEG albedo planes span their own range in 256 codes.
-            let step = match settings.codec {
-                TileCodec::Zstd { .. } => ((r.hi - r.lo) / steps).max(f32::MIN_POSITIVE),
-                TileCodec::Jpeg { .. } | TileCodec::Webp { .. } => 0.0,
-            };
-            plane_quantizer(a, settings.codec, step, max_levels)
-        })?;
-        entries.push((
-            PlaneEntry {
-                channel: name.to_string(),
-                index: 0,
-                quantizer,
-            },
-            a,
-        ));
-    }
+    };
+    let quantizers = plane_entries(
+        settings,
+        &counts,
+        albedo.len(),
+        fixed.map(|f| f.planes.as_slice()),
+        &|i| PlaneStats::of(plane_values(i)),
+    )?;
+    let mut entries: Vec<(PlaneEntry, &[f32])> = quantizers
+        .into_iter()
+        .enumerate()
+        .map(|(i, entry)| (entry, plane_values(i)))
+        .collect();
     if let Some((values, quantizer)) = &gain_plane {
         entries.push((
             PlaneEntry {
@@ -1045,21 +930,7 @@ fn pack_level(
     // each by its own P (the last section).
     let stored_basis = match settings.pca_block {
         Some(_) => image.meta.basis.clone(),
-        None => {
-            let principal = &principals[0][0];
-            let (inner, prior) = inner_and_map(&image.meta.basis)?;
-            let inner_k = inner.len();
-            let rows = components + extra;
-            let mut matrix = vec![0.0; rows * inner_k];
-            for j in 0..rows {
-                for i in 0..inner_k {
-                    matrix[j * inner_k + i] = (0..k)
-                        .map(|m| principal.basis_map[j * k + m] * prior[m * inner_k + i])
-                        .sum();
-                }
-            }
-            Projected::new(inner, matrix)?.spec()
-        }
+        None => stored_basis(&image.meta.basis, &principals[0][0], components + extra)?,
     };
 
     let header = Header {
@@ -1161,6 +1032,146 @@ fn pack_level(
         planes: header.planes.clone(),
     };
     Ok((Packed { header, sections }, fixed))
+}
+
+/// Coefficient `i` of function channel `f` of `layout` at pixel `p` of `maps`, before
+/// any gain divides it.
+fn undivided(layout: Layout, maps: &CoefficientMaps, i: usize, f: usize, p: usize) -> f32 {
+    let rgb = || {
+        [
+            maps.plane(i, 0)[p],
+            maps.plane(i, 1)[p],
+            maps.plane(i, 2)[p],
+        ]
+    };
+    match layout {
+        Layout::Rgb => maps.plane(i, f)[p],
+        Layout::Ycc => layout::ycc(rgb())[f],
+        Layout::Lrgb => layout::luma(rgb()),
+    }
+}
+
+/// `lrgb`'s albedo of pixel `p`: the least-squares scale of each channel's function
+/// onto the luminance function in the relit image's metric `gram`, (cᵀ G l) / (lᵀ G l),
+/// with G l formed once for the three channels. `scratch`: two vectors of `K`.
+fn albedo_at(
+    maps: &CoefficientMaps,
+    gram: &[f64],
+    p: usize,
+    (l, gl): &mut (Vec<f64>, Vec<f64>),
+) -> [f32; 3] {
+    let k = maps.k;
+    for (i, li) in l.iter_mut().enumerate() {
+        *li = undivided(Layout::Lrgb, maps, i, 0, p) as f64;
+    }
+    for (i, gli) in gl.iter_mut().enumerate() {
+        *gli = gram[i * k..(i + 1) * k]
+            .iter()
+            .zip(l.iter())
+            .map(|(g, l)| g * l)
+            .sum();
+    }
+    let ll: f64 = l.iter().zip(gl.iter()).map(|(a, b)| a * b).sum();
+    std::array::from_fn(|ch| {
+        if ll > 1e-20 {
+            let cl: f64 = (0..k).map(|i| maps.plane(i, ch)[p] as f64 * gl[i]).sum();
+            (cl / ll) as f32
+        } else {
+            1.0
+        }
+    })
+}
+
+/// How many planes `settings` keeps of a `k`-coefficient basis, checked with the rest
+/// of the settings.
+struct Counts {
+    /// Components per function (`K′`).
+    components: usize,
+    /// Components of `ycc`'s chroma functions.
+    chroma: usize,
+    /// Components of the residual a codebook holds.
+    extra: usize,
+}
+
+impl Counts {
+    fn checked(settings: &Settings, k: usize) -> Result<Counts> {
+        if !(2..=16).contains(&settings.bits) {
+            return Err(Error::invalid(format!(
+                "bits must be 2–16, not {}",
+                settings.bits
+            )));
+        }
+        if !TILE_SIDES.contains(&settings.tile) {
+            return Err(Error::invalid(format!(
+                "tile side must be {}–{}, not {}",
+                TILE_SIDES.start(),
+                TILE_SIDES.end(),
+                settings.tile
+            )));
+        }
+        let components = settings.components.unwrap_or(k);
+        if components == 0 || components > k {
+            return Err(Error::invalid(format!(
+                "{components} components of a {}-coefficient basis: choose 1 to {k}",
+                k
+            )));
+        }
+        let chroma = settings
+            .chroma
+            .unwrap_or(components.div_ceil(3))
+            .clamp(1, components);
+        let extra = settings.residual.unwrap_or(0);
+        if settings.residual.is_some() {
+            if settings.codebook.is_none() {
+                return Err(Error::invalid(
+                    "residual components are vector-quantised: give a codebook (--codebook) too",
+                ));
+            }
+            if extra == 0 || components + extra > k {
+                return Err(Error::invalid(format!(
+                    "{components} planes and {extra} residual components of a {k}-coefficient basis: choose 1 to {} residual components",
+                    k - components
+                )));
+            }
+        }
+        if settings.gain && settings.codebook.is_some() {
+            return Err(Error::invalid(
+                "a codebook and the perceptual gain do not combine: choose one",
+            ));
+        }
+        if let Some(b) = settings.pca_block {
+            if settings.codebook.is_some() {
+                return Err(Error::invalid(
+                    "a codebook needs one projection for the whole file: principal components per block do not combine with it",
+                ));
+            }
+            if !TILE_SIDES.contains(&b) {
+                return Err(Error::invalid(format!(
+                    "block side must be {}–{}, not {b}",
+                    TILE_SIDES.start(),
+                    TILE_SIDES.end()
+                )));
+            }
+        }
+        Ok(Counts {
+            components,
+            chroma,
+            extra,
+        })
+    }
+
+    /// The components of each function channel of `layout`.
+    fn per_function(&self, layout: Layout) -> Vec<usize> {
+        (0..layout.channels().0.len())
+            .map(|f| {
+                if layout == Layout::Ycc && f > 0 {
+                    self.chroma
+                } else {
+                    self.components
+                }
+            })
+            .collect()
+    }
 }
 
 /// The function channels that share one projection, group by group: every channel of
@@ -1289,14 +1300,87 @@ fn quantize_vectors(
     Ok((book, indices))
 }
 
+/// The quantisers of the function planes (channel by channel, component by component)
+/// and of `albedo` per-pixel planes, in the file's order: `fixed` (a finer level takes
+/// level 0's: its values are means of level 0's, within their ranges where the planes
+/// are linear in the coefficients, clamped where not), or found from each plane's
+/// statistics (`stats(i)`, plane `i` in that order).
+fn plane_entries(
+    settings: &Settings,
+    counts: &[usize],
+    albedo: usize,
+    fixed: Option<&[PlaneEntry]>,
+    stats: &(dyn Fn(usize) -> PlaneStats + Sync),
+) -> Result<Vec<PlaneEntry>> {
+    let (functions, per_pixel) = settings.layout.channels();
+    let names: Vec<(&str, usize)> = counts
+        .iter()
+        .enumerate()
+        .flat_map(|(f, &count)| (0..count).map(move |j| (functions[f], j)))
+        .chain(per_pixel.iter().take(albedo).map(|&name| (name, 0)))
+        .collect();
+    if let Some(planes) = fixed {
+        let same = planes.len() >= names.len()
+            && planes
+                .iter()
+                .zip(&names)
+                .all(|(p, &(channel, index))| p.channel == channel && p.index == index);
+        if !same {
+            return Err(Error::invalid("a mip level has other planes than level 0"));
+        }
+        return Ok(planes[..names.len()].to_vec());
+    }
+    let max_levels = settings.codec.max_levels();
+    let steps = ((1u64 << settings.bits) - 1) as f32;
+    let function_planes: usize = counts.iter().sum();
+    let all: Vec<PlaneStats> = (0..names.len()).into_par_iter().map(stats).collect();
+    let function_step = match settings.codec {
+        TileCodec::Zstd { .. } => {
+            let r = all[0].range;
+            ((r.hi - r.lo) / steps).max(f32::MIN_POSITIVE)
+        }
+        // JPEG codes are 8-bit: the first plane's range in 256 codes, or no shared step.
+        TileCodec::Jpeg { .. } | TileCodec::Webp { .. } => match settings.jpeg_range {
+            JpegRange::Shared => {
+                let (lo, hi) = all[0].percentiles(1e-4);
+                ((hi - lo) / 255.0).max(f32::MIN_POSITIVE)
+            }
+            JpegRange::PerPlane => 0.0,
+        },
+    };
+    Ok(names
+        .iter()
+        .zip(&all)
+        .enumerate()
+        .map(|(i, (&(channel, index), plane))| {
+            let step = if i < function_planes {
+                function_step
+            } else {
+                // Albedo planes span their own range (JPEG: in 256 codes).
+                match settings.codec {
+                    TileCodec::Zstd { .. } => {
+                        ((plane.range.hi - plane.range.lo) / steps).max(f32::MIN_POSITIVE)
+                    }
+                    TileCodec::Jpeg { .. } | TileCodec::Webp { .. } => 0.0,
+                }
+            };
+            PlaneEntry {
+                channel: channel.to_string(),
+                index,
+                quantizer: plane_quantizer(plane, settings.codec, step, max_levels),
+            }
+        })
+        .collect())
+}
+
 /// The quantiser of one plane: the shared step for zstd; for JPEG 256 codes of that
 /// step or wider, enough for the plane's 0.01 %–99.99 % range (outliers clamped).
-fn plane_quantizer(plane: &[f32], codec: TileCodec, step: f32, max_levels: u32) -> Quantizer {
-    let r = crate::storage::FiniteRange::of(plane.iter().copied());
+fn plane_quantizer(plane: &PlaneStats, codec: TileCodec, step: f32, max_levels: u32) -> Quantizer {
+    let r = plane.range;
     match codec {
         TileCodec::Zstd { .. } => Quantizer::spanning(r.lo, r.hi, step, max_levels),
         TileCodec::Jpeg { .. } | TileCodec::Webp { .. } => {
-            let (lo, hi) = percentiles(plane, 1e-4);
+            let (lo, hi) = plane.percentiles(1e-4);
             // All 256 codes stay valid (JPEG's ringing can reach any of them); a plane
             // narrower than 256 steps sits in the middle of them.
             let scale = (step.max((hi - lo) / 255.0)).max(f32::MIN_POSITIVE);
@@ -1314,21 +1398,60 @@ fn plane_quantizer(plane: &[f32], codec: TileCodec, step: f32, max_levels: u32) 
     }
 }
 
-/// The `q` and `1 − q` quantiles of the finite values (by a sorted subsample).
-fn percentiles(plane: &[f32], q: f64) -> (f32, f32) {
-    let step = (plane.len() / 200_000).max(1);
-    let mut v: Vec<f32> = plane
-        .iter()
-        .step_by(step)
-        .copied()
-        .filter(|v| v.is_finite())
-        .collect();
-    if v.is_empty() {
-        return (0.0, 0.0);
+/// What a plane's quantiser is found from: the range of its finite values and a
+/// regular subsample of them (every [`PlaneStats::stride`]-th pixel), which a packer
+/// that sees the plane a band at a time gathers as well as one that holds it.
+#[derive(Clone, Debug)]
+struct PlaneStats {
+    range: crate::storage::FiniteRange,
+    sample: Vec<f32>,
+}
+
+impl PlaneStats {
+    /// Values the quantiles are found on, at most about.
+    const SAMPLE: usize = 200_000;
+
+    /// Pixels between two of the subsample in a plane of `pixels`.
+    fn stride(pixels: usize) -> usize {
+        (pixels / Self::SAMPLE).max(1)
     }
-    v.sort_by(f32::total_cmp);
-    let at = |f: f64| v[((v.len() - 1) as f64 * f).round() as usize];
-    (at(q), at(1.0 - q))
+
+    const EMPTY: PlaneStats = PlaneStats {
+        range: crate::storage::FiniteRange::EMPTY,
+        sample: Vec::new(),
+    };
+
+    /// The statistics of a whole plane.
+    fn of(plane: &[f32]) -> PlaneStats {
+        PlaneStats {
+            range: crate::storage::FiniteRange::of(plane.iter().copied()),
+            sample: plane
+                .iter()
+                .step_by(Self::stride(plane.len()))
+                .copied()
+                .filter(|v| v.is_finite())
+                .collect(),
+        }
+    }
+
+    /// Pixel `p`'s value `v` of a plane of `pixels`, seen in pixel order.
+    fn see(&mut self, p: usize, pixels: usize, v: f32) {
+        self.range = self.range.with(v);
+        if p.is_multiple_of(Self::stride(pixels)) && v.is_finite() {
+            self.sample.push(v);
+        }
+    }
+
+    /// The `q` and `1 − q` quantiles of the finite values (by the sorted subsample).
+    fn percentiles(&self, q: f64) -> (f32, f32) {
+        let mut v = self.sample.clone();
+        if v.is_empty() {
+            return (0.0, 0.0);
+        }
+        v.sort_by(f32::total_cmp);
+        let at = |f: f64| v[((v.len() - 1) as f64 * f).round() as usize];
+        (at(q), at(1.0 - q))
+    }
 }
 
 /// f32 values, byte planes apart (sign/exponent bytes compress well together), zstd.

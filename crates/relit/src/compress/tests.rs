@@ -1157,3 +1157,143 @@ fn a_file_with_mip_levels_holds_each_level_in_level_zeros_planes_and_reads_it_by
     let err = unpack(&packed_image).unwrap_err().to_string();
     assert!(err.contains("mip levels"), "{err}");
 }
+
+/// Sections [`bands::pack_in_bands`] makes, by number.
+#[derive(Default)]
+struct Collected(std::collections::BTreeMap<usize, Vec<u8>>);
+
+impl bands::SectionSink for Collected {
+    fn put(&mut self, section: usize, bytes: Vec<u8>) -> Result<()> {
+        assert!(
+            self.0.insert(section, bytes).is_none(),
+            "section {section} made twice"
+        );
+        Ok(())
+    }
+}
+
+/// Packing a band of rows at a time makes the file `pack` makes from the whole image,
+/// byte for byte: every layout, zstd and JPEG, all or fewer components, with and
+/// without mip levels and depth, sizes that are no multiple of the tile (odd ones, and
+/// a level of one row or column).
+#[test]
+fn a_file_packed_band_by_band_is_the_file_packed_whole() {
+    let odd = image("sh:9", 77, 41);
+    let mut flat = image("hsh:9", 300, 1);
+    flat.depth = None;
+    let tall = image("sh:4", 17, 90);
+    // More pixels than the principal components and the quantiles are found on: both
+    // take every few pixels, across bands.
+    let big = image("sh:4", 640, 640);
+    let cases = [
+        (
+            &big,
+            Settings {
+                layout: Layout::Ycc,
+                codec: TileCodec::parse("jpeg:80").unwrap(),
+                tile: 256,
+                mip_levels: true,
+                ..Settings::default()
+            },
+        ),
+        (
+            &odd,
+            Settings {
+                tile: 16,
+                mip_levels: true,
+                ..Settings::default()
+            },
+        ),
+        (
+            &odd,
+            Settings {
+                layout: Layout::Ycc,
+                codec: TileCodec::parse("jpeg:85").unwrap(),
+                components: Some(5),
+                tile: 32,
+                mip_levels: true,
+                ..Settings::default()
+            },
+        ),
+        (
+            &odd,
+            Settings {
+                layout: Layout::Lrgb,
+                bits: 10,
+                tile: 24,
+                ..Settings::default()
+            },
+        ),
+        (
+            &flat,
+            Settings {
+                layout: Layout::Ycc,
+                chroma: Some(2),
+                components: Some(6),
+                tile: 16,
+                mip_levels: true,
+                ..Settings::default()
+            },
+        ),
+        (
+            &tall,
+            Settings {
+                codec: TileCodec::parse("webp:80").unwrap(),
+                jpeg_range: JpegRange::PerPlane,
+                tile: 16,
+                mip_levels: true,
+                ..Settings::default()
+            },
+        ),
+        (
+            &tall,
+            Settings {
+                layout: Layout::Lrgb,
+                codec: TileCodec::parse("jpeg:90").unwrap(),
+                tile: 64,
+                mip_levels: true,
+                ..Settings::default()
+            },
+        ),
+    ];
+    for (i, (img, settings)) in cases.into_iter().enumerate() {
+        assert!(bands::packs_in_bands(&settings));
+        let whole = pack(img, &settings).unwrap();
+        let mut sink = Collected::default();
+        let header =
+            bands::pack_in_bands(img, &settings, &mut sink, &crate::progress::Silent).unwrap();
+        assert_eq!(header, whole.header, "case {i}: header");
+        assert_eq!(
+            sink.0.keys().copied().collect::<Vec<_>>(),
+            (0..header.sections()).collect::<Vec<_>>(),
+            "case {i}: every section once"
+        );
+        for (s, bytes) in sink.0 {
+            assert!(bytes == whole.sections[s], "case {i}: section {s}");
+        }
+    }
+    // What needs every pixel at once is refused, not packed differently.
+    for settings in [
+        Settings {
+            gain: true,
+            ..Settings::default()
+        },
+        Settings {
+            codebook: Some(16),
+            ..Settings::default()
+        },
+        Settings {
+            pca_block: Some(32),
+            ..Settings::default()
+        },
+    ] {
+        assert!(!bands::packs_in_bands(&settings));
+        let refused = bands::pack_in_bands(
+            &odd,
+            &settings,
+            &mut Collected::default(),
+            &crate::progress::Silent,
+        );
+        assert!(refused.is_err());
+    }
+}

@@ -1,0 +1,493 @@
+//! Packing a file a band of rows at a time, so that compressing an image of any size
+//! holds a few bands of its maps instead of all of them (and their projection).
+//!
+//! Three passes over level 0's rows, each a band of one tile row at a time: the
+//! principal components' pixels; each plane's range and quantile subsample; then every
+//! tile coded as it comes, each finer mip level made from the rows above it as they
+//! come (a 2×2 block needs two rows) and coded a tile row at a time too. Every value is
+//! found from the same pixels, in the same order and arithmetic, as [`super::pack`]
+//! finds it from the whole image, so the file is the same byte for byte.
+//!
+//! Peak memory: about two bands of `tile × width` pixels of `3K` f32 coefficients (the
+//! band read and its projection, or the band and the finer levels' pending rows,
+//! which together hold less than one band), and the sections of one tile row.
+
+use super::{
+    albedo_at, encode_floats, plane_entries, projection, projection_groups, stored_basis,
+    undivided, Counts, Header, Layout, PlaneStats, Settings, PCA_PIXELS,
+};
+use crate::maps::{CoefficientMaps, Metadata, RelightableImage};
+use crate::progress::Progress;
+use crate::{Error, Result};
+use rayon::prelude::*;
+use std::ops::Range;
+
+/// Level 0 of an image, read a band of whole rows at a time.
+pub trait BandSource: Sync {
+    /// The image's metadata (its basis, space, camera…).
+    fn meta(&self) -> &Metadata;
+    /// Width, height and coefficients per channel.
+    fn shape(&self) -> (usize, usize, usize);
+    /// Whether the image has depth.
+    fn has_depth(&self) -> bool;
+    /// Rows `rows`, the whole width: the maps, and the depth where the image has one.
+    fn band(&self, rows: Range<usize>) -> Result<RelightableImage>;
+}
+
+impl BandSource for RelightableImage {
+    fn meta(&self) -> &Metadata {
+        &self.meta
+    }
+
+    fn shape(&self) -> (usize, usize, usize) {
+        (self.width(), self.height(), self.maps.k)
+    }
+
+    fn has_depth(&self) -> bool {
+        self.depth.is_some()
+    }
+
+    fn band(&self, rows: Range<usize>) -> Result<RelightableImage> {
+        Ok(rows_of(self, rows))
+    }
+}
+
+/// Where [`pack_in_bands`] puts each section as it is made (in no particular order):
+/// its number in the file, and its bytes.
+pub trait SectionSink {
+    fn put(&mut self, section: usize, bytes: Vec<u8>) -> Result<()>;
+}
+
+/// Whether files of `settings` can be packed a band at a time: not with a perceptual
+/// gain, a codebook or a projection a block, which are found from every pixel at once.
+pub fn packs_in_bands(settings: &Settings) -> bool {
+    !settings.gain && settings.codebook.is_none() && settings.pca_block.is_none()
+}
+
+/// Pack the image `source` reads with `settings` ([`packs_in_bands`]), a band of rows
+/// at a time, every section into `sink`; returns the file's header.
+pub fn pack_in_bands(
+    source: &dyn BandSource,
+    settings: &Settings,
+    sink: &mut dyn SectionSink,
+    progress: &dyn Progress,
+) -> Result<Header> {
+    if !packs_in_bands(settings) {
+        return Err(Error::invalid(
+            "a perceptual gain, a codebook or a projection a block is found from the whole \
+             image: such a file is packed whole",
+        ));
+    }
+    let (width, height, k) = source.shape();
+    let meta = source.meta();
+    let basis = meta.basis.build()?;
+    if basis.len() != k {
+        return Err(Error::invalid("the maps and their basis disagree on K"));
+    }
+    let counts = Counts::checked(settings, k)?;
+    let components = counts.components;
+    let layout = settings.layout;
+    let counts = counts.per_function(layout);
+    let gram = projection::gram(basis.as_ref(), settings.directions.as_deref());
+    let n = width * height;
+    let bands: Vec<Range<usize>> = (0..height)
+        .step_by(settings.tile)
+        .map(|y| y..(y + settings.tile).min(height))
+        .collect();
+
+    // The principal components, from every `step`-th pixel as `pack` takes them.
+    let channels = &projection_groups(layout, false)[0];
+    let step = (n / PCA_PIXELS).max(1);
+    let mut vectors: Vec<f64> = Vec::new();
+    progress.begin("finding principal components", bands.len() as u64);
+    for rows in &bands {
+        let band = source.band(rows.clone())?;
+        let first = rows.start * width;
+        for p in (first.next_multiple_of(step)..rows.end * width).step_by(step) {
+            for &f in channels {
+                vectors
+                    .extend((0..k).map(|i| undivided(layout, &band.maps, i, f, p - first) as f64));
+            }
+        }
+        progress.advance(1);
+    }
+    progress.end();
+    let principal = projection::principal(&gram, &vectors, k, counts[channels[0]])?;
+    drop(vectors);
+    let projector = Projector {
+        layout,
+        counts: &counts,
+        principal: &principal,
+        gram: &gram,
+    };
+
+    // Each plane's statistics, then its quantiser.
+    let planes = projector.planes();
+    let mut stats = vec![PlaneStats::EMPTY; planes];
+    progress.begin("measuring the planes", bands.len() as u64);
+    for rows in &bands {
+        let band = source.band(rows.clone())?;
+        let first = rows.start * width;
+        let projected = projector.project(&band.maps);
+        stats
+            .par_iter_mut()
+            .zip(&projected)
+            .for_each(|(stats, plane)| {
+                for (local, &v) in plane.iter().enumerate() {
+                    stats.see(first + local, n, v);
+                }
+            });
+        progress.advance(1);
+    }
+    progress.end();
+    let albedo = planes - counts.iter().sum::<usize>();
+    let entries = plane_entries(settings, &counts, albedo, None, &|i| stats[i].clone())?;
+    drop(stats);
+
+    let levels = if settings.mip_levels {
+        crate::maps::mip_sizes(width, height)
+    } else {
+        vec![(width, height)]
+    };
+    let header = Header {
+        meta: Metadata {
+            format_version: crate::maps::FORMAT_VERSION,
+            basis: stored_basis(&meta.basis, &principal, components)?,
+            ..meta.clone()
+        },
+        width,
+        height,
+        tile: settings.tile,
+        layout,
+        codec: settings.codec,
+        planes: entries,
+        codebook: None,
+        residual: Vec::new(),
+        gain: false,
+        pca_block: None,
+        depth: source.has_depth(),
+        levels: levels.len(),
+    };
+
+    // Every level's tiles, level 0's as its bands come and each finer level's as the
+    // rows above it do.
+    let mut pyramid: Vec<Level> = levels
+        .iter()
+        .enumerate()
+        .map(|(l, &size)| Level {
+            size,
+            first_section: if l == 0 {
+                0
+            } else {
+                header.level_sections(l).start
+            },
+            pending: None,
+            coded_rows: 0,
+            unhalved: None,
+            halved_rows: 0,
+        })
+        .collect();
+    let coder = Coder {
+        header: &header,
+        projector: &projector,
+    };
+    progress.begin("coding tiles", bands.len() as u64);
+    for rows in &bands {
+        let band = source.band(rows.clone())?;
+        feed(&mut pyramid, 0, band, &coder, sink)?;
+        progress.advance(1);
+    }
+    progress.end();
+    if let Some(l) = pyramid
+        .iter()
+        .position(|level| level.coded_rows != level.size.1)
+    {
+        return Err(Error::invalid(format!(
+            "level {l} was left incomplete: the source gave other rows than it has"
+        )));
+    }
+    Ok(header)
+}
+
+/// Projects a band's coefficients onto the file's planes: each function channel's
+/// components, then `lrgb`'s albedo.
+struct Projector<'a> {
+    layout: Layout,
+    counts: &'a [usize],
+    principal: &'a projection::Principal,
+    gram: &'a [f64],
+}
+
+impl Projector<'_> {
+    fn planes(&self) -> usize {
+        self.counts.iter().sum::<usize>() + 3 * (self.layout == Layout::Lrgb) as usize
+    }
+
+    /// Every plane's values at each pixel of `maps`.
+    fn project(&self, maps: &CoefficientMaps) -> Vec<Vec<f32>> {
+        const CHUNK: usize = 4096;
+        let (pixels, k) = (maps.pixels(), maps.k);
+        let planes = self.planes();
+        let most = self.counts.iter().copied().max().unwrap_or(0);
+        // Pixel-major in chunks, then plane-major.
+        let chunks: Vec<Vec<f32>> = (0..pixels.div_ceil(CHUNK))
+            .into_par_iter()
+            .map(|chunk| {
+                let span = chunk * CHUNK..((chunk + 1) * CHUNK).min(pixels);
+                let mut out = Vec::with_capacity(span.len() * planes);
+                let (mut c, mut y) = (vec![0.0f32; k], vec![0.0f32; most]);
+                let mut scratch = (vec![0.0f64; k], vec![0.0f64; k]);
+                for p in span {
+                    for (f, &count) in self.counts.iter().enumerate() {
+                        for (i, ci) in c.iter_mut().enumerate() {
+                            *ci = undivided(self.layout, maps, i, f, p);
+                        }
+                        self.principal.apply(&c, &mut y[..count]);
+                        out.extend_from_slice(&y[..count]);
+                    }
+                    if self.layout == Layout::Lrgb {
+                        out.extend(albedo_at(maps, self.gram, p, &mut scratch));
+                    }
+                }
+                out
+            })
+            .collect();
+        (0..planes)
+            .into_par_iter()
+            .map(|j| {
+                chunks
+                    .iter()
+                    .flat_map(|chunk| chunk.iter().skip(j).step_by(planes).copied())
+                    .collect()
+            })
+            .collect()
+    }
+}
+
+/// Codes a level's tiles into their sections.
+struct Coder<'a> {
+    header: &'a Header,
+    projector: &'a Projector<'a>,
+}
+
+impl Coder<'_> {
+    /// The tiles of `rows` (one tile row of `level`, whose rows start at `y0`), every
+    /// plane's and the depth's, into `sink`.
+    fn code_tile_row(
+        &self,
+        level: &Level,
+        y0: usize,
+        rows: &RelightableImage,
+        sink: &mut dyn SectionSink,
+    ) -> Result<()> {
+        let header = self.header;
+        let (w, h) = level.size;
+        let t = header.tile;
+        let across = w.div_ceil(t);
+        let tiles = across * h.div_ceil(t);
+        let planes = header.planes.len();
+        let row = y0 / t;
+        let made: Vec<Vec<(usize, Vec<u8>)>> = (0..across)
+            .into_par_iter()
+            .map(|tx| {
+                let (x0, tw) = (tx * t, t.min(w - tx * t));
+                let tile = columns_of(rows, x0..x0 + tw);
+                if tile.depth.is_some() != header.depth {
+                    return Err(Error::invalid("the source's depth comes and goes"));
+                }
+                let index = row * across + tx;
+                let projected = self.projector.project(&tile.maps);
+                let mut sections: Vec<(usize, Vec<u8>)> = projected
+                    .par_iter()
+                    .zip(&header.planes)
+                    .enumerate()
+                    .map(|(p, (plane, entry))| {
+                        let q = &entry.quantizer;
+                        let codes: Vec<u16> = plane.iter().map(|&v| q.code(v)).collect();
+                        let bytes = super::planes::encode_tile(
+                            &codes,
+                            tw,
+                            tile.height(),
+                            q.width(),
+                            header.codec,
+                        )?;
+                        Ok((level.first_section + p * tiles + index, bytes))
+                    })
+                    .collect::<Result<_>>()?;
+                if let Some(depth) = &tile.depth {
+                    let s = level.first_section + planes * tiles + index;
+                    sections.push((s, encode_floats(depth)?));
+                }
+                Ok(sections)
+            })
+            .collect::<Result<_>>()?;
+        for (s, bytes) in made.into_iter().flatten() {
+            sink.put(s, bytes)?;
+        }
+        Ok(())
+    }
+}
+
+/// One mip level being made: its rows not yet coded (less than a tile row), and the
+/// row not yet halved into the next level (a 2×2 block needs two).
+struct Level {
+    size: (usize, usize),
+    first_section: usize,
+    pending: Option<RelightableImage>,
+    coded_rows: usize,
+    unhalved: Option<RelightableImage>,
+    /// Rows of the next level made so far.
+    halved_rows: usize,
+}
+
+/// The next rows of level `l` (`band`, whole width): coded where they complete a tile
+/// row, and halved into level `l + 1`'s rows where there is one.
+fn feed(
+    pyramid: &mut [Level],
+    l: usize,
+    band: RelightableImage,
+    coder: &Coder,
+    sink: &mut dyn SectionSink,
+) -> Result<()> {
+    let t = coder.header.tile;
+    let next = pyramid.get(l + 1).map(|level| level.size);
+    let level = &mut pyramid[l];
+    let (_, h) = level.size;
+    // The next level's rows: the 2×2 means of this level's row pairs (a level of one
+    // row halves that row alone; an odd last row is left out).
+    let mut finer = None;
+    if let Some((next_w, next_h)) = next {
+        let rows = match level.unhalved.take() {
+            Some(above) => std::borrow::Cow::Owned(stack(above, &band)),
+            None => std::borrow::Cow::Borrowed(&band),
+        };
+        let wanted = next_h - level.halved_rows;
+        let pairs = if h == 1 {
+            rows.height().min(wanted)
+        } else {
+            (rows.height() / 2).min(wanted)
+        };
+        if pairs > 0 {
+            let used = if h == 1 { pairs } else { 2 * pairs };
+            let halves = crate::maps::halved(&rows_of(&rows, 0..used), (next_w, pairs));
+            level.halved_rows += pairs;
+            finer = Some(halves);
+            if level.halved_rows < next_h && used < rows.height() {
+                level.unhalved = Some(rows_of(&rows, used..rows.height()));
+            }
+        } else if level.halved_rows < next_h {
+            level.unhalved = Some(rows.into_owned());
+        }
+    }
+    // This level's tile rows.
+    let mut rows = match level.pending.take() {
+        Some(above) => stack(above, &band),
+        None => band,
+    };
+    while rows.height() > 0 {
+        let y0 = level.coded_rows;
+        let whole = t.min(h - y0);
+        if rows.height() < whole {
+            level.pending = Some(rows);
+            break;
+        }
+        let rest = rows_of(&rows, whole..rows.height());
+        let row = if rest.height() > 0 {
+            rows_of(&rows, 0..whole)
+        } else {
+            rows
+        };
+        coder.code_tile_row(level, y0, &row, sink)?;
+        level.coded_rows += whole;
+        rows = rest;
+    }
+    if let Some(halves) = finer {
+        feed(pyramid, l + 1, halves, coder, sink)?;
+    }
+    Ok(())
+}
+
+/// Rows `rows` of `image`, the whole width.
+fn rows_of(image: &RelightableImage, rows: Range<usize>) -> RelightableImage {
+    let w = image.width();
+    let height = rows.len();
+    let pixels = rows.start * w..rows.end * w;
+    let maps = &image.maps;
+    let data = (0..3 * maps.k)
+        .flat_map(|j| {
+            maps.data[j * maps.pixels()..][pixels.clone()]
+                .iter()
+                .copied()
+        })
+        .collect();
+    RelightableImage {
+        meta: image.meta.clone(),
+        maps: CoefficientMaps {
+            width: w,
+            height,
+            k: maps.k,
+            data,
+        },
+        depth: image.depth.as_ref().map(|d| d[pixels].to_vec()),
+    }
+}
+
+/// Columns `columns` of `image`, every row.
+fn columns_of(image: &RelightableImage, columns: Range<usize>) -> RelightableImage {
+    let (w, h) = (image.width(), image.height());
+    let crop = |plane: &[f32]| -> Vec<f32> {
+        (0..h)
+            .flat_map(|y| {
+                plane[y * w + columns.start..y * w + columns.end]
+                    .iter()
+                    .copied()
+            })
+            .collect()
+    };
+    let maps = &image.maps;
+    RelightableImage {
+        meta: image.meta.clone(),
+        maps: CoefficientMaps {
+            width: columns.len(),
+            height: h,
+            k: maps.k,
+            data: maps
+                .data
+                .chunks_exact(maps.pixels())
+                .flat_map(crop)
+                .collect(),
+        },
+        depth: image.depth.as_deref().map(crop),
+    }
+}
+
+/// `above`'s rows, then `below`'s (both the same width).
+fn stack(above: RelightableImage, below: &RelightableImage) -> RelightableImage {
+    let (w, k) = (below.width(), below.maps.k);
+    let height = above.height() + below.height();
+    let data = (0..3 * k)
+        .flat_map(|j| {
+            let plane = |image: &RelightableImage| {
+                let n = image.maps.pixels();
+                image.maps.data[j * n..(j + 1) * n].to_vec()
+            };
+            let mut both = plane(&above);
+            both.extend(plane(below));
+            both
+        })
+        .collect();
+    let depth = match (&above.depth, &below.depth) {
+        (Some(a), Some(b)) => Some([a.as_slice(), b.as_slice()].concat()),
+        _ => None,
+    };
+    RelightableImage {
+        meta: below.meta.clone(),
+        maps: CoefficientMaps {
+            width: w,
+            height,
+            k,
+            data,
+        },
+        depth,
+    }
+}
