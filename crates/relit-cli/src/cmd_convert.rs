@@ -57,11 +57,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     refuse_overwriting_inputs(std::slice::from_ref(&args.input), &[output])?;
     let start = std::time::Instant::now();
-    // EXR to tiled EXR with mip levels: a tile at a time, the maps never held whole.
-    let streamed = form == FileForm::Exr
-        && args.mip_tiles.is_some()
-        && args.file_space.is_none()
-        && FileForm::of(&args.input)? == FileForm::Exr;
+    // EXR to tiled EXR with mip levels (a tile at a time) or to .rlz (a band of rows at
+    // a time, where the settings need no whole-image step): the maps never held whole.
+    let settings = args.compress.settings_with_mip_tiles(args.mip_tiles);
+    let from_exr = args.file_space.is_none() && FileForm::of(&args.input)? == FileForm::Exr;
+    let streamed = from_exr
+        && match form {
+            FileForm::Exr => args.mip_tiles.is_some(),
+            FileForm::Compressed => relit::compress::bands::packs_in_bands(&settings),
+            _ => false,
+        };
     let mut image = if streamed {
         // Only the metadata and one pixel: the summary's size and basis.
         codec::exr::read_region(&args.input, 0, (0, 0, 1, 1))?.image
@@ -85,9 +90,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             )
         }
         FileForm::Compressed => {
-            let settings = args.compress.settings_with_mip_tiles(args.mip_tiles);
-            codec::packed::write(&args.output, &image, &settings)
-                .with_context(|| format!("writing {}", args.output.display()))?;
+            if streamed {
+                let bars = crate::shared::Bars::new(args.json);
+                codec::packed::write_in_bands(&args.input, &args.output, &settings, &bars)
+                    .map(|_| ())
+            } else {
+                codec::packed::write(&args.output, &image, &settings).map(|_| ())
+            }
+            .with_context(|| format!("writing {}", args.output.display()))?;
             settings.describe()
         }
         form @ (FileForm::Ptm | FileForm::Rti) => {
@@ -125,7 +135,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // What was written, read back: from its header alone when it was streamed or is
     // compressed (decoding a large .rlz whole would hold all its maps again).
     let compressed = args.output.is_file() && codec::packed::is_packed(&args.output)?;
-    let (written_basis, written_k) = if streamed {
+    let (written_basis, written_k) = if streamed && form == FileForm::Exr {
         let shape = codec::exr::read_shape(&args.output)?;
         (shape.meta.basis, shape.k)
     } else if compressed {

@@ -151,20 +151,28 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let form = relit::codec::FileForm::for_output(&args.output);
     // The lossless file is written as the strips are solved (the maps are never held
     // whole); the other forms need the whole image.
+    // A compressed file whose settings need no whole-image step is packed a band at a
+    // time from the fit's lossless file (f32: the values the fit holds).
+    let compress = relit::compress::Settings {
+        directions: Some(capture.directions()),
+        ..args.compress.settings_with_mip_tiles(args.mip_tiles)
+    };
+    let packed_in_bands = form == relit::codec::FileForm::Compressed
+        && args.budget.is_none()
+        && relit::compress::bands::packs_in_bands(&compress);
     let (meta, report) = if let (relit::codec::FileForm::Exr, Some(tile)) = (form, args.mip_tiles) {
-        let dir = match args.output.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-            _ => PathBuf::from("."),
-        };
-        let level0 = tempfile::Builder::new()
-            .prefix(".relit-fit-")
-            .suffix(".exr")
-            .tempfile_in(&dir)
-            .with_context(|| format!("creating a temporary file in {}", dir.display()))?
-            .into_temp_path();
+        let level0 = crate::shared::temporary_beside(&args.output, ".relit-fit-", ".exr")?;
         let made = relit::codec::exr::fit_to_exr(&capture, &options, &bars, &level0, args.storage)
             .with_context(|| format!("writing {}", level0.display()))?;
         relit::codec::exr::write_tiled_from(&level0, &args.output, args.storage, tile)
+            .with_context(|| format!("writing {}", args.output.display()))?;
+        made
+    } else if packed_in_bands {
+        let level0 = crate::shared::temporary_beside(&args.output, ".relit-fit-", ".exr")?;
+        let made =
+            relit::codec::exr::fit_to_exr(&capture, &options, &bars, &level0, Precision::F32)
+                .with_context(|| format!("writing {}", level0.display()))?;
+        relit::codec::packed::write_in_bands(&level0, &args.output, &compress, &bars)
             .with_context(|| format!("writing {}", args.output.display()))?;
         made
     } else if form == relit::codec::FileForm::Exr {

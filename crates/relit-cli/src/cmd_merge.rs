@@ -68,7 +68,32 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         };
         return report(&args, &summary, start);
     }
-    // One part in memory at a time beside the whole image's maps.
+    let settings = args.compress.settings();
+    let exr_parts = args
+        .parts
+        .iter()
+        .all(|p| matches!(FileForm::of(p), Ok(FileForm::Exr)));
+    if exr_parts && relit::compress::bands::packs_in_bands(&settings) {
+        // The parts merged a band at a time into a lossless file (f32: the parts' values
+        // as they read), then packed a band at a time from it.
+        let whole = crate::shared::temporary_beside(&args.output, ".relit-merge-", ".exr")?;
+        let (meta, (width, height)) =
+            relit::shard::merge_exr_files(&args.parts, &whole, Precision::F32)
+                .with_context(|| format!("writing {}", whole.display()))?;
+        let bars = crate::shared::Bars::new(args.json);
+        codec::packed::write_in_bands(&whole, &args.output, &settings, &bars)
+            .with_context(|| format!("writing {}", args.output.display()))?;
+        let summary = Summary {
+            description: settings.describe(),
+            basis: meta.basis.build()?.name(),
+            width,
+            height,
+            fit_seconds: meta.fit.as_ref().map(|f| f.seconds),
+        };
+        return report(&args, &summary, start);
+    }
+    // One part in memory at a time beside the whole image's maps: a file whose settings
+    // need every pixel at once.
     let read =
         |p: &std::path::PathBuf| codec::read(p).with_context(|| format!("reading {}", p.display()));
     let count = args.parts.len();
@@ -81,8 +106,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         merger.add(read(path)?, &path.display().to_string())?;
     }
     let image = merger.finish()?;
-    // A compressed file needs the whole image.
-    let settings = args.compress.settings();
     codec::packed::write(&args.output, &image, &settings)
         .with_context(|| format!("writing {}", args.output.display()))?;
     let summary = Summary {

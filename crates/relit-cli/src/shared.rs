@@ -358,6 +358,26 @@ impl WebArgs {
     }
 }
 
+/// A temporary file named `prefix…suffix` in `output`'s folder (where the output will
+/// fit, unlike `/tmp`), removed when the returned path is dropped.
+pub fn temporary_beside(
+    output: &Path,
+    prefix: &str,
+    suffix: &str,
+) -> anyhow::Result<tempfile::TempPath> {
+    use anyhow::Context;
+    let dir = match output.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => std::path::PathBuf::from("."),
+    };
+    Ok(tempfile::Builder::new()
+        .prefix(prefix)
+        .suffix(suffix)
+        .tempfile_in(&dir)
+        .with_context(|| format!("creating a temporary file in {}", dir.display()))?
+        .into_temp_path())
+}
+
 /// Bytes of a file, or of every file in a folder (one level deep and below).
 pub fn size_on_disk(path: &Path) -> std::io::Result<u64> {
     let meta = std::fs::metadata(path)?;

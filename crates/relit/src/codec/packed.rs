@@ -342,6 +342,149 @@ pub fn write_packed(path: &Path, packed: &Packed) -> Result<()> {
     })
 }
 
+/// Compress the EXR file `input` into `path` with `settings`, a band of rows at a time
+/// ([`compress::bands`]: the maps are never held whole, the sections wait in a
+/// temporary file); returns the header written. Settings that need every pixel at once
+/// ([`compress::bands::packs_in_bands`]) are refused.
+pub fn write_in_bands(
+    input: &Path,
+    path: &Path,
+    settings: &compress::Settings,
+    progress: &dyn crate::progress::Progress,
+) -> Result<compress::Header> {
+    let source = ExrBands::open(input)?;
+    write_bands_of(&source, path, settings, progress)
+}
+
+/// [`write_in_bands`] of any band source.
+pub fn write_bands_of(
+    source: &dyn compress::bands::BandSource,
+    path: &Path,
+    settings: &compress::Settings,
+    progress: &dyn crate::progress::Progress,
+) -> Result<compress::Header> {
+    let mut spilled = SpilledSections::new()?;
+    let header = compress::bands::pack_in_bands(source, settings, &mut spilled, progress)?;
+    let sections = spilled.index(header.sections())?;
+    let head = compress::container::head(&header, &sections)?;
+    let mut file = spilled.file;
+    write_atomically(path, |out| {
+        let failed = |e: std::io::Error| Error::io(path, "write", e);
+        out.write_all(&head).map_err(failed)?;
+        let mut buffer = Vec::new();
+        for &(at, len) in &spilled.at {
+            use std::io::Seek;
+            buffer.resize(len as usize, 0);
+            file.seek(std::io::SeekFrom::Start(at))
+                .and_then(|_| file.read_exact(&mut buffer))
+                .map_err(|e| {
+                    Error::new(ErrorKind::Io, "cannot read back a packed section").with_source(e)
+                })?;
+            out.write_all(&buffer).map_err(failed)?;
+        }
+        Ok(())
+    })?;
+    Ok(header)
+}
+
+/// An EXR file's level 0, read a band at a time.
+struct ExrBands<'a> {
+    path: &'a Path,
+    shape: crate::codec::exr::FileShape,
+}
+
+impl<'a> ExrBands<'a> {
+    fn open(path: &'a Path) -> Result<ExrBands<'a>> {
+        Ok(ExrBands {
+            path,
+            shape: crate::codec::exr::read_shape(path)?,
+        })
+    }
+}
+
+impl compress::bands::BandSource for ExrBands<'_> {
+    fn meta(&self) -> &crate::maps::Metadata {
+        &self.shape.meta
+    }
+
+    fn shape(&self) -> (usize, usize, usize) {
+        (self.shape.width, self.shape.height, self.shape.k)
+    }
+
+    fn has_depth(&self) -> bool {
+        self.shape.depth
+    }
+
+    fn band(&self, rows: std::ops::Range<usize>) -> Result<RelightableImage> {
+        let rect = (0, rows.start, self.shape.width, rows.len());
+        Ok(crate::codec::exr::read_region_with(self.path, 0, rect, self.shape.depth)?.image)
+    }
+}
+
+/// Sections as they are packed, in a temporary file: where each one is, its length and
+/// its CRC-32.
+struct SpilledSections {
+    file: std::fs::File,
+    written: u64,
+    /// By section number: its offset in `file`, length and CRC-32.
+    made: Vec<Option<(u64, u64, u32)>>,
+    /// Filled by `index`: each section's offset and length in order.
+    at: Vec<(u64, u64)>,
+}
+
+impl SpilledSections {
+    fn new() -> Result<SpilledSections> {
+        let file = tempfile::tempfile().map_err(|e| {
+            Error::new(
+                ErrorKind::Io,
+                "cannot create a temporary file for the sections",
+            )
+            .with_source(e)
+        })?;
+        Ok(SpilledSections {
+            file,
+            written: 0,
+            made: Vec::new(),
+            at: Vec::new(),
+        })
+    }
+
+    /// Every one of `count` sections' length and CRC-32, in order (each must be made).
+    fn index(&mut self, count: usize) -> Result<Vec<(u64, u32)>> {
+        if self.made.len() != count || self.made.iter().any(Option::is_none) {
+            return Err(Error::invalid(
+                "a packed file was left with sections missing",
+            ));
+        }
+        let made: Vec<(u64, u64, u32)> = self.made.iter().flatten().copied().collect();
+        self.at = made.iter().map(|&(at, len, _)| (at, len)).collect();
+        Ok(made.iter().map(|&(_, len, crc)| (len, crc)).collect())
+    }
+}
+
+impl compress::bands::SectionSink for SpilledSections {
+    fn put(&mut self, section: usize, bytes: Vec<u8>) -> Result<()> {
+        if self.made.len() <= section {
+            self.made.resize(section + 1, None);
+        }
+        if self.made[section].is_some() {
+            return Err(Error::invalid(format!(
+                "section {section} was packed twice"
+            )));
+        }
+        self.file.write_all(&bytes).map_err(|e| {
+            Error::new(
+                ErrorKind::Io,
+                "cannot write a packed section to a temporary file",
+            )
+            .with_source(e)
+        })?;
+        self.made[section] = Some((self.written, bytes.len() as u64, crc32fast::hash(&bytes)));
+        self.written += bytes.len() as u64;
+        Ok(())
+    }
+}
+
 /// Compress `image` with `settings` and write it; returns the packed form.
 pub fn write(
     path: &Path,
@@ -384,6 +527,53 @@ mod tests {
             maps,
             depth: Some((0..w * h).map(|p| 1.0 + p as f32 * 0.01).collect()),
         }
+    }
+
+    /// A file packed a band at a time from an EXR file is the file packed from the
+    /// image read whole, byte for byte, with and without mip levels and depth; settings
+    /// that need every pixel at once are refused before anything is written.
+    #[test]
+    fn a_file_packed_in_bands_from_an_exr_file_is_the_file_packed_whole() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut img = sample(70, 45);
+        let exr = dir.path().join("maps.exr");
+        for (i, settings) in [
+            Settings {
+                tile: 16,
+                mip_levels: true,
+                ..Settings::default()
+            },
+            Settings {
+                layout: Layout::Ycc,
+                codec: TileCodec::parse("jpeg:90").unwrap(),
+                components: Some(4),
+                tile: 32,
+                ..Settings::default()
+            },
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            if i == 1 {
+                img.depth = None;
+            }
+            crate::codec::exr::write(&exr, &img, Precision::F32).unwrap();
+            let (whole, bands) = (dir.path().join("whole.rlz"), dir.path().join("bands.rlz"));
+            super::write(&whole, &img, &settings).unwrap();
+            let header = write_in_bands(&exr, &bands, &settings, &crate::progress::Silent).unwrap();
+            assert_eq!(header, read_header(&whole).unwrap());
+            assert!(
+                std::fs::read(&whole).unwrap() == std::fs::read(&bands).unwrap(),
+                "case {i}: the same bytes"
+            );
+        }
+        let refused = dir.path().join("refused.rlz");
+        let gain = Settings {
+            gain: true,
+            ..Settings::default()
+        };
+        assert!(write_in_bands(&exr, &refused, &gain, &crate::progress::Silent).is_err());
+        assert!(!refused.exists(), "nothing written");
     }
 
     /// `read_compact` of a compressed file decodes it a run of tiles at a time into the

@@ -41,32 +41,44 @@ const ENTRY: usize = 20;
 
 /// The file's bytes.
 pub fn to_bytes(packed: &Packed) -> Result<Vec<u8>> {
-    let json = serde_json::to_vec(&packed.header)
-        .map_err(|e| Error::invalid(format!("header does not serialise: {e}")))?;
-    let header = zstd::bulk::compress(&json, 19)
-        .map_err(|e| Error::new(ErrorKind::Io, format!("zstd: {e}")))?;
-    let s = packed.sections.len();
-    let index_start = 8 + 12 + header.len() + 4;
-    let mut offset = (index_start + s * ENTRY + 4) as u64;
-    let mut index = Vec::with_capacity(s * ENTRY);
-    for section in &packed.sections {
-        index.extend_from_slice(&offset.to_le_bytes());
-        index.extend_from_slice(&(section.len() as u64).to_le_bytes());
-        index.extend_from_slice(&crc32fast::hash(section).to_le_bytes());
-        offset += section.len() as u64;
-    }
-    let mut out = Vec::with_capacity(offset as usize);
-    out.extend_from_slice(&MAGIC);
-    out.extend_from_slice(&version_of(&packed.header).to_le_bytes());
-    out.extend_from_slice(&(header.len() as u32).to_le_bytes());
-    out.extend_from_slice(&crc32fast::hash(&header).to_le_bytes());
-    out.extend_from_slice(&header);
-    out.extend_from_slice(&(s as u32).to_le_bytes());
-    out.extend_from_slice(&index);
-    out.extend_from_slice(&crc32fast::hash(&index).to_le_bytes());
+    let sections: Vec<(u64, u32)> = packed
+        .sections
+        .iter()
+        .map(|s| (s.len() as u64, crc32fast::hash(s)))
+        .collect();
+    let mut out = head(&packed.header, &sections)?;
     for section in &packed.sections {
         out.extend_from_slice(section);
     }
+    Ok(out)
+}
+
+/// The bytes of a file before its sections, given each section's length and CRC-32 in
+/// order: what a writer that holds the sections elsewhere writes first.
+pub fn head(header: &Header, sections: &[(u64, u32)]) -> Result<Vec<u8>> {
+    let json = serde_json::to_vec(header)
+        .map_err(|e| Error::invalid(format!("header does not serialise: {e}")))?;
+    let compressed = zstd::bulk::compress(&json, 19)
+        .map_err(|e| Error::new(ErrorKind::Io, format!("zstd: {e}")))?;
+    let s = sections.len();
+    let index_start = 8 + 12 + compressed.len() + 4;
+    let mut offset = (index_start + s * ENTRY + 4) as u64;
+    let mut index = Vec::with_capacity(s * ENTRY);
+    for &(len, crc) in sections {
+        index.extend_from_slice(&offset.to_le_bytes());
+        index.extend_from_slice(&len.to_le_bytes());
+        index.extend_from_slice(&crc.to_le_bytes());
+        offset += len;
+    }
+    let mut out = Vec::with_capacity(index_start + index.len() + 4);
+    out.extend_from_slice(&MAGIC);
+    out.extend_from_slice(&version_of(header).to_le_bytes());
+    out.extend_from_slice(&(compressed.len() as u32).to_le_bytes());
+    out.extend_from_slice(&crc32fast::hash(&compressed).to_le_bytes());
+    out.extend_from_slice(&compressed);
+    out.extend_from_slice(&(s as u32).to_le_bytes());
+    out.extend_from_slice(&index);
+    out.extend_from_slice(&crc32fast::hash(&index).to_le_bytes());
     Ok(out)
 }
 
