@@ -227,40 +227,47 @@ impl Projector<'_> {
     fn project(&self, maps: &CoefficientMaps) -> Vec<Vec<f32>> {
         const CHUNK: usize = 4096;
         let (pixels, k) = (maps.pixels(), maps.k);
-        let planes = self.planes();
         let most = self.counts.iter().copied().max().unwrap_or(0);
-        // Pixel-major in chunks, then plane-major.
-        let chunks: Vec<Vec<f32>> = (0..pixels.div_ceil(CHUNK))
+        let mut planes: Vec<Vec<f32>> = (0..self.planes()).map(|_| vec![0.0; pixels]).collect();
+        // Each chunk of pixels writes its part of every plane.
+        let mut chunks: Vec<Vec<&mut [f32]>> = Vec::new();
+        let mut parts: Vec<_> = planes.iter_mut().map(|p| p.chunks_mut(CHUNK)).collect();
+        for _ in 0..pixels.div_ceil(CHUNK) {
+            chunks.push(
+                parts
+                    .iter_mut()
+                    .map(|it| it.next().expect("same length"))
+                    .collect(),
+            );
+        }
+        chunks
             .into_par_iter()
-            .map(|chunk| {
-                let span = chunk * CHUNK..((chunk + 1) * CHUNK).min(pixels);
-                let mut out = Vec::with_capacity(span.len() * planes);
+            .enumerate()
+            .for_each(|(chunk, mut outs)| {
                 let (mut c, mut y) = (vec![0.0f32; k], vec![0.0f32; most]);
                 let mut scratch = (vec![0.0f64; k], vec![0.0f64; k]);
-                for p in span {
+                for local in 0..outs[0].len() {
+                    let p = chunk * CHUNK + local;
+                    let mut plane = 0;
                     for (f, &count) in self.counts.iter().enumerate() {
                         for (i, ci) in c.iter_mut().enumerate() {
                             *ci = undivided(self.layout, maps, i, f, p);
                         }
                         self.principal.apply(&c, &mut y[..count]);
-                        out.extend_from_slice(&y[..count]);
+                        for &v in &y[..count] {
+                            outs[plane][local] = v;
+                            plane += 1;
+                        }
                     }
                     if self.layout == Layout::Lrgb {
-                        out.extend(albedo_at(maps, self.gram, p, &mut scratch));
+                        for v in albedo_at(maps, self.gram, p, &mut scratch) {
+                            outs[plane][local] = v;
+                            plane += 1;
+                        }
                     }
                 }
-                out
-            })
-            .collect();
-        (0..planes)
-            .into_par_iter()
-            .map(|j| {
-                chunks
-                    .iter()
-                    .flat_map(|chunk| chunk.iter().skip(j).step_by(planes).copied())
-                    .collect()
-            })
-            .collect()
+            });
+        planes
     }
 }
 
@@ -410,21 +417,17 @@ fn feed(
 /// Rows `rows` of `image`, the whole width.
 fn rows_of(image: &RelightableImage, rows: Range<usize>) -> RelightableImage {
     let w = image.width();
-    let height = rows.len();
     let pixels = rows.start * w..rows.end * w;
     let maps = &image.maps;
-    let data = (0..3 * maps.k)
-        .flat_map(|j| {
-            maps.data[j * maps.pixels()..][pixels.clone()]
-                .iter()
-                .copied()
-        })
-        .collect();
+    let mut data = Vec::with_capacity(3 * maps.k * pixels.len());
+    for plane in maps.data.chunks_exact(maps.pixels().max(1)) {
+        data.extend_from_slice(&plane[pixels.clone()]);
+    }
     RelightableImage {
         meta: image.meta.clone(),
         maps: CoefficientMaps {
             width: w,
-            height,
+            height: rows.len(),
             k: maps.k,
             data,
         },
@@ -434,28 +437,23 @@ fn rows_of(image: &RelightableImage, rows: Range<usize>) -> RelightableImage {
 
 /// Columns `columns` of `image`, every row.
 fn columns_of(image: &RelightableImage, columns: Range<usize>) -> RelightableImage {
-    let (w, h) = (image.width(), image.height());
-    let crop = |plane: &[f32]| -> Vec<f32> {
-        (0..h)
-            .flat_map(|y| {
-                plane[y * w + columns.start..y * w + columns.end]
-                    .iter()
-                    .copied()
-            })
-            .collect()
+    let w = image.width();
+    // Every line of every plane (the planes are whole lines one after another).
+    let crop = |lines: &[f32]| -> Vec<f32> {
+        let mut out = Vec::with_capacity(lines.len() / w.max(1) * columns.len());
+        for line in lines.chunks_exact(w.max(1)) {
+            out.extend_from_slice(&line[columns.clone()]);
+        }
+        out
     };
     let maps = &image.maps;
     RelightableImage {
         meta: image.meta.clone(),
         maps: CoefficientMaps {
             width: columns.len(),
-            height: h,
+            height: image.height(),
             k: maps.k,
-            data: maps
-                .data
-                .chunks_exact(maps.pixels())
-                .flat_map(crop)
-                .collect(),
+            data: crop(&maps.data),
         },
         depth: image.depth.as_deref().map(crop),
     }
@@ -463,19 +461,17 @@ fn columns_of(image: &RelightableImage, columns: Range<usize>) -> RelightableIma
 
 /// `above`'s rows, then `below`'s (both the same width).
 fn stack(above: RelightableImage, below: &RelightableImage) -> RelightableImage {
+    if above.height() == 0 {
+        return rows_of(below, 0..below.height());
+    }
     let (w, k) = (below.width(), below.maps.k);
     let height = above.height() + below.height();
-    let data = (0..3 * k)
-        .flat_map(|j| {
-            let plane = |image: &RelightableImage| {
-                let n = image.maps.pixels();
-                image.maps.data[j * n..(j + 1) * n].to_vec()
-            };
-            let mut both = plane(&above);
-            both.extend(plane(below));
-            both
-        })
-        .collect();
+    let mut data = Vec::with_capacity(3 * k * w * height);
+    let upper = above.maps.data.chunks_exact(above.maps.pixels().max(1));
+    for (upper, lower) in upper.zip(below.maps.data.chunks_exact(below.maps.pixels().max(1))) {
+        data.extend_from_slice(upper);
+        data.extend_from_slice(lower);
+    }
     let depth = match (&above.depth, &below.depth) {
         (Some(a), Some(b)) => Some([a.as_slice(), b.as_slice()].concat()),
         _ => None,

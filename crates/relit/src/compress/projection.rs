@@ -137,11 +137,35 @@ impl Principal {
         }
     }
 
-    /// `out[j] = Σ_i E_ji c[i]` for the first `out.len()` components.
+    /// `out[j] = Σ_i E_ji c[i]` for the first `out.len()` components, each sum in the
+    /// order of `i` (so the value is the same however the rows are grouped). Four rows
+    /// at a time: four independent sums keep the adder busy where one waits on itself.
     #[inline]
     pub fn apply(&self, c: &[f32], out: &mut [f32]) {
-        for (o, row) in out.iter_mut().zip(self.encode.chunks_exact(self.k)) {
-            *o = row.iter().zip(c).map(|(a, &b)| a * b as f64).sum::<f64>() as f32;
+        let k = self.k;
+        let (c, e) = (&c[..k], &self.encode);
+        let row = |j: usize| &e[j * k..(j + 1) * k];
+        let mut j = 0;
+        while j + 4 <= out.len() {
+            let (r0, r1, r2, r3) = (row(j), row(j + 1), row(j + 2), row(j + 3));
+            let mut s = [-0.0f64; 4];
+            for (i, &ci) in c.iter().enumerate() {
+                let ci = ci as f64;
+                s[0] += r0[i] * ci;
+                s[1] += r1[i] * ci;
+                s[2] += r2[i] * ci;
+                s[3] += r3[i] * ci;
+            }
+            for (o, s) in out[j..j + 4].iter_mut().zip(s) {
+                *o = s as f32;
+            }
+            j += 4;
+        }
+        for (jj, o) in out.iter_mut().enumerate().skip(j) {
+            *o = row(jj)
+                .iter()
+                .zip(c)
+                .fold(-0.0f64, |s, (a, &b)| s + a * b as f64) as f32;
         }
     }
 }
