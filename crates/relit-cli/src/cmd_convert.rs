@@ -64,7 +64,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let streamed = from_exr
         && match form {
             FileForm::Exr => args.mip_tiles.is_some(),
-            FileForm::Compressed => relit::compress::bands::packs_in_bands(&settings),
+            FileForm::Compressed => {
+                let shape = codec::exr::read_shape(&args.input)?;
+                crate::shared::pack_in_bands(&settings, (shape.width, shape.height, shape.k))
+            }
             _ => false,
         };
     let mut image = if streamed {

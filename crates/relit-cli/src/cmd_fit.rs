@@ -159,7 +159,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let packed_in_bands = form == relit::codec::FileForm::Compressed
         && args.budget.is_none()
-        && relit::compress::bands::packs_in_bands(&compress);
+        && crate::shared::pack_in_bands(
+            &compress,
+            (capture.width, capture.height, options.max_coefficients),
+        );
     let (meta, report) = if let (relit::codec::FileForm::Exr, Some(tile)) = (form, args.mip_tiles) {
         let level0 = crate::shared::temporary_beside(&args.output, ".relit-fit-", ".exr")?;
         let made = relit::codec::exr::fit_to_exr(&capture, &options, &bars, &level0, args.storage)

@@ -73,7 +73,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .parts
         .iter()
         .all(|p| matches!(FileForm::of(p), Ok(FileForm::Exr)));
-    if exr_parts && relit::compress::bands::packs_in_bands(&settings) {
+    // The whole image's shape: the parts' widths and coefficients, their rows together.
+    let shape = || -> anyhow::Result<(usize, usize, usize)> {
+        let mut whole = (0, 0, 0);
+        for part in &args.parts {
+            let s = codec::exr::read_shape(part)?;
+            whole = (s.width.max(whole.0), whole.1 + s.height, s.k.max(whole.2));
+        }
+        Ok(whole)
+    };
+    if exr_parts && crate::shared::pack_in_bands(&settings, shape()?) {
         // The parts merged a band at a time into a lossless file (f32: the parts' values
         // as they read), then packed a band at a time from it.
         let whole = crate::shared::temporary_beside(&args.output, ".relit-merge-", ".exr")?;

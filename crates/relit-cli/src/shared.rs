@@ -358,6 +358,18 @@ impl WebArgs {
     }
 }
 
+/// Whether to write a `.rlz` file of `shape` (width, height, most coefficients) a band of
+/// rows at a time: [`relit::compress::bands::worth_packing_in_bands`], above
+/// `RELIT_BANDS_ABOVE_MIB` MiB of maps where that is set (0: always where the settings
+/// allow), [`relit::compress::bands::BANDS_ABOVE_BYTES`] otherwise.
+pub fn pack_in_bands(settings: &relit::compress::Settings, shape: (usize, usize, usize)) -> bool {
+    let above = std::env::var("RELIT_BANDS_ABOVE_MIB")
+        .ok()
+        .and_then(|v| v.trim().parse::<u64>().ok())
+        .map_or(relit::compress::bands::BANDS_ABOVE_BYTES, |mib| mib << 20);
+    relit::compress::bands::worth_packing_in_bands(settings, shape, above)
+}
+
 /// A temporary file named `prefix…suffix` in `output`'s folder (where the output will
 /// fit, unlike `/tmp`), removed when the returned path is dropped.
 pub fn temporary_beside(

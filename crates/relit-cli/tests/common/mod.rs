@@ -75,6 +75,23 @@ pub fn relit(dir: &Path, args: &[&str]) -> std::process::Output {
         .unwrap()
 }
 
+/// [`relit_ok`] with the environment variables `env` set.
+#[allow(dead_code)]
+pub fn relit_ok_with(dir: &Path, args: &[&str], env: &[(&str, &str)]) -> String {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_relit"))
+        .current_dir(dir)
+        .args(args)
+        .envs(env.iter().copied())
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "relit {args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
 /// Run the `relit` binary in `dir`, require success, and return its standard output.
 #[allow(dead_code)]
 pub fn relit_ok(dir: &Path, args: &[&str]) -> String {

@@ -9,8 +9,8 @@
 //! finds it from the whole image, so the file is the same byte for byte.
 //!
 //! Peak memory: about two bands of `tile × width` pixels of `3K` f32 coefficients (the
-//! band read and its projection, or the band and the finer levels' pending rows,
-//! which together hold less than one band), and the sections of one tile row.
+//! band read, and the finer levels' pending rows, which together hold less than one
+//! band), a tile's projection a thread, and the sections of one tile row.
 
 use super::{
     albedo_at, encode_floats, plane_entries, projection, projection_groups, stored_basis,
@@ -21,6 +21,9 @@ use crate::progress::Progress;
 use crate::{Error, Result};
 use rayon::prelude::*;
 use std::ops::Range;
+
+/// Pixels (whole rows, at least one) projected at a time while the planes are measured.
+const STATS_SPAN: usize = 1 << 16;
 
 /// Level 0 of an image, read a band of whole rows at a time.
 pub trait BandSource: Sync {
@@ -62,6 +65,25 @@ pub trait SectionSink {
 /// gain, a codebook or a projection a block, which are found from every pixel at once.
 pub fn packs_in_bands(settings: &Settings) -> bool {
     !settings.gain && settings.codebook.is_none() && settings.pca_block.is_none()
+}
+
+/// Maps (f32, all three channels) above which writers pack a band at a time by default:
+/// below it the image held whole costs little memory and is packed faster (one read, one
+/// projection; the band packer reads its source three times, and a fit first writes its
+/// maps to a temporary file). Measured on item1's fit (64 MiB of maps): 2.8–2.9 s and
+/// 163 MiB whole, 3.7–4.0 s and 229 MiB in bands; on item1 repeated to 4096×1024
+/// (768 MiB): 35.2 s and 1.75 GiB whole, 36.6 s and 0.84 GiB in bands.
+pub const BANDS_ABOVE_BYTES: u64 = 256 << 20;
+
+/// Whether to pack an image of `width × height` pixels with at most `k` coefficients a
+/// channel a band at a time: its settings allow it ([`packs_in_bands`]) and its maps take
+/// more than `above` bytes (by default [`BANDS_ABOVE_BYTES`]).
+pub fn worth_packing_in_bands(
+    settings: &Settings,
+    (width, height, k): (usize, usize, usize),
+    above: u64,
+) -> bool {
+    packs_in_bands(settings) && 12 * (k as u64) * (width as u64) * (height as u64) > above
 }
 
 /// Pack the image `source` reads with `settings` ([`packs_in_bands`]), a band of rows
@@ -123,20 +145,26 @@ pub fn pack_in_bands(
 
     // Each plane's statistics, then its quantiser.
     let planes = projector.planes();
-    let mut stats = vec![PlaneStats::EMPTY; planes];
+    let mut stats = vec![PlaneStats::empty(settings.codec); planes];
     progress.begin("measuring the planes", bands.len() as u64);
     for rows in &bands {
         let band = source.band(rows.clone())?;
-        let first = rows.start * width;
-        let projected = projector.project(&band.maps);
-        stats
-            .par_iter_mut()
-            .zip(&projected)
-            .for_each(|(stats, plane)| {
-                for (local, &v) in plane.iter().enumerate() {
-                    stats.see(first + local, n, v);
-                }
-            });
+        // A few rows' projection at a time: the band is the only large thing held.
+        let pixels = band.maps.pixels();
+        let span = (STATS_SPAN / width.max(1)).max(1) * width;
+        for start in (0..pixels).step_by(span) {
+            let at = start..(start + span).min(pixels);
+            let first = rows.start * width + start;
+            let projected = projector.project(&band.maps, at);
+            stats
+                .par_iter_mut()
+                .zip(&projected)
+                .for_each(|(stats, plane)| {
+                    for (local, &v) in plane.iter().enumerate() {
+                        stats.see(first + local, n, v);
+                    }
+                });
+        }
         progress.advance(1);
     }
     progress.end();
@@ -223,10 +251,10 @@ impl Projector<'_> {
         self.counts.iter().sum::<usize>() + 3 * (self.layout == Layout::Lrgb) as usize
     }
 
-    /// Every plane's values at each pixel of `maps`.
-    fn project(&self, maps: &CoefficientMaps) -> Vec<Vec<f32>> {
+    /// Every plane's values at the pixels `span` of `maps`.
+    fn project(&self, maps: &CoefficientMaps, span: Range<usize>) -> Vec<Vec<f32>> {
         const CHUNK: usize = 4096;
-        let (pixels, k) = (maps.pixels(), maps.k);
+        let (pixels, k) = (span.len(), maps.k);
         let most = self.counts.iter().copied().max().unwrap_or(0);
         let mut planes: Vec<Vec<f32>> = (0..self.planes()).map(|_| vec![0.0; pixels]).collect();
         // Each chunk of pixels writes its part of every plane.
@@ -247,7 +275,7 @@ impl Projector<'_> {
                 let (mut c, mut y) = (vec![0.0f32; k], vec![0.0f32; most]);
                 let mut scratch = (vec![0.0f64; k], vec![0.0f64; k]);
                 for local in 0..outs[0].len() {
-                    let p = chunk * CHUNK + local;
+                    let p = span.start + chunk * CHUNK + local;
                     let mut plane = 0;
                     for (f, &count) in self.counts.iter().enumerate() {
                         for (i, ci) in c.iter_mut().enumerate() {
@@ -303,7 +331,7 @@ impl Coder<'_> {
                     return Err(Error::invalid("the source's depth comes and goes"));
                 }
                 let index = row * across + tx;
-                let projected = self.projector.project(&tile.maps);
+                let projected = self.projector.project(&tile.maps, 0..tile.maps.pixels());
                 let mut sections: Vec<(usize, Vec<u8>)> = projected
                     .par_iter()
                     .zip(&header.planes)

@@ -685,9 +685,12 @@ fn pack_level(
                 let r = crate::storage::FiniteRange::of(values.iter().copied());
                 Quantizer::spanning(r.lo, r.hi, (r.hi - r.lo) / 255.0, max_levels)
             }
-            (None, TileCodec::Jpeg { .. } | TileCodec::Webp { .. }) => {
-                plane_quantizer(&PlaneStats::of(&values), settings.codec, 0.0, max_levels)
-            }
+            (None, TileCodec::Jpeg { .. } | TileCodec::Webp { .. }) => plane_quantizer(
+                &PlaneStats::of(&values, settings.codec),
+                settings.codec,
+                0.0,
+                max_levels,
+            ),
         };
         Some((values, quantizer))
     } else {
@@ -871,7 +874,7 @@ fn pack_level(
         &counts,
         albedo.len(),
         fixed.map(|f| f.planes.as_slice()),
-        &|i| PlaneStats::of(plane_values(i)),
+        &|i| PlaneStats::of(plane_values(i), settings.codec),
     )?;
     let mut entries: Vec<(PlaneEntry, &[f32])> = quantizers
         .into_iter()
@@ -1333,26 +1336,34 @@ fn plane_entries(
     let max_levels = settings.codec.max_levels();
     let steps = ((1u64 << settings.bits) - 1) as f32;
     let function_planes: usize = counts.iter().sum();
-    let all: Vec<PlaneStats> = (0..names.len()).into_par_iter().map(stats).collect();
+    // The first plane's statistics set the shared step; every plane's are dropped as soon
+    // as its quantiser is found.
+    let first = stats(0);
     let function_step = match settings.codec {
         TileCodec::Zstd { .. } => {
-            let r = all[0].range;
+            let r = first.range;
             ((r.hi - r.lo) / steps).max(f32::MIN_POSITIVE)
         }
         // JPEG codes are 8-bit: the first plane's range in 256 codes, or no shared step.
         TileCodec::Jpeg { .. } | TileCodec::Webp { .. } => match settings.jpeg_range {
             JpegRange::Shared => {
-                let (lo, hi) = all[0].percentiles(1e-4);
+                let (lo, hi) = first.percentiles(1e-4);
                 ((hi - lo) / 255.0).max(f32::MIN_POSITIVE)
             }
             JpegRange::PerPlane => 0.0,
         },
     };
     Ok(names
-        .iter()
-        .zip(&all)
+        .par_iter()
         .enumerate()
-        .map(|(i, (&(channel, index), plane))| {
+        .map(|(i, &(channel, index))| {
+            let own;
+            let plane = if i == 0 {
+                &first
+            } else {
+                own = stats(i);
+                &own
+            };
             let step = if i < function_planes {
                 function_step
             } else {
@@ -1404,7 +1415,9 @@ fn plane_quantizer(plane: &PlaneStats, codec: TileCodec, step: f32, max_levels: 
 #[derive(Clone, Debug)]
 struct PlaneStats {
     range: crate::storage::FiniteRange,
+    /// Empty where the codec needs no quantiles (zstd planes span their range).
     sample: Vec<f32>,
+    sampled: bool,
 }
 
 impl PlaneStats {
@@ -1416,28 +1429,38 @@ impl PlaneStats {
         (pixels / Self::SAMPLE).max(1)
     }
 
-    const EMPTY: PlaneStats = PlaneStats {
-        range: crate::storage::FiniteRange::EMPTY,
-        sample: Vec::new(),
-    };
+    /// No values yet, for a plane coded by `codec`.
+    fn empty(codec: TileCodec) -> PlaneStats {
+        PlaneStats {
+            range: crate::storage::FiniteRange::EMPTY,
+            sample: Vec::new(),
+            sampled: codec.is_image(),
+        }
+    }
 
-    /// The statistics of a whole plane.
-    fn of(plane: &[f32]) -> PlaneStats {
+    /// The statistics of a whole plane coded by `codec`.
+    fn of(plane: &[f32], codec: TileCodec) -> PlaneStats {
+        let sampled = codec.is_image();
         PlaneStats {
             range: crate::storage::FiniteRange::of(plane.iter().copied()),
-            sample: plane
-                .iter()
-                .step_by(Self::stride(plane.len()))
-                .copied()
-                .filter(|v| v.is_finite())
-                .collect(),
+            sample: if sampled {
+                plane
+                    .iter()
+                    .step_by(Self::stride(plane.len()))
+                    .copied()
+                    .filter(|v| v.is_finite())
+                    .collect()
+            } else {
+                Vec::new()
+            },
+            sampled,
         }
     }
 
     /// Pixel `p`'s value `v` of a plane of `pixels`, seen in pixel order.
     fn see(&mut self, p: usize, pixels: usize, v: f32) {
         self.range = self.range.with(v);
-        if p.is_multiple_of(Self::stride(pixels)) && v.is_finite() {
+        if self.sampled && p.is_multiple_of(Self::stride(pixels)) && v.is_finite() {
             self.sample.push(v);
         }
     }
