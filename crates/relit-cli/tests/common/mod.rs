@@ -95,11 +95,5 @@ pub fn relit_ok_with(dir: &Path, args: &[&str], env: &[(&str, &str)]) -> String 
 /// Run the `relit` binary in `dir`, require success, and return its standard output.
 #[allow(dead_code)]
 pub fn relit_ok(dir: &Path, args: &[&str]) -> String {
-    let out = relit(dir, args);
-    assert!(
-        out.status.success(),
-        "relit {args:?} failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
+    relit_ok_with(dir, args, &[])
 }

@@ -13,8 +13,8 @@
 //! band), a tile's projection a thread, and the sections of one tile row.
 
 use super::{
-    albedo_at, encode_floats, plane_entries, projection, projection_groups, stored_basis,
-    undivided, Counts, Header, Layout, PlaneStats, Settings, PCA_PIXELS,
+    albedo_at, chunks_of_planes, encode_floats, plane_entries, projection, projection_groups,
+    stored_basis, undivided, Counts, Header, Layout, PlaneStats, Settings, PCA_PIXELS,
 };
 use crate::maps::{CoefficientMaps, Metadata, RelightableImage};
 use crate::progress::Progress;
@@ -258,17 +258,7 @@ impl Projector<'_> {
         let most = self.counts.iter().copied().max().unwrap_or(0);
         let mut planes: Vec<Vec<f32>> = (0..self.planes()).map(|_| vec![0.0; pixels]).collect();
         // Each chunk of pixels writes its part of every plane.
-        let mut chunks: Vec<Vec<&mut [f32]>> = Vec::new();
-        let mut parts: Vec<_> = planes.iter_mut().map(|p| p.chunks_mut(CHUNK)).collect();
-        for _ in 0..pixels.div_ceil(CHUNK) {
-            chunks.push(
-                parts
-                    .iter_mut()
-                    .map(|it| it.next().expect("same length"))
-                    .collect(),
-            );
-        }
-        chunks
+        chunks_of_planes(&mut planes, CHUNK)
             .into_par_iter()
             .enumerate()
             .for_each(|(chunk, mut outs)| {

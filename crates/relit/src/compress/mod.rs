@@ -806,17 +806,7 @@ fn pack_level(
         .collect();
     const CHUNK: usize = 4096;
     {
-        let mut chunks: Vec<Vec<&mut [f32]>> = Vec::new();
-        let mut iters: Vec<_> = projected.iter_mut().map(|p| p.chunks_mut(CHUNK)).collect();
-        for _ in 0..n.div_ceil(CHUNK) {
-            chunks.push(
-                iters
-                    .iter_mut()
-                    .map(|it| it.next().expect("same length"))
-                    .collect(),
-            );
-        }
-        chunks
+        chunks_of_planes(&mut projected, CHUNK)
             .into_par_iter()
             .enumerate()
             .for_each(|(chunk, mut outs)| {
@@ -1035,6 +1025,21 @@ fn pack_level(
         planes: header.planes.clone(),
     };
     Ok((Packed { header, sections }, fixed))
+}
+
+/// Every `chunk` pixels of `planes` (all of one length), each chunk as its part of every
+/// plane: what threads that each project a chunk of pixels onto every plane write.
+fn chunks_of_planes(planes: &mut [Vec<f32>], chunk: usize) -> Vec<Vec<&mut [f32]>> {
+    let pixels = planes.first().map_or(0, Vec::len);
+    let mut parts: Vec<_> = planes.iter_mut().map(|p| p.chunks_mut(chunk)).collect();
+    (0..pixels.div_ceil(chunk))
+        .map(|_| {
+            parts
+                .iter_mut()
+                .map(|it| it.next().expect("planes of one length"))
+                .collect()
+        })
+        .collect()
 }
 
 /// Coefficient `i` of function channel `f` of `layout` at pixel `p` of `maps`, before
