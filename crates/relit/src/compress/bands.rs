@@ -411,6 +411,11 @@ fn feed(
     };
     while rows.height() > 0 {
         let y0 = level.coded_rows;
+        if y0 >= h {
+            return Err(Error::invalid(format!(
+                "level {l} was given more than its {h} rows"
+            )));
+        }
         let whole = t.min(h - y0);
         if rows.height() < whole {
             level.pending = Some(rows);
