@@ -8,9 +8,10 @@
 //! found from the same pixels, in the same order and arithmetic, as [`super::pack`]
 //! finds it from the whole image, so the file is the same byte for byte.
 //!
-//! Peak memory: about two bands of `tile × width` pixels of `3K` f32 coefficients (the
-//! band read, and the finer levels' pending rows, which together hold less than one
-//! band), a tile's projection a thread, and the sections of one tile row.
+//! Peak memory: two to three bands of `tile × width` pixels of `3K` f32 coefficients
+//! (the band read, what its source decodes it from, and the finer levels' pending rows,
+//! which together hold less than one band), a tile's projection a thread, and the
+//! sections of one tile row.
 
 use super::{
     albedo_at, chunks_of_planes, encode_floats, plane_entries, projection, projection_groups,
