@@ -124,7 +124,7 @@ pub fn pack_in_bands(
     let mut vectors: Vec<f64> = Vec::new();
     progress.begin("finding principal components", bands.len() as u64);
     for rows in &bands {
-        let band = source.band(rows.clone())?;
+        let band = band_of(source, rows.clone())?;
         let first = rows.start * width;
         for p in (first.next_multiple_of(step)..rows.end * width).step_by(step) {
             for &f in channels {
@@ -149,7 +149,7 @@ pub fn pack_in_bands(
     let mut stats = vec![PlaneStats::empty(settings.codec); planes];
     progress.begin("measuring the planes", bands.len() as u64);
     for rows in &bands {
-        let band = source.band(rows.clone())?;
+        let band = band_of(source, rows.clone())?;
         // A few rows' projection at a time: the band is the only large thing held.
         let pixels = band.maps.pixels();
         let span = (STATS_SPAN / width.max(1)).max(1) * width;
@@ -222,7 +222,7 @@ pub fn pack_in_bands(
     };
     progress.begin("coding tiles", bands.len() as u64);
     for rows in &bands {
-        let band = source.band(rows.clone())?;
+        let band = band_of(source, rows.clone())?;
         feed(&mut pyramid, 0, band, &coder, sink)?;
         progress.advance(1);
     }
@@ -236,6 +236,27 @@ pub fn pack_in_bands(
         )));
     }
     Ok(header)
+}
+
+/// Rows `rows` of `source`, checked to be what was asked for (a source that gives
+/// another shape is refused, not indexed out of bounds).
+fn band_of(source: &dyn BandSource, rows: Range<usize>) -> Result<RelightableImage> {
+    let (width, _, k) = source.shape();
+    let band = source.band(rows.clone())?;
+    let maps = &band.maps;
+    let pixels = width * rows.len();
+    if maps.width != width
+        || maps.height != rows.len()
+        || maps.k != k
+        || maps.data.len() != 3 * k * pixels
+        || band.depth.as_ref().is_some_and(|d| d.len() != pixels)
+    {
+        return Err(Error::invalid(format!(
+            "rows {}..{} of the image came back in another shape",
+            rows.start, rows.end
+        )));
+    }
+    Ok(band)
 }
 
 /// Projects a band's coefficients onto the file's planes: each function channel's

@@ -1297,3 +1297,38 @@ fn a_file_packed_band_by_band_is_the_file_packed_whole() {
         assert!(refused.is_err());
     }
 }
+
+/// A band source that gives other rows than it was asked for is refused with an error,
+/// neither indexed out of bounds nor packed.
+#[test]
+fn a_band_source_that_gives_another_shape_is_refused() {
+    struct Short(RelightableImage);
+    impl bands::BandSource for Short {
+        fn meta(&self) -> &Metadata {
+            &self.0.meta
+        }
+        fn shape(&self) -> (usize, usize, usize) {
+            (self.0.width(), self.0.height(), self.0.maps.k)
+        }
+        fn has_depth(&self) -> bool {
+            self.0.depth.is_some()
+        }
+        fn band(&self, rows: std::ops::Range<usize>) -> Result<RelightableImage> {
+            // One row short.
+            bands::BandSource::band(&self.0, rows.start..rows.end - 1)
+        }
+    }
+    let source = Short(image("sh:4", 40, 20));
+    let settings = Settings {
+        tile: 16,
+        ..Settings::default()
+    };
+    let refused = bands::pack_in_bands(
+        &source,
+        &settings,
+        &mut Collected::default(),
+        &crate::progress::Silent,
+    );
+    let message = refused.unwrap_err().to_string();
+    assert!(message.contains("another shape"), "{message}");
+}
