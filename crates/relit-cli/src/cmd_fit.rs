@@ -150,9 +150,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let bars = Bars::new(args.quiet || args.json);
     let form = relit::codec::FileForm::for_output(&args.output);
     // The lossless file is written as the strips are solved (the maps are never held
-    // whole); the other forms need the whole image.
-    // A compressed file whose settings need no whole-image step is packed a band at a
-    // time from the fit's lossless file (f32: the values the fit holds).
+    // whole). A compressed file whose settings need no whole-image step is packed a band
+    // at a time from the fit's lossless file (f32: the values the fit holds); the other
+    // forms need the whole image.
     let compress = relit::compress::Settings {
         directions: Some(capture.directions()),
         ..args.compress.settings_with_mip_tiles(args.mip_tiles)

@@ -357,7 +357,7 @@ pub fn write_in_bands(
 }
 
 /// [`write_in_bands`] of any band source.
-pub fn write_bands_of(
+fn write_bands_of(
     source: &dyn compress::bands::BandSource,
     path: &Path,
     settings: &compress::Settings,
@@ -365,14 +365,15 @@ pub fn write_bands_of(
 ) -> Result<compress::Header> {
     let mut spilled = SpilledSections::new()?;
     let header = compress::bands::pack_in_bands(source, settings, &mut spilled, progress)?;
-    let sections = spilled.index(header.sections())?;
-    let head = compress::container::head(&header, &sections)?;
+    let sections = spilled.in_order(header.sections())?;
+    let lengths: Vec<(u64, u32)> = sections.iter().map(|&(_, len, crc)| (len, crc)).collect();
+    let head = compress::container::head(&header, &lengths)?;
     let mut file = spilled.file;
     write_atomically(path, |out| {
         let failed = |e: std::io::Error| Error::io(path, "write", e);
         out.write_all(&head).map_err(failed)?;
         let mut buffer = Vec::new();
-        for &(at, len) in &spilled.at {
+        for &(at, len, _) in &sections {
             use std::io::Seek;
             buffer.resize(len as usize, 0);
             file.seek(std::io::SeekFrom::Start(at))
@@ -428,8 +429,6 @@ struct SpilledSections {
     written: u64,
     /// By section number: its offset in `file`, length and CRC-32.
     made: Vec<Option<(u64, u64, u32)>>,
-    /// Filled by `index`: each section's offset and length in order.
-    at: Vec<(u64, u64)>,
 }
 
 impl SpilledSections {
@@ -445,20 +444,18 @@ impl SpilledSections {
             file,
             written: 0,
             made: Vec::new(),
-            at: Vec::new(),
         })
     }
 
-    /// Every one of `count` sections' length and CRC-32, in order (each must be made).
-    fn index(&mut self, count: usize) -> Result<Vec<(u64, u32)>> {
+    /// Every one of `count` sections' offset, length and CRC-32, in order (each must
+    /// have been made).
+    fn in_order(&self, count: usize) -> Result<Vec<(u64, u64, u32)>> {
         if self.made.len() != count || self.made.iter().any(Option::is_none) {
             return Err(Error::invalid(
                 "a packed file was left with sections missing",
             ));
         }
-        let made: Vec<(u64, u64, u32)> = self.made.iter().flatten().copied().collect();
-        self.at = made.iter().map(|&(at, len, _)| (at, len)).collect();
-        Ok(made.iter().map(|&(_, len, crc)| (len, crc)).collect())
+        Ok(self.made.iter().flatten().copied().collect())
     }
 }
 

@@ -416,7 +416,12 @@ fn feed(
         };
         if pairs > 0 {
             let used = if h == 1 { pairs } else { 2 * pairs };
-            let halves = crate::maps::halved(&rows_of(&rows, 0..used), (next_w, pairs));
+            // The rows halved, copied out only where some are left over.
+            let halves = if used == rows.height() {
+                crate::maps::halved(&rows, (next_w, pairs))
+            } else {
+                crate::maps::halved(&rows_of(&rows, 0..used), (next_w, pairs))
+            };
             level.halved_rows += pairs;
             finer = Some(halves);
             if level.halved_rows < next_h && used < rows.height() {
