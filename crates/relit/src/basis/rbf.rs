@@ -30,6 +30,8 @@ use super::pca::{self, PcaSpace};
 use super::{Basis, BasisSpec, BuildContext, Domain, Family};
 use crate::sphere::Vec3;
 use crate::{Error, Result};
+use std::collections::VecDeque;
+use std::sync::{Arc, Mutex};
 
 /// The most kernel centres: beyond, interpolation gains nothing a person sees and the
 /// `C × C` solve grows as `C³` (about a second at 1024 on two cores).
@@ -184,6 +186,101 @@ fn kernel(d: Vec3, centre: Vec3, sigma: f64) -> f64 {
     (-(1.0 - d.dot(centre)) / (sigma * sigma)).exp()
 }
 
+/// A [`gradient_gram`] and the number of points it sums over.
+struct KernelGram {
+    /// `c×c`, row-major.
+    matrix: Vec<f64>,
+    /// How many points it sums over.
+    points: usize,
+}
+
+/// The Gaussian kernels' gradient Gram matrix `G` (`c×c`, summed over the penalty's
+/// points on `domain`) for `centres` and `sigma`, remembered for the last few
+/// arguments. The basis choice builds every `rbf` size on each fold's lights, in each
+/// space: the same kernels each time, and this matrix product over 2048 points (with
+/// the page faults of its 2 MiB of gradients) was a quarter of the choice's time on
+/// RealRTI item5. The matrix is a pure function of the arguments, so a remembered one
+/// is the one that would be computed.
+fn gradient_gram(centres: &[Vec3], sigma: f64, domain: Domain) -> Arc<KernelGram> {
+    /// At most this many bytes of matrices are kept (a 1024-centre Gram is 8 MiB).
+    const KEPT_BYTES: usize = 32 << 20;
+    static KEPT: Mutex<VecDeque<KeptGram>> = Mutex::new(VecDeque::new());
+    remembered_gram(&KEPT, KEPT_BYTES, centres, sigma, domain)
+}
+
+/// The arguments of a remembered [`gradient_gram`] and its value.
+type KeptGram = (Vec<Vec3>, u64, Domain, Arc<KernelGram>);
+
+/// [`gradient_gram`] through `kept`, which holds at most `budget` bytes of matrices
+/// (the oldest forgotten first).
+fn remembered_gram(
+    kept: &Mutex<VecDeque<KeptGram>>,
+    budget: usize,
+    centres: &[Vec3],
+    sigma: f64,
+    domain: Domain,
+) -> Arc<KernelGram> {
+    let same = |e: &KeptGram| {
+        e.1 == sigma.to_bits()
+            && e.2 == domain
+            && e.0.len() == centres.len()
+            && e.0.iter().zip(centres).all(|(a, b)| {
+                a.x.to_bits() == b.x.to_bits()
+                    && a.y.to_bits() == b.y.to_bits()
+                    && a.z.to_bits() == b.z.to_bits()
+            })
+    };
+    let find = |list: &VecDeque<KeptGram>| list.iter().find(|e| same(e)).map(|e| e.3.clone());
+    // A poisoned lock only means another thread panicked while holding it; the list is
+    // whole between any two statements.
+    if let Some(g) = find(&kept.lock().unwrap_or_else(|e| e.into_inner())) {
+        return g;
+    }
+    // Computed outside the lock, so that folds on other threads are not held up; two
+    // threads computing the same matrix keep one of the (equal) results.
+    let gram = Arc::new(computed_gram(centres, sigma, domain));
+    let mut list = kept.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some(g) = find(&list) {
+        return g;
+    }
+    list.push_back((centres.to_vec(), sigma.to_bits(), domain, gram.clone()));
+    let bytes = |list: &VecDeque<KeptGram>| {
+        list.iter()
+            .map(|e| e.3.matrix.len() * std::mem::size_of::<f64>())
+            .sum::<usize>()
+    };
+    while bytes(&list) > budget {
+        list.pop_front();
+    }
+    gram
+}
+
+/// [`gradient_gram`] computed.
+fn computed_gram(centres: &[Vec3], sigma: f64, domain: Domain) -> KernelGram {
+    let c = centres.len();
+    let points = super::penalty_points(domain, super::PENALTY_POINTS);
+    let inv_sigma2 = 1.0 / (sigma * sigma);
+    let mut gradients = vec![0.0; 3 * points.len() * c];
+    for (d, rows) in points.iter().zip(gradients.chunks_exact_mut(3 * c)) {
+        for (i, m) in centres.iter().enumerate() {
+            let v = kernel(*d, *m, sigma);
+            if v < 1e-12 {
+                continue;
+            }
+            let t = (*m - *d * d.dot(*m)) * (v * inv_sigma2);
+            rows[i] = t.x;
+            rows[c + i] = t.y;
+            rows[2 * c + i] = t.z;
+        }
+    }
+    let mut matrix = vec![0.0; c * c];
+    crate::linalg::matmul_at(c, 3 * points.len(), c, &gradients, &gradients, &mut matrix);
+    KernelGram {
+        matrix,
+        points: points.len(),
+    }
+}
+
 /// Up to `max` of `dirs` spread over them: all of them when there are few enough,
 /// otherwise farthest-point order from the first (deterministic).
 pub(super) fn spread(dirs: &[Vec3], max: usize) -> Vec<Vec3> {
@@ -336,28 +433,12 @@ impl Basis for Rbf {
         // points' gradient rows), then the functions' as `W·G·Wᵀ`: the functions are
         // fixed combinations of the kernels.
         let (c, k) = (self.centres.len(), self.len());
-        let points = super::penalty_points(self.domain(), super::PENALTY_POINTS);
-        let inv_sigma2 = 1.0 / (self.sigma * self.sigma);
-        let mut gradients = vec![0.0; 3 * points.len() * c];
-        for (d, rows) in points.iter().zip(gradients.chunks_exact_mut(3 * c)) {
-            for (i, m) in self.centres.iter().enumerate() {
-                let v = kernel(*d, *m, self.sigma);
-                if v < 1e-12 {
-                    continue;
-                }
-                let t = (*m - *d * d.dot(*m)) * (v * inv_sigma2);
-                rows[i] = t.x;
-                rows[c + i] = t.y;
-                rows[2 * c + i] = t.z;
-            }
-        }
-        let mut gram = vec![0.0; c * c];
-        crate::linalg::matmul_at(c, 3 * points.len(), c, &gradients, &gradients, &mut gram);
+        let gram = gradient_gram(&self.centres, self.sigma, self.domain());
         let mut half = vec![0.0; k * c];
-        crate::linalg::matmul(k, c, c, &self.weights, &gram, &mut half);
+        crate::linalg::matmul(k, c, c, &self.weights, &gram.matrix, &mut half);
         let mut p = vec![0.0; k * k];
         crate::linalg::matmul_bt(k, c, k, &half, &self.weights, &mut p);
-        let count = points.len() as f64;
+        let count = gram.points as f64;
         for a in 0..k {
             for b in a..k {
                 let v = p[a * k + b] / count;
@@ -450,6 +531,43 @@ mod tests {
                     "{a} against {b} (scale {scale})"
                 );
             }
+        }
+    }
+
+    #[test]
+    fn a_remembered_gradient_gram_is_the_computed_one_for_its_own_arguments() {
+        let a = crate::sphere::hemisphere_fibonacci(40);
+        let b = crate::sphere::hemisphere_fibonacci(41);
+        let mut c = a.clone();
+        c[7].x = f64::from_bits(c[7].x.to_bits() + 1); // one bit away from `a`
+        let args = [
+            (&a, 0.3, Domain::UpperHemisphere),
+            (&b, 0.3, Domain::UpperHemisphere),
+            (&a, 0.3 + 1e-12, Domain::UpperHemisphere),
+            (&c, 0.3, Domain::UpperHemisphere),
+            (&a, 0.3, Domain::Sphere),
+        ];
+        let computed: Vec<KernelGram> = args
+            .iter()
+            .map(|(dirs, sigma, domain)| computed_gram(dirs, *sigma, *domain))
+            .collect();
+        for i in 0..args.len() {
+            for j in 0..i {
+                assert_ne!(computed[i].matrix, computed[j].matrix, "{i} and {j}");
+            }
+        }
+        // Room for two of the five: asked in an order that both finds remembered
+        // ones and forgets the oldest.
+        let kept = Mutex::new(VecDeque::new());
+        let budget = 2 * computed[0].matrix.len().max(computed[1].matrix.len()) * 8;
+        for &i in &[0, 1, 0, 2, 3, 1, 4, 4, 0, 2, 2, 3] {
+            let (dirs, sigma, domain) = args[i];
+            let got = remembered_gram(&kept, budget, dirs, sigma, domain);
+            assert_eq!(got.matrix, computed[i].matrix, "arguments {i}");
+            assert_eq!(got.points, computed[i].points);
+            let list = kept.lock().unwrap();
+            assert!(list.len() <= 2, "{} kept", list.len());
+            assert!(list.iter().any(|e| Arc::ptr_eq(&e.3, &got)));
         }
     }
 
