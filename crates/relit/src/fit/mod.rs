@@ -1519,7 +1519,7 @@ fn fit_into(
         }
         if let Some(acc) = accum.as_mut() {
             let bands: Vec<&[f32]> = images.iter().map(|(img, _)| img.as_slice()).collect();
-            accumulate(acc, &design, &indices, &bands);
+            accumulate(acc, &design, &indices, &bands, first == 0);
         }
     }
     if !read_already {
@@ -1566,7 +1566,7 @@ fn fit_into(
             reader.read(piece, &mut buffer)?;
             let images: Vec<&[f32]> = buffer.chunks_exact(3 * piece.pixels()).collect();
             let mut maps = CoefficientMaps::zeros(piece.width, piece.height, design.k);
-            accumulate(&mut maps, &design, &indices, &images);
+            accumulate(&mut maps, &design, &indices, &images, true);
             solve_shared(&mut maps, &design, lambda)?;
             sub_coefs.record(&maps, piece, &sub_idx, band.start, w);
             stream.piece(piece, maps)?;
@@ -1785,7 +1785,19 @@ fn plane_blocks(data: &mut [f32], npix: usize) -> Vec<Vec<&mut [f32]>> {
 /// planar layout (plane `3i + c`) so that the solve turns them into the maps in place:
 /// the linear fit holds one image-sized set of planes, not sums and maps. Each sum
 /// adds the images in batch order, as a pixel-major loop would.
-fn accumulate(acc: &mut CoefficientMaps, design: &Design, indices: &[usize], images: &[&[f32]]) {
+///
+/// `fresh`: `acc` holds zeros that nothing has written yet (freshly allocated maps):
+/// the sums start from zero instead of reading them, so each page of the maps is
+/// first touched by a write. A read first maps the kernel's shared zero page and the
+/// write then copies it and flushes every core's TLB; on RealRTI item3 those faults
+/// were a tenth of the fit's processor time.
+fn accumulate(
+    acc: &mut CoefficientMaps,
+    design: &Design,
+    indices: &[usize],
+    images: &[&[f32]],
+    fresh: bool,
+) {
     let npix = acc.pixels();
     // Each image's weights, padded with zeros to whole groups of `SUM_ROWS`.
     let stride = summed_rows(design.k);
@@ -1799,8 +1811,9 @@ fn accumulate(acc: &mut CoefficientMaps, design: &Design, indices: &[usize], ima
         .into_par_iter()
         .enumerate()
         .for_each(|(block, mut planes)| {
-            SUM_SCRATCH
-                .with_borrow_mut(|channels| add_block(channels, &mut planes, block, images, &rows))
+            SUM_SCRATCH.with_borrow_mut(|channels| {
+                add_block(channels, &mut planes, block, images, &rows, fresh)
+            })
         });
 }
 
@@ -1824,6 +1837,7 @@ fn add_block(
     block: usize,
     images: &[&[f32]],
     rows: &[f32],
+    fresh: bool,
 ) {
     let k = planes.len() / 3;
     let stride = summed_rows(k);
@@ -1856,6 +1870,7 @@ fn add_block(
                 first,
                 channels: &channels[c * len..],
                 len,
+                fresh,
             };
             add_weighted(&mut runs, &weighted);
         }
@@ -1876,6 +1891,8 @@ struct WeightedChannel<'a> {
     first: usize,
     channels: &'a [f32],
     len: usize,
+    /// The runs hold zeros not yet written: start from zero without reading them.
+    fresh: bool,
 }
 
 /// `runs[g][p] += Σ_t rows[t·stride + first + g] · channel_t[p]` over the images `t` in
@@ -1905,14 +1922,17 @@ fn add_weighted_body(runs: &mut [&mut [f32]], w: &WeightedChannel) {
         first,
         channels,
         len,
+        fresh,
     } = *w;
     let images = rows.len() / stride;
     let lanes = |slice: &[f32]| -> [f32; LANES] { slice[..LANES].try_into().expect("8 lanes") };
     let whole = len / LANES * LANES;
     for p in (0..whole).step_by(LANES) {
         let mut sums = [[0f32; LANES]; SUM_ROWS];
-        for (sum, run) in sums.iter_mut().zip(runs.iter()) {
-            *sum = lanes(&run[p..]);
+        if !fresh {
+            for (sum, run) in sums.iter_mut().zip(runs.iter()) {
+                *sum = lanes(&run[p..]);
+            }
         }
         for t in 0..images {
             let v = lanes(&channels[3 * len * t + p..]);
@@ -1930,7 +1950,7 @@ fn add_weighted_body(runs: &mut [&mut [f32]], w: &WeightedChannel) {
     // The last few pixels, one at a time.
     for p in whole..len {
         for (g, run) in runs.iter_mut().enumerate() {
-            let mut s = run[p];
+            let mut s = if fresh { 0.0 } else { run[p] };
             for t in 0..images {
                 s += rows[t * stride + first + g] * channels[3 * len * t + p];
             }
