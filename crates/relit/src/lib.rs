@@ -51,6 +51,7 @@ pub mod image;
 pub mod light;
 mod linalg;
 pub mod maps;
+mod memo;
 pub mod memory;
 pub mod metrics;
 pub mod normals;

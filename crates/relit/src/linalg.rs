@@ -560,10 +560,15 @@ fn tridiagonal_ql(z: &mut [f64], n: usize, d: &mut [f64], e: &mut [f64]) -> bool
     true
 }
 
+/// Up to this many values a row, [`principal_directions`] finds them all by a symmetric
+/// eigendecomposition (and its first `k` do not depend on `k`); above, the first `k`
+/// by subspace iteration.
+pub const EXACT_PCA_LIGHTS: usize = 400;
+
 /// The `k` leading principal directions (uncentred: of the second-moment matrix) of
 /// `rows` row vectors of length `n` (row-major `x`), vector `i` at `[i·n..(i+1)·n]`.
-/// Exact (Gram matrix and [`symmetric_eigen`]) up to n = 400; beyond, randomised
-/// subspace iteration with Rayleigh–Ritz, which costs `O(rows·n·k)` per step.
+/// Exact (Gram matrix and [`symmetric_eigen`]) up to n = [`EXACT_PCA_LIGHTS`]; beyond,
+/// randomised subspace iteration with Rayleigh–Ritz, which costs `O(rows·n·k)` per step.
 pub fn principal_directions(x: &[f64], rows: usize, n: usize, k: usize) -> Vec<f64> {
     use rayon::prelude::*;
     assert_eq!(x.len(), rows * n, "rows of n values");
@@ -599,7 +604,7 @@ pub fn principal_directions(x: &[f64], rows: usize, n: usize, k: usize) -> Vec<f
             .iter()
             .fold(vec![0.0; n * cols], |a, b| add(a, b))
     };
-    if n <= 400 {
+    if n <= EXACT_PCA_LIGHTS {
         let mut identity = vec![0.0; n * n];
         (0..n).for_each(|i| identity[i * n + i] = 1.0);
         let gram = gram_times(&identity, n); // symmetric: column-major = row-major

@@ -28,10 +28,10 @@
 
 use super::pca::{self, PcaSpace};
 use super::{Basis, BasisSpec, BuildContext, Domain, Family};
+use crate::memo::Memo;
 use crate::sphere::Vec3;
 use crate::{Error, Result};
-use std::collections::VecDeque;
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 /// The most kernel centres: beyond, interpolation gains nothing a person sees and the
 /// `C × C` solve grows as `C³` (about a second at 1024 on two cores).
@@ -196,63 +196,38 @@ struct KernelGram {
 
 /// The Gaussian kernels' gradient Gram matrix `G` (`c×c`, summed over the penalty's
 /// points on `domain`) for `centres` and `sigma`, remembered for the last few
-/// arguments. The basis choice builds every `rbf` size on each fold's lights, in each
-/// space: the same kernels each time, and this matrix product over 2048 points (with
-/// the page faults of its 2 MiB of gradients) was a quarter of the choice's time on
-/// RealRTI item5. The matrix is a pure function of the arguments, so a remembered one
-/// is the one that would be computed.
+/// arguments ([`crate::memo`]): the basis choice builds every `rbf` size on each fold's
+/// lights, in each space, the same kernels each time, and this matrix product over 2048
+/// points (with the page faults of its 2 MiB of gradients) was a quarter of the
+/// choice's time on RealRTI item5.
 fn gradient_gram(centres: &[Vec3], sigma: f64, domain: Domain) -> Arc<KernelGram> {
     /// At most this many bytes of matrices are kept (a 1024-centre Gram is 8 MiB).
-    const KEPT_BYTES: usize = 32 << 20;
-    static KEPT: Mutex<VecDeque<KeptGram>> = Mutex::new(VecDeque::new());
-    remembered_gram(&KEPT, KEPT_BYTES, centres, sigma, domain)
+    static KEPT: Memo<GramArguments, KernelGram> = Memo::new(32 << 20);
+    remembered_gram(&KEPT, centres, sigma, domain)
 }
 
-/// The arguments of a remembered [`gradient_gram`] and its value.
-type KeptGram = (Vec<Vec3>, u64, Domain, Arc<KernelGram>);
+/// The arguments of a [`gradient_gram`]: centres, `σ`'s bits, domain.
+type GramArguments = (Vec<Vec3>, u64, Domain);
 
-/// [`gradient_gram`] through `kept`, which holds at most `budget` bytes of matrices
-/// (the oldest forgotten first).
+/// [`gradient_gram`] through `kept`.
 fn remembered_gram(
-    kept: &Mutex<VecDeque<KeptGram>>,
-    budget: usize,
+    kept: &Memo<GramArguments, KernelGram>,
     centres: &[Vec3],
     sigma: f64,
     domain: Domain,
 ) -> Arc<KernelGram> {
-    let same = |e: &KeptGram| {
-        e.1 == sigma.to_bits()
-            && e.2 == domain
-            && e.0.len() == centres.len()
-            && e.0.iter().zip(centres).all(|(a, b)| {
-                a.x.to_bits() == b.x.to_bits()
-                    && a.y.to_bits() == b.y.to_bits()
-                    && a.z.to_bits() == b.z.to_bits()
-            })
-    };
-    let find = |list: &VecDeque<KeptGram>| list.iter().find(|e| same(e)).map(|e| e.3.clone());
-    // A poisoned lock only means another thread panicked while holding it; the list is
-    // whole between any two statements.
-    if let Some(g) = find(&kept.lock().unwrap_or_else(|e| e.into_inner())) {
-        return g;
-    }
-    // Computed outside the lock, so that folds on other threads are not held up; two
-    // threads computing the same matrix keep one of the (equal) results.
-    let gram = Arc::new(computed_gram(centres, sigma, domain));
-    let mut list = kept.lock().unwrap_or_else(|e| e.into_inner());
-    if let Some(g) = find(&list) {
-        return g;
-    }
-    list.push_back((centres.to_vec(), sigma.to_bits(), domain, gram.clone()));
-    let bytes = |list: &VecDeque<KeptGram>| {
-        list.iter()
-            .map(|e| e.3.matrix.len() * std::mem::size_of::<f64>())
-            .sum::<usize>()
-    };
-    while bytes(&list) > budget {
-        list.pop_front();
-    }
-    gram
+    let bits = |v: &Vec3| [v.x.to_bits(), v.y.to_bits(), v.z.to_bits()];
+    kept.get_or(
+        |(c, s, d)| {
+            *s == sigma.to_bits()
+                && *d == domain
+                && c.len() == centres.len()
+                && c.iter().zip(centres).all(|(a, b)| bits(a) == bits(b))
+        },
+        || (centres.to_vec(), sigma.to_bits(), domain),
+        || computed_gram(centres, sigma, domain),
+        |g| g.matrix.len() * std::mem::size_of::<f64>(),
+    )
 }
 
 /// [`gradient_gram`] computed.
@@ -558,16 +533,13 @@ mod tests {
         }
         // Room for two of the five: asked in an order that both finds remembered
         // ones and forgets the oldest.
-        let kept = Mutex::new(VecDeque::new());
-        let budget = 2 * computed[0].matrix.len().max(computed[1].matrix.len()) * 8;
+        let kept = Memo::new(2 * computed[0].matrix.len().max(computed[1].matrix.len()) * 8);
         for &i in &[0, 1, 0, 2, 3, 1, 4, 4, 0, 2, 2, 3] {
             let (dirs, sigma, domain) = args[i];
-            let got = remembered_gram(&kept, budget, dirs, sigma, domain);
+            let got = remembered_gram(&kept, dirs, sigma, domain);
             assert_eq!(got.matrix, computed[i].matrix, "arguments {i}");
             assert_eq!(got.points, computed[i].points);
-            let list = kept.lock().unwrap();
-            assert!(list.len() <= 2, "{} kept", list.len());
-            assert!(list.iter().any(|e| Arc::ptr_eq(&e.3, &got)));
+            assert!((1..=2).contains(&kept.len()), "{} kept", kept.len());
         }
     }
 
