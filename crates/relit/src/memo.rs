@@ -11,7 +11,10 @@ use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
 
 /// The last values of a function, with their arguments `K`, up to a byte budget
-/// (the oldest forgotten first).
+/// (the oldest forgotten first). A value of more than a quarter of the budget is
+/// returned and not kept: a memory is for the small values asked for again and again
+/// (a fit's final basis, built once from its whole pixel subsample, would only raise
+/// the fit's peak memory).
 pub(crate) struct Memo<K, V> {
     kept: Mutex<VecDeque<(K, Arc<V>, usize)>>,
     budget: usize,
@@ -45,6 +48,9 @@ impl<K, V> Memo<K, V> {
         }
         let value = Arc::new(compute());
         let size = bytes(&value);
+        if size > self.budget / 4 {
+            return value;
+        }
         let mut list = self.lock();
         if let Some(v) = find(&list) {
             return v;
@@ -54,6 +60,11 @@ impl<K, V> Memo<K, V> {
             list.pop_front();
         }
         value
+    }
+
+    /// Forget every value.
+    pub(crate) fn clear(&self) {
+        self.lock().clear();
     }
 
     /// How many values are remembered.
@@ -81,7 +92,7 @@ mod tests {
 
     #[test]
     fn remembers_within_its_budget_and_forgets_the_oldest_first() {
-        let memo: Memo<u32, Vec<u8>> = Memo::new(20);
+        let memo: Memo<u32, Vec<u8>> = Memo::new(32);
         let calls = std::cell::Cell::new(0);
         let get = |k: u32| {
             memo.get_or(
@@ -98,16 +109,20 @@ mod tests {
         assert_eq!(*get(2), vec![2; 8]);
         assert_eq!(*get(1), vec![1; 8]);
         assert_eq!(calls.get(), 2, "1 was remembered");
-        assert_eq!(*get(3), vec![3; 8]); // 24 bytes: 1 is forgotten
-        assert_eq!(memo.len(), 2);
+        assert_eq!(*get(3), vec![3; 8]);
+        assert_eq!(*get(4), vec![4; 8]);
+        assert_eq!(memo.len(), 4);
+        assert_eq!(*get(5), vec![5; 8]); // 40 bytes: 1 is forgotten
+        assert_eq!(memo.len(), 4);
         assert_eq!(*get(2), vec![2; 8]);
-        assert_eq!(calls.get(), 3);
+        assert_eq!(calls.get(), 5);
         assert_eq!(*get(1), vec![1; 8]);
-        assert_eq!(calls.get(), 4, "1 was forgotten");
-        // A value larger than the budget is returned and not kept.
-        let big = memo.get_or(|&x| x == 9, || 9, || vec![9; 64], |v| v.len());
-        assert_eq!(big.len(), 64);
-        assert_eq!(memo.len(), 0);
+        assert_eq!(calls.get(), 6, "1 was forgotten");
+        // A value of more than a quarter of the budget is returned and not kept.
+        let big = memo.get_or(|&x| x == 9, || 9, || vec![9; 9], |v| v.len());
+        assert_eq!(*big, vec![9; 9]);
+        assert_eq!(memo.len(), 4);
+        assert!(memo.get_or(|&x| x == 9, || 9, || vec![7; 9], |v| v.len())[0] == 7);
     }
 
     #[test]

@@ -42,6 +42,15 @@ pub(crate) mod table;
 mod window;
 
 pub use bilinear::{grid_basis, GridMap};
+
+/// Forget what building bases remembers to build the next ones faster (the RBF
+/// kernels' gradient Gram matrices, the samples' principal directions): a fit's basis
+/// choice, which builds every size of every family on each fold, calls it when done,
+/// so that what it remembered does not stay in the fit's memory.
+pub fn forget_remembered() {
+    pca::forget();
+    rbf::forget();
+}
 pub use hsh::HemisphericalHarmonics;
 pub use projected::Projected;
 pub use ptm::PolynomialTextureMap;

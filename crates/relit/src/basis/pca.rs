@@ -57,8 +57,7 @@ pub(super) fn principal_directions(
     // (`crate::memo`; on RealRTI item3 the decompositions were a seventh of the fit's
     // processor time).
     if n <= crate::linalg::EXACT_PCA_LIGHTS {
-        static KEPT: Memo<(PcaSpace, usize, Vec<f32>), Vec<f64>> = Memo::new(16 << 20);
-        let all = KEPT.get_or(
+        let all = DIRECTIONS.get_or(
             |(s, m, v)| *s == space && *m == n && crate::memo::same_bits_f32(v, samples.values),
             || (space, n, samples.values.to_vec()),
             || crate::linalg::principal_directions(&in_space(samples, space), rows, n, n),
@@ -72,6 +71,15 @@ pub(super) fn principal_directions(
         n,
         k,
     ))
+}
+
+/// The remembered principal directions, with the samples they were found in: at most
+/// 16 MiB.
+static DIRECTIONS: Memo<(PcaSpace, usize, Vec<f32>), Vec<f64>> = Memo::new(16 << 20);
+
+/// Forget the remembered principal directions.
+pub(super) fn forget() {
+    DIRECTIONS.clear();
 }
 
 /// The samples' values in `space`, as doubles.

@@ -201,9 +201,15 @@ struct KernelGram {
 /// points (with the page faults of its 2 MiB of gradients) was a quarter of the
 /// choice's time on RealRTI item5.
 fn gradient_gram(centres: &[Vec3], sigma: f64, domain: Domain) -> Arc<KernelGram> {
-    /// At most this many bytes of matrices are kept (a 1024-centre Gram is 8 MiB).
-    static KEPT: Memo<GramArguments, KernelGram> = Memo::new(32 << 20);
-    remembered_gram(&KEPT, centres, sigma, domain)
+    remembered_gram(&GRAMS, centres, sigma, domain)
+}
+
+/// The remembered [`gradient_gram`]s: at most 32 MiB (a 1024-centre Gram is 8 MiB).
+static GRAMS: Memo<GramArguments, KernelGram> = Memo::new(32 << 20);
+
+/// Forget the remembered [`gradient_gram`]s.
+pub(super) fn forget() {
+    GRAMS.clear();
 }
 
 /// The arguments of a [`gradient_gram`]: centres, `σ`'s bits, domain.

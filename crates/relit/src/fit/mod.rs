@@ -774,6 +774,15 @@ fn choose_basis(
         v
     };
     let picked = whole.thinned(keep);
+    // What building the candidates remembers is forgotten when the choice ends, however
+    // it ends.
+    struct Forget;
+    impl Drop for Forget {
+        fn drop(&mut self) {
+            crate::basis::forget_remembered();
+        }
+    }
+    let _forget = Forget;
     let views: Vec<(MapSpace, Vec<f32>, Vec<f32>)> = spaces
         .iter()
         .map(|&space| {
