@@ -55,8 +55,11 @@ pub fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
     backward_solve(l, n, b);
 }
 
-/// Systems solved together by [`cholesky_lanes`] and [`cholesky_solve_lanes`].
-pub const LANES: usize = 4;
+/// Systems solved together by [`cholesky_lanes`] and [`cholesky_solve_lanes`]: one
+/// AVX-512 register of doubles, two AVX2 ones. Eight rather than four took 5–17 % off
+/// the default fit's processor time on the shared RTI items where AVX-512 runs them
+/// (2026-12-06); with AVX2 alone, eight had measured within 3 % of four.
+pub const LANES: usize = 8;
 
 /// One value per lane.
 pub type Lanes = [f64; LANES];
@@ -69,6 +72,11 @@ pub type Lanes = [f64; LANES];
 /// and a meaningless factor; the other lanes are unaffected.
 pub fn cholesky_lanes(a: &mut [Lanes], n: usize) -> [bool; LANES] {
     #[cfg(target_arch = "x86_64")]
+    if is_x86_feature_detected!("avx512f") {
+        // SAFETY: AVX-512F is present.
+        return unsafe { cholesky_lanes_avx512(a, n) };
+    }
+    #[cfg(target_arch = "x86_64")]
     if is_x86_feature_detected!("avx2") {
         // SAFETY: AVX2 is present.
         return unsafe { cholesky_lanes_avx2(a, n) };
@@ -76,10 +84,17 @@ pub fn cholesky_lanes(a: &mut [Lanes], n: usize) -> [bool; LANES] {
     cholesky_lanes_body(a, n)
 }
 
-/// [`cholesky_lanes`] compiled for AVX2: a lane group is one register, not two.
+/// [`cholesky_lanes`] compiled for AVX2: a lane group is two registers.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 unsafe fn cholesky_lanes_avx2(a: &mut [Lanes], n: usize) -> [bool; LANES] {
+    cholesky_lanes_body(a, n)
+}
+
+/// [`cholesky_lanes`] compiled for AVX-512: a lane group is one register.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn cholesky_lanes_avx512(a: &mut [Lanes], n: usize) -> [bool; LANES] {
     cholesky_lanes_body(a, n)
 }
 
@@ -151,6 +166,11 @@ fn cholesky_lanes_body(a: &mut [Lanes], n: usize) -> [bool; LANES] {
 /// right-hand sides `b[i][l]`, in place; bit for bit the scalar solves.
 pub fn cholesky_solve_lanes(f: &[Lanes], n: usize, b: &mut [Lanes]) {
     #[cfg(target_arch = "x86_64")]
+    if is_x86_feature_detected!("avx512f") {
+        // SAFETY: AVX-512F is present.
+        return unsafe { cholesky_solve_lanes_avx512(f, n, b) };
+    }
+    #[cfg(target_arch = "x86_64")]
     if is_x86_feature_detected!("avx2") {
         // SAFETY: AVX2 is present.
         return unsafe { cholesky_solve_lanes_avx2(f, n, b) };
@@ -162,6 +182,13 @@ pub fn cholesky_solve_lanes(f: &[Lanes], n: usize, b: &mut [Lanes]) {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 unsafe fn cholesky_solve_lanes_avx2(f: &[Lanes], n: usize, b: &mut [Lanes]) {
+    cholesky_solve_lanes_body(f, n, b)
+}
+
+/// [`cholesky_solve_lanes`] compiled for AVX-512.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn cholesky_solve_lanes_avx512(f: &[Lanes], n: usize, b: &mut [Lanes]) {
     cholesky_solve_lanes_body(f, n, b)
 }
 
@@ -186,6 +213,11 @@ pub fn cholesky_solve_lanes_pair(
     bb: &mut [Lanes],
 ) {
     #[cfg(target_arch = "x86_64")]
+    if is_x86_feature_detected!("avx512f") {
+        // SAFETY: AVX-512F is present.
+        return unsafe { cholesky_solve_lanes_pair_avx512(fa, fb, n, ba, bb) };
+    }
+    #[cfg(target_arch = "x86_64")]
     if is_x86_feature_detected!("avx2") {
         // SAFETY: AVX2 is present.
         return unsafe { cholesky_solve_lanes_pair_avx2(fa, fb, n, ba, bb) };
@@ -197,6 +229,19 @@ pub fn cholesky_solve_lanes_pair(
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 unsafe fn cholesky_solve_lanes_pair_avx2(
+    fa: &[Lanes],
+    fb: &[Lanes],
+    n: usize,
+    ba: &mut [Lanes],
+    bb: &mut [Lanes],
+) {
+    cholesky_solve_lanes_pair_body(fa, fb, n, ba, bb)
+}
+
+/// [`cholesky_solve_lanes_pair`] compiled for AVX-512.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn cholesky_solve_lanes_pair_avx512(
     fa: &[Lanes],
     fb: &[Lanes],
     n: usize,
@@ -851,10 +896,22 @@ mod tests {
                 r[l] = i as f64 - 2.5 + l as f64;
             }
         }
-        // The plain build and the dispatched one (AVX2 where present) agree too.
+        // The plain build and the dispatched one (AVX-512 or AVX2 where present) agree
+        // too, and so does the AVX2 build where the dispatch picks AVX-512.
         let (mut plain, mut plain_rhs) = (packed.clone(), rhs.clone());
         let plain_ok = cholesky_lanes_body(&mut plain, n);
         cholesky_solve_lanes_body(&plain, n, &mut plain_rhs);
+        #[cfg(target_arch = "x86_64")]
+        if is_x86_feature_detected!("avx2") {
+            let (mut f, mut b) = (packed.clone(), rhs.clone());
+            // SAFETY: AVX2 is present.
+            let ok = unsafe { cholesky_lanes_avx2(&mut f, n) };
+            unsafe { cholesky_solve_lanes_avx2(&f, n, &mut b) };
+            assert_eq!(ok, plain_ok);
+            for (p, q) in plain.iter().zip(&f).chain(plain_rhs.iter().zip(&b)) {
+                assert_eq!(p.map(f64::to_bits), q.map(f64::to_bits));
+            }
+        }
         let ok = cholesky_lanes(&mut packed, n);
         let (mut first, mut second) = (
             rhs.clone(),
