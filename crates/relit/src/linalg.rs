@@ -55,6 +55,46 @@ pub fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
     backward_solve(l, n, b);
 }
 
+/// `pub fn NAME(args) -> R = BODY, AVX512, AVX2;` defines `NAME`, which runs the
+/// `#[inline(always)]` function `BODY` compiled for AVX-512F where the CPU has it
+/// (a lane group in one register), else for AVX2 (two), else as built, and the two
+/// compiled copies `AVX512` and `AVX2` (which the tests also call directly). Every copy
+/// runs the same operations in the same order: the results are the same bits.
+macro_rules! dispatched {
+    (
+        $(#[$doc:meta])*
+        pub fn $name:ident($($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)?
+            = $body:ident, $avx512:ident, $avx2:ident $(,)?;
+    ) => {
+        $(#[$doc])*
+        pub fn $name($($arg: $ty),*) $(-> $ret)? {
+            #[cfg(target_arch = "x86_64")]
+            if is_x86_feature_detected!("avx512f") {
+                // SAFETY: AVX-512F is present.
+                return unsafe { $avx512($($arg),*) };
+            }
+            #[cfg(target_arch = "x86_64")]
+            if is_x86_feature_detected!("avx2") {
+                // SAFETY: AVX2 is present.
+                return unsafe { $avx2($($arg),*) };
+            }
+            $body($($arg),*)
+        }
+
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = "avx512f")]
+        unsafe fn $avx512($($arg: $ty),*) $(-> $ret)? {
+            $body($($arg),*)
+        }
+
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = "avx2")]
+        unsafe fn $avx2($($arg: $ty),*) $(-> $ret)? {
+            $body($($arg),*)
+        }
+    };
+}
+
 /// Systems solved together by [`cholesky_lanes`] and [`cholesky_solve_lanes`]: one
 /// AVX-512 register of doubles, two AVX2 ones. Eight rather than four took 5–17 % off
 /// the default fit's processor time on the shared RTI items where AVX-512 runs them
@@ -64,38 +104,15 @@ pub const LANES: usize = 8;
 /// One value per lane.
 pub type Lanes = [f64; LANES];
 
-/// [`cholesky`] of [`LANES`] matrices at once, interleaved: entry `(r, c)` of matrix `l`
-/// at `a[r·n + c][l]`. Each lane runs exactly the scalar routine's operations in the
-/// same order, so its factor is the scalar factor bit for bit; the lanes are
-/// independent chains that the processor overlaps (the scalar routine waits on each
-/// subtraction in turn). A lane whose matrix is not positive definite gets `false`
-/// and a meaningless factor; the other lanes are unaffected.
-pub fn cholesky_lanes(a: &mut [Lanes], n: usize) -> [bool; LANES] {
-    #[cfg(target_arch = "x86_64")]
-    if is_x86_feature_detected!("avx512f") {
-        // SAFETY: AVX-512F is present.
-        return unsafe { cholesky_lanes_avx512(a, n) };
-    }
-    #[cfg(target_arch = "x86_64")]
-    if is_x86_feature_detected!("avx2") {
-        // SAFETY: AVX2 is present.
-        return unsafe { cholesky_lanes_avx2(a, n) };
-    }
-    cholesky_lanes_body(a, n)
-}
-
-/// [`cholesky_lanes`] compiled for AVX2: a lane group is two registers.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn cholesky_lanes_avx2(a: &mut [Lanes], n: usize) -> [bool; LANES] {
-    cholesky_lanes_body(a, n)
-}
-
-/// [`cholesky_lanes`] compiled for AVX-512: a lane group is one register.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-unsafe fn cholesky_lanes_avx512(a: &mut [Lanes], n: usize) -> [bool; LANES] {
-    cholesky_lanes_body(a, n)
+dispatched! {
+    /// [`cholesky`] of [`LANES`] matrices at once, interleaved: entry `(r, c)` of matrix `l`
+    /// at `a[r·n + c][l]`. Each lane runs exactly the scalar routine's operations in the
+    /// same order, so its factor is the scalar factor bit for bit; the lanes are
+    /// independent chains that the processor overlaps (the scalar routine waits on each
+    /// subtraction in turn). A lane whose matrix is not positive definite gets `false`
+    /// and a meaningless factor; the other lanes are unaffected.
+    pub fn cholesky_lanes(a: &mut [Lanes], n: usize) -> [bool; LANES]
+        = cholesky_lanes_body, cholesky_lanes_avx512, cholesky_lanes_avx2;
 }
 
 /// Rows below the diagonal that [`cholesky_lanes_body`] updates together.
@@ -162,34 +179,11 @@ fn cholesky_lanes_body(a: &mut [Lanes], n: usize) -> [bool; LANES] {
     ok
 }
 
-/// [`cholesky_solve`] for the [`LANES`] interleaved factors of [`cholesky_lanes`] and
-/// right-hand sides `b[i][l]`, in place; bit for bit the scalar solves.
-pub fn cholesky_solve_lanes(f: &[Lanes], n: usize, b: &mut [Lanes]) {
-    #[cfg(target_arch = "x86_64")]
-    if is_x86_feature_detected!("avx512f") {
-        // SAFETY: AVX-512F is present.
-        return unsafe { cholesky_solve_lanes_avx512(f, n, b) };
-    }
-    #[cfg(target_arch = "x86_64")]
-    if is_x86_feature_detected!("avx2") {
-        // SAFETY: AVX2 is present.
-        return unsafe { cholesky_solve_lanes_avx2(f, n, b) };
-    }
-    cholesky_solve_lanes_body(f, n, b)
-}
-
-/// [`cholesky_solve_lanes`] compiled for AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn cholesky_solve_lanes_avx2(f: &[Lanes], n: usize, b: &mut [Lanes]) {
-    cholesky_solve_lanes_body(f, n, b)
-}
-
-/// [`cholesky_solve_lanes`] compiled for AVX-512.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-unsafe fn cholesky_solve_lanes_avx512(f: &[Lanes], n: usize, b: &mut [Lanes]) {
-    cholesky_solve_lanes_body(f, n, b)
+dispatched! {
+    /// [`cholesky_solve`] for the [`LANES`] interleaved factors of [`cholesky_lanes`] and
+    /// right-hand sides `b[i][l]`, in place; bit for bit the scalar solves.
+    pub fn cholesky_solve_lanes(f: &[Lanes], n: usize, b: &mut [Lanes])
+        = cholesky_solve_lanes_body, cholesky_solve_lanes_avx512, cholesky_solve_lanes_avx2;
 }
 
 #[inline(always)]
@@ -202,53 +196,19 @@ fn cholesky_solve_lanes_body(f: &[Lanes], n: usize, b: &mut [Lanes]) {
     }
 }
 
-/// [`cholesky_solve_lanes`] of two systems side by side, `(fa, ba)` and `(fb, bb)` (the
-/// factors may be the same), each bit for bit its own solve: a substitution waits on
-/// every subtraction in turn, and two independent ones fill each other's waits.
-pub fn cholesky_solve_lanes_pair(
-    fa: &[Lanes],
-    fb: &[Lanes],
-    n: usize,
-    ba: &mut [Lanes],
-    bb: &mut [Lanes],
-) {
-    #[cfg(target_arch = "x86_64")]
-    if is_x86_feature_detected!("avx512f") {
-        // SAFETY: AVX-512F is present.
-        return unsafe { cholesky_solve_lanes_pair_avx512(fa, fb, n, ba, bb) };
-    }
-    #[cfg(target_arch = "x86_64")]
-    if is_x86_feature_detected!("avx2") {
-        // SAFETY: AVX2 is present.
-        return unsafe { cholesky_solve_lanes_pair_avx2(fa, fb, n, ba, bb) };
-    }
-    cholesky_solve_lanes_pair_body(fa, fb, n, ba, bb)
-}
-
-/// [`cholesky_solve_lanes_pair`] compiled for AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn cholesky_solve_lanes_pair_avx2(
-    fa: &[Lanes],
-    fb: &[Lanes],
-    n: usize,
-    ba: &mut [Lanes],
-    bb: &mut [Lanes],
-) {
-    cholesky_solve_lanes_pair_body(fa, fb, n, ba, bb)
-}
-
-/// [`cholesky_solve_lanes_pair`] compiled for AVX-512.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-unsafe fn cholesky_solve_lanes_pair_avx512(
-    fa: &[Lanes],
-    fb: &[Lanes],
-    n: usize,
-    ba: &mut [Lanes],
-    bb: &mut [Lanes],
-) {
-    cholesky_solve_lanes_pair_body(fa, fb, n, ba, bb)
+dispatched! {
+    /// [`cholesky_solve_lanes`] of two systems side by side, `(fa, ba)` and `(fb, bb)` (the
+    /// factors may be the same), each bit for bit its own solve: a substitution waits on
+    /// every subtraction in turn, and two independent ones fill each other's waits.
+    pub fn cholesky_solve_lanes_pair(
+        fa: &[Lanes],
+        fb: &[Lanes],
+        n: usize,
+        ba: &mut [Lanes],
+        bb: &mut [Lanes],
+    ) = cholesky_solve_lanes_pair_body,
+        cholesky_solve_lanes_pair_avx512,
+        cholesky_solve_lanes_pair_avx2;
 }
 
 #[inline(always)]
