@@ -47,7 +47,7 @@ pub use bilinear::{grid_basis, GridMap};
 /// kernels' gradient Gram matrices, the samples' principal directions): a fit's basis
 /// choice, which builds every size of every family on each fold, calls it when done,
 /// so that what it remembered does not stay in the fit's memory.
-pub fn forget_remembered() {
+pub(crate) fn forget_remembered() {
     pca::forget();
     rbf::forget();
 }
