@@ -55,35 +55,24 @@ pub fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
     backward_solve(l, n, b);
 }
 
-/// `pub fn NAME(args) -> R = BODY, AVX512, AVX2;` defines `NAME`, which runs the
-/// `#[inline(always)]` function `BODY` compiled for AVX-512F where the CPU has it
-/// (a lane group in one register), else for AVX2 (two), else as built, and the two
-/// compiled copies `AVX512` and `AVX2` (which the tests also call directly). Every copy
-/// runs the same operations in the same order: the results are the same bits.
+/// `pub fn NAME(args) -> R = BODY, AVX2;` defines `NAME`, which runs the
+/// `#[inline(always)]` function `BODY` compiled for AVX2 where the CPU has it (a lane
+/// group in two registers), else as built, and the compiled copy `AVX2`. Both run the
+/// same operations in the same order: the results are the same bits. (An AVX-512 copy, a lane group in one register, measured
+/// no faster on the shared RTI items: 1–2 %, within this machine's noise.)
 macro_rules! dispatched {
     (
         $(#[$doc:meta])*
         pub fn $name:ident($($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)?
-            = $body:ident, $avx512:ident, $avx2:ident $(,)?;
+            = $body:ident, $avx2:ident $(,)?;
     ) => {
         $(#[$doc])*
         pub fn $name($($arg: $ty),*) $(-> $ret)? {
-            #[cfg(target_arch = "x86_64")]
-            if is_x86_feature_detected!("avx512f") {
-                // SAFETY: AVX-512F is present.
-                return unsafe { $avx512($($arg),*) };
-            }
             #[cfg(target_arch = "x86_64")]
             if is_x86_feature_detected!("avx2") {
                 // SAFETY: AVX2 is present.
                 return unsafe { $avx2($($arg),*) };
             }
-            $body($($arg),*)
-        }
-
-        #[cfg(target_arch = "x86_64")]
-        #[target_feature(enable = "avx512f")]
-        unsafe fn $avx512($($arg: $ty),*) $(-> $ret)? {
             $body($($arg),*)
         }
 
@@ -95,10 +84,9 @@ macro_rules! dispatched {
     };
 }
 
-/// Systems solved together by [`cholesky_lanes`] and [`cholesky_solve_lanes`]: one
-/// AVX-512 register of doubles, two AVX2 ones. Eight rather than four took 5–17 % off
-/// the default fit's processor time on the shared RTI items where AVX-512 runs them
-/// (2026-12-06); with AVX2 alone, eight had measured within 3 % of four.
+/// Systems solved together by [`cholesky_lanes`] and [`cholesky_solve_lanes`]: two
+/// AVX2 registers of doubles. Eight independent chains rather than four took 5–17 % off
+/// the default fit's processor time on the shared RTI items (2026-12-06).
 pub const LANES: usize = 8;
 
 /// One value per lane.
@@ -112,7 +100,7 @@ dispatched! {
     /// subtraction in turn). A lane whose matrix is not positive definite gets `false`
     /// and a meaningless factor; the other lanes are unaffected.
     pub fn cholesky_lanes(a: &mut [Lanes], n: usize) -> [bool; LANES]
-        = cholesky_lanes_body, cholesky_lanes_avx512, cholesky_lanes_avx2;
+        = cholesky_lanes_body, cholesky_lanes_avx2;
 }
 
 /// Rows below the diagonal that [`cholesky_lanes_body`] updates together.
@@ -183,7 +171,7 @@ dispatched! {
     /// [`cholesky_solve`] for the [`LANES`] interleaved factors of [`cholesky_lanes`] and
     /// right-hand sides `b[i][l]`, in place; bit for bit the scalar solves.
     pub fn cholesky_solve_lanes(f: &[Lanes], n: usize, b: &mut [Lanes])
-        = cholesky_solve_lanes_body, cholesky_solve_lanes_avx512, cholesky_solve_lanes_avx2;
+        = cholesky_solve_lanes_body, cholesky_solve_lanes_avx2;
 }
 
 #[inline(always)]
@@ -206,9 +194,7 @@ dispatched! {
         n: usize,
         ba: &mut [Lanes],
         bb: &mut [Lanes],
-    ) = cholesky_solve_lanes_pair_body,
-        cholesky_solve_lanes_pair_avx512,
-        cholesky_solve_lanes_pair_avx2;
+    ) = cholesky_solve_lanes_pair_body, cholesky_solve_lanes_pair_avx2;
 }
 
 #[inline(always)]
@@ -856,22 +842,10 @@ mod tests {
                 r[l] = i as f64 - 2.5 + l as f64;
             }
         }
-        // The plain build and the dispatched one (AVX-512 or AVX2 where present) agree
-        // too, and so does the AVX2 build where the dispatch picks AVX-512.
+        // The plain build and the dispatched one (AVX2 where present) agree too.
         let (mut plain, mut plain_rhs) = (packed.clone(), rhs.clone());
         let plain_ok = cholesky_lanes_body(&mut plain, n);
         cholesky_solve_lanes_body(&plain, n, &mut plain_rhs);
-        #[cfg(target_arch = "x86_64")]
-        if is_x86_feature_detected!("avx2") {
-            let (mut f, mut b) = (packed.clone(), rhs.clone());
-            // SAFETY: AVX2 is present.
-            let ok = unsafe { cholesky_lanes_avx2(&mut f, n) };
-            unsafe { cholesky_solve_lanes_avx2(&f, n, &mut b) };
-            assert_eq!(ok, plain_ok);
-            for (p, q) in plain.iter().zip(&f).chain(plain_rhs.iter().zip(&b)) {
-                assert_eq!(p.map(f64::to_bits), q.map(f64::to_bits));
-            }
-        }
         let ok = cholesky_lanes(&mut packed, n);
         let (mut first, mut second) = (
             rhs.clone(),
