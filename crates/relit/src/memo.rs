@@ -3,9 +3,10 @@
 //! The basis choice builds every size of a data-driven family on each validation
 //! fold's lights, in each space, and several of a build's steps depend on the fold
 //! alone (the RBF kernels' gradient Gram matrix, the samples' principal directions), so
-//! the same values were computed again for every size. A [`Memo`] keeps the last few
-//! values with their arguments, compared exactly, so a remembered value is the one
-//! that would be computed: results do not depend on what was asked before.
+//! the same values were computed again for every size; the analytic candidates'
+//! penalties are the same in every fold. A [`Memo`] keeps the last few values with
+//! their arguments, compared exactly, so a remembered value is the one that would be
+//! computed: results do not depend on what was asked before.
 
 use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};

@@ -42,15 +42,6 @@ pub(crate) mod table;
 mod window;
 
 pub use bilinear::{grid_basis, GridMap};
-
-/// Forget what building bases remembers to build the next ones faster (the RBF
-/// kernels' gradient Gram matrices, the samples' principal directions): a fit's basis
-/// choice, which builds every size of every family on each fold, calls it when done,
-/// so that what it remembered does not stay in the fit's memory.
-pub(crate) fn forget_remembered() {
-    pca::forget();
-    rbf::forget();
-}
 pub use hsh::HemisphericalHarmonics;
 pub use projected::Projected;
 pub use ptm::PolynomialTextureMap;
@@ -63,6 +54,15 @@ pub use sg::{mean_nearest_angle, sharpness_for_width, SphericalGaussians};
 pub use sh::{sh_index, ShEnvironment, ShRotation, SphericalHarmonics, MAX_BANDS};
 pub use table::{octahedral_direction, octahedral_uv, TableAccuracy, WeightTable};
 pub use window::Window;
+
+/// Forget what building bases remembers to build the next ones faster (the RBF
+/// kernels' gradient Gram matrices, the samples' principal directions): a fit's basis
+/// choice, which builds every size of every family on each fold, calls it when done,
+/// so that what it remembered does not stay in the fit's memory.
+pub(crate) fn forget_remembered() {
+    pca::forget();
+    rbf::forget();
+}
 
 use crate::image::ImageRgb;
 use crate::sphere::Vec3;

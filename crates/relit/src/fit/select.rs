@@ -22,12 +22,13 @@ use crate::basis::{Basis, BasisChoice, BasisSpec, Family, Samples, FAMILIES};
 use crate::color;
 use crate::linalg::{self, Lanes, LANES};
 use crate::maps::MapSpace;
+use crate::memo::Memo;
 use crate::sphere::Vec3;
 use crate::Result;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::ops::Range;
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 /// The λ values each candidate is validated at.
 pub const VALIDATION_LADDER: [f64; 6] = [1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1];
@@ -233,8 +234,15 @@ impl Subsample<'_> {
 /// that do not depend on the fold's samples: an analytic basis is the same in every
 /// fold, space and objective, and its roughness penalty (numerical for most families)
 /// would otherwise be computed for each of them.
-#[derive(Default)]
-pub(super) struct Penalties(Mutex<Vec<(BasisSpec, Arc<Vec<f64>>)>>);
+pub(super) struct Penalties(Memo<BasisSpec, Vec<f64>>);
+
+impl Default for Penalties {
+    /// Every analytic candidate's penalty is kept while the choice lasts: a few dozen
+    /// `k×k` matrices.
+    fn default() -> Self {
+        Self(Memo::new(usize::MAX))
+    }
+}
 
 impl Penalties {
     /// The penalty of `basis` under `regularizer`, computed once per basis where
@@ -245,23 +253,12 @@ impl Penalties {
             return Arc::new(compute());
         }
         let spec = basis.spec();
-        let known = |list: &[(BasisSpec, Arc<Vec<f64>>)]| {
-            list.iter()
-                .find(|(s, _)| *s == spec)
-                .map(|(_, p)| p.clone())
-        };
-        if let Some(p) = known(&self.0.lock().expect("penalties")) {
-            return p;
-        }
-        // Computed outside the lock: two folds may compute the same one at once, and
-        // keep the first (the values are the same).
-        let p = Arc::new(compute());
-        let mut list = self.0.lock().expect("penalties");
-        if let Some(p) = known(&list) {
-            return p;
-        }
-        list.push((spec, p.clone()));
-        p
+        self.0.get_or(
+            |s| *s == spec,
+            || spec.clone(),
+            compute,
+            |p| p.len() * std::mem::size_of::<f64>(),
+        )
     }
 }
 
