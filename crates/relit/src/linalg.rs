@@ -5,13 +5,21 @@
 /// lower Cholesky factor `L` (`a = L Lᵀ`; the upper triangle is left as garbage).
 /// Returns `false` if `a` is not numerically positive definite.
 pub fn cholesky(a: &mut [f64], n: usize) -> bool {
+    cholesky_pivots(a, n) == n
+}
+
+/// [`cholesky`], returning how many leading pivots were positive: `n` where `a` is
+/// positive definite. The factorisation goes a column at a time and its first `p`
+/// columns read only the leading `p×p` block, so for every `p` up to the returned
+/// count the factor's leading block is that block's own factor, bit for bit.
+pub fn cholesky_pivots(a: &mut [f64], n: usize) -> usize {
     for j in 0..n {
         let mut d = a[j * n + j];
         for k in 0..j {
             d -= a[j * n + k] * a[j * n + k];
         }
         if d <= 0.0 || !d.is_finite() {
-            return false;
+            return j;
         }
         let d = d.sqrt();
         a[j * n + j] = d;
@@ -24,35 +32,51 @@ pub fn cholesky(a: &mut [f64], n: usize) -> bool {
             a[i * n + j] = s * inv;
         }
     }
-    true
+    n
 }
 
 /// Solve `L z = b` in place (forward substitution with the factor from [`cholesky`]).
 pub fn forward_solve(l: &[f64], n: usize, b: &mut [f64]) {
+    forward_solve_leading(l, n, n, b);
+}
+
+/// [`forward_solve`] with the leading `n×n` block of a factor stored `stride` wide.
+pub fn forward_solve_leading(l: &[f64], n: usize, stride: usize, b: &mut [f64]) {
     for i in 0..n {
         let mut s = b[i];
         for k in 0..i {
-            s -= l[i * n + k] * b[k];
+            s -= l[i * stride + k] * b[k];
         }
-        b[i] = s / l[i * n + i];
+        b[i] = s / l[i * stride + i];
     }
 }
 
 /// Solve `Lᵀ x = z` in place (back substitution).
 pub fn backward_solve(l: &[f64], n: usize, b: &mut [f64]) {
+    backward_solve_leading(l, n, n, b);
+}
+
+/// [`backward_solve`] with the leading `n×n` block of a factor stored `stride` wide.
+pub fn backward_solve_leading(l: &[f64], n: usize, stride: usize, b: &mut [f64]) {
     for i in (0..n).rev() {
         let mut s = b[i];
         for k in (i + 1)..n {
-            s -= l[k * n + i] * b[k];
+            s -= l[k * stride + i] * b[k];
         }
-        b[i] = s / l[i * n + i];
+        b[i] = s / l[i * stride + i];
     }
 }
 
 /// Solve `a x = b` given the Cholesky factor of `a`, in place.
 pub fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
-    forward_solve(l, n, b);
-    backward_solve(l, n, b);
+    cholesky_solve_leading(l, n, n, b);
+}
+
+/// [`cholesky_solve`] with the leading `n×n` block of a factor stored `stride` wide:
+/// the solve of that block's system where [`cholesky_pivots`] reached `n`.
+pub fn cholesky_solve_leading(l: &[f64], n: usize, stride: usize, b: &mut [f64]) {
+    forward_solve_leading(l, n, stride, b);
+    backward_solve_leading(l, n, stride, b);
 }
 
 /// `pub fn NAME(args) -> R = BODY, AVX2;` defines `NAME`, which runs the
@@ -97,18 +121,24 @@ dispatched! {
     /// at `a[r·n + c][l]`. Each lane runs exactly the scalar routine's operations in the
     /// same order, so its factor is the scalar factor bit for bit; the lanes are
     /// independent chains that the processor overlaps (the scalar routine waits on each
-    /// subtraction in turn). A lane whose matrix is not positive definite gets `false`
-    /// and a meaningless factor; the other lanes are unaffected.
-    pub fn cholesky_lanes(a: &mut [Lanes], n: usize) -> [bool; LANES]
+    /// subtraction in turn). Per lane, how many leading pivots were positive (as
+    /// [`cholesky_pivots`]): beyond them a lane's factor is meaningless; the other lanes
+    /// are unaffected.
+    pub fn cholesky_lanes_pivots(a: &mut [Lanes], n: usize) -> [usize; LANES]
         = cholesky_lanes_body, cholesky_lanes_avx2;
+}
+
+/// [`cholesky_lanes_pivots`]: which lanes' matrices were positive definite.
+pub fn cholesky_lanes(a: &mut [Lanes], n: usize) -> [bool; LANES] {
+    cholesky_lanes_pivots(a, n).map(|p| p == n)
 }
 
 /// Rows below the diagonal that [`cholesky_lanes_body`] updates together.
 const ROWS: usize = 4;
 
 #[inline(always)]
-fn cholesky_lanes_body(a: &mut [Lanes], n: usize) -> [bool; LANES] {
-    let mut ok = [true; LANES];
+fn cholesky_lanes_body(a: &mut [Lanes], n: usize) -> [usize; LANES] {
+    let mut pivots = [n; LANES];
     for j in 0..n {
         let mut d = a[j * n + j];
         for k in 0..j {
@@ -120,7 +150,7 @@ fn cholesky_lanes_body(a: &mut [Lanes], n: usize) -> [bool; LANES] {
         let mut inv = [0.0; LANES];
         for l in 0..LANES {
             if d[l] <= 0.0 || !d[l].is_finite() {
-                ok[l] = false;
+                pivots[l] = pivots[l].min(j);
                 d[l] = 1.0;
             }
             d[l] = d[l].sqrt();
@@ -164,7 +194,7 @@ fn cholesky_lanes_body(a: &mut [Lanes], n: usize) -> [bool; LANES] {
             a[i * n + j] = s;
         }
     }
-    ok
+    pivots
 }
 
 dispatched! {
@@ -187,11 +217,14 @@ fn cholesky_solve_lanes_body(f: &[Lanes], n: usize, b: &mut [Lanes]) {
 dispatched! {
     /// [`cholesky_solve_lanes`] of two systems side by side, `(fa, ba)` and `(fb, bb)` (the
     /// factors may be the same), each bit for bit its own solve: a substitution waits on
-    /// every subtraction in turn, and two independent ones fill each other's waits.
+    /// every subtraction in turn, and two independent ones fill each other's waits. The
+    /// factors are stored `stride` wide and their leading `n×n` blocks solve (as
+    /// [`cholesky_solve_leading`]).
     pub fn cholesky_solve_lanes_pair(
         fa: &[Lanes],
         fb: &[Lanes],
         n: usize,
+        stride: usize,
         ba: &mut [Lanes],
         bb: &mut [Lanes],
     ) = cholesky_solve_lanes_pair_body, cholesky_solve_lanes_pair_avx2;
@@ -202,6 +235,7 @@ fn cholesky_solve_lanes_pair_body(
     fa: &[Lanes],
     fb: &[Lanes],
     n: usize,
+    stride: usize,
     ba: &mut [Lanes],
     bb: &mut [Lanes],
 ) {
@@ -228,18 +262,18 @@ fn cholesky_solve_lanes_pair_body(
     for i in 0..n {
         let (a, b) = step(
             (ba[i], bb[i]),
-            (0..i).map(|k| (fa[i * n + k], ba[k], fb[i * n + k], bb[k])),
-            fa[i * n + i],
-            fb[i * n + i],
+            (0..i).map(|k| (fa[i * stride + k], ba[k], fb[i * stride + k], bb[k])),
+            fa[i * stride + i],
+            fb[i * stride + i],
         );
         (ba[i], bb[i]) = (a, b);
     }
     for i in (0..n).rev() {
         let (a, b) = step(
             (ba[i], bb[i]),
-            (i + 1..n).map(|k| (fa[k * n + i], ba[k], fb[k * n + i], bb[k])),
-            fa[i * n + i],
-            fb[i * n + i],
+            (i + 1..n).map(|k| (fa[k * stride + i], ba[k], fb[k * stride + i], bb[k])),
+            fa[i * stride + i],
+            fb[i * stride + i],
         );
         (ba[i], bb[i]) = (a, b);
     }
@@ -808,6 +842,51 @@ mod tests {
         }
     }
 
+    /// What lets a validation judge every size of a nested basis from the largest one's
+    /// systems: the leading block of a factor is the factor of the leading block, and a
+    /// solve with it is that block's solve, bit for bit (scalar and lanes), also for a
+    /// matrix whose later pivots fail.
+    #[test]
+    fn a_leading_block_of_a_factor_solves_as_its_own_system() {
+        let n = 25;
+        let m: Vec<f64> = (0..n * n)
+            .map(|i| ((i * 7 % 13) as f64 - 6.0) / 3.0)
+            .collect();
+        let mut whole = vec![0.0; n * n];
+        matmul_bt(n, n, n, &m, &m, &mut whole);
+        (0..n).for_each(|i| whole[i * n + i] += 0.1);
+        let mut failing = whole.clone();
+        failing[17 * n + 17] = -1.0;
+        for (a, positive) in [(&whole, n), (&failing, 17)] {
+            let mut f = a.clone();
+            assert_eq!(cholesky_pivots(&mut f, n), positive);
+            let mut lanes: Vec<Lanes> = a.iter().map(|&v| [v; LANES]).collect();
+            assert_eq!(cholesky_lanes_pivots(&mut lanes, n), [positive; LANES]);
+            for p in [4, 9, 16, 17, 25].into_iter().filter(|&p| p <= positive) {
+                let mut own: Vec<f64> = (0..p * p).map(|x| a[(x / p) * n + x % p]).collect();
+                assert!(cholesky(&mut own, p));
+                for r in 0..p {
+                    for c in 0..=r {
+                        assert_eq!(f[r * n + c].to_bits(), own[r * p + c].to_bits());
+                        assert_eq!(lanes[r * n + c][3].to_bits(), own[r * p + c].to_bits());
+                    }
+                }
+                let rhs: Vec<f64> = (0..p).map(|i| i as f64 - 1.5).collect();
+                let (mut leading, mut alone) = (rhs.clone(), rhs.clone());
+                cholesky_solve_leading(&f, p, n, &mut leading);
+                cholesky_solve(&own, p, &mut alone);
+                let mut first: Vec<Lanes> = rhs.iter().map(|&v| [v; LANES]).collect();
+                let mut second = first.clone();
+                cholesky_solve_lanes_pair(&lanes, &lanes, p, n, &mut first, &mut second);
+                for i in 0..p {
+                    assert_eq!(leading[i].to_bits(), alone[i].to_bits());
+                    assert_eq!(first[i][5].to_bits(), alone[i].to_bits());
+                    assert_eq!(second[i][0].to_bits(), alone[i].to_bits());
+                }
+            }
+        }
+    }
+
     #[test]
     fn lanes_factor_and_solve_as_the_scalar_routines_do() {
         // Four different SPD systems and one that is not: each lane equals the scalar
@@ -846,18 +925,19 @@ mod tests {
         let (mut plain, mut plain_rhs) = (packed.clone(), rhs.clone());
         let plain_ok = cholesky_lanes_body(&mut plain, n);
         cholesky_solve_lanes_body(&plain, n, &mut plain_rhs);
-        let ok = cholesky_lanes(&mut packed, n);
+        let pivots = cholesky_lanes_pivots(&mut packed, n);
+        let ok = pivots.map(|p| p == n);
         let (mut first, mut second) = (
             rhs.clone(),
             rhs.iter().map(|r| r.map(|v| -2.0 * v)).collect::<Vec<_>>(),
         );
         cholesky_solve_lanes(&packed, n, &mut rhs);
-        assert_eq!(plain_ok, ok);
+        assert_eq!(plain_ok, pivots);
         // Two systems side by side (here one factor twice, the second right-hand side
         // scaled): each as it is alone.
         let mut second_alone = second.clone();
         cholesky_solve_lanes(&packed, n, &mut second_alone);
-        cholesky_solve_lanes_pair(&packed, &packed, n, &mut first, &mut second);
+        cholesky_solve_lanes_pair(&packed, &packed, n, n, &mut first, &mut second);
         for (p, q) in first
             .iter()
             .zip(&rhs)
@@ -874,6 +954,8 @@ mod tests {
         }
         for (l, a) in mats.iter().enumerate() {
             let mut f = a.clone();
+            let scalar_pivots = cholesky_pivots(&mut f.clone(), n);
+            assert_eq!(pivots[l], scalar_pivots, "lane {l}");
             let scalar_ok = cholesky(&mut f, n);
             assert_eq!(ok[l], scalar_ok, "lane {l}");
             assert_eq!(scalar_ok, l != 2);

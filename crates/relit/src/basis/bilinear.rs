@@ -64,6 +64,11 @@ impl Family for BilinearFamily {
         &["grid", "smooth", "pca", "map"]
     }
 
+    fn nested(&self, lights: usize) -> bool {
+        // As `rbf`: the grid interpolants of the principal directions in order.
+        lights <= crate::linalg::EXACT_PCA_LIGHTS
+    }
+
     fn build(&self, k: usize, context: &BuildContext) -> Result<Box<dyn Basis>> {
         let samples = context
             .samples

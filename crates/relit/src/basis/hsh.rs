@@ -63,6 +63,11 @@ impl Family for HshFamily {
             .collect()
     }
 
+    fn nested(&self, _: usize) -> bool {
+        // The spherical harmonics in order, at the stretched direction.
+        true
+    }
+
     fn build(&self, k: usize, _: &BuildContext) -> Result<Box<dyn Basis>> {
         let order = (k as f64).sqrt().round() as usize;
         if order * order != k {

@@ -311,6 +311,16 @@ pub trait Family: Sync {
         &[]
     }
 
+    /// Whether, built from the same `lights` directions (and samples and options), a
+    /// basis of this family is the first functions of every larger one, and its
+    /// roughness penalty the larger penalty's leading block: then a validation judges
+    /// every size from the largest one's systems (`fit::select::validate`). Checked for
+    /// every family that says so by `basis::tests::nested_families_are_nested`.
+    fn nested(&self, lights: usize) -> bool {
+        let _ = lights;
+        false
+    }
+
     /// A basis of `k` functions for a capture.
     fn build(&self, k: usize, context: &BuildContext) -> Result<Box<dyn Basis>>;
 
@@ -454,6 +464,16 @@ impl BasisChoice {
         format!("{}:{}", self.family, self.k)
     }
 
+    /// Whether this is the first functions of `larger` when both are built from the same
+    /// `lights` directions and samples ([`Family::nested`]): the same family and
+    /// options, no more functions.
+    pub fn nests_in(&self, larger: &BasisChoice, lights: usize) -> bool {
+        self.family == larger.family
+            && self.options == larger.options
+            && self.k <= larger.k
+            && family(self.family).is_ok_and(|f| f.nested(lights))
+    }
+
     /// Whether building needs pixel samples.
     pub fn needs_samples(&self) -> bool {
         family(self.family).is_ok_and(|f| f.needs_samples())
@@ -504,6 +524,95 @@ mod tests {
                 assert_eq!(BasisChoice::parse(&name).unwrap().k, k, "{name}");
             }
         }
+    }
+
+    /// What `Family::nested` promises, for every family that makes the promise: built
+    /// from the same lights and samples, each size's functions are the largest size's
+    /// first ones and its penalty that penalty's leading block.
+    #[test]
+    fn nested_families_are_nested() {
+        let dirs = crate::sphere::hemisphere_fibonacci(60);
+        let lobes = [
+            Vec3::new(0.0, 0.0, 1.0),
+            Vec3::new(0.7, 0.1, 0.7),
+            Vec3::new(-0.3, 0.8, 0.5),
+        ];
+        // Pixels that mix a diffuse term and two glossy lobes, differently each.
+        let values: Vec<f32> = (0..96)
+            .flat_map(|s| {
+                let (a, b) = ((s % 7) as f64 / 7.0, (s % 5) as f64 / 5.0);
+                dirs.iter().map(move |d| {
+                    let lobe = |l: Vec3, p: i32| d.dot(l.normalized().unwrap()).max(0.0).powi(p);
+                    (0.1 + 0.4 * a * d.z.max(0.0)
+                        + b * lobe(lobes[1], 20)
+                        + 0.3 * lobe(lobes[2], 8)) as f32
+                })
+            })
+            .collect();
+        let samples = || Samples {
+            values: &values,
+            n: dirs.len(),
+        };
+        let probes = crate::sphere::fibonacci(200);
+        let mut checked = Vec::new();
+        for fam in FAMILIES.iter().filter(|f| f.nested(dirs.len())) {
+            let sizes: Vec<usize> = fam
+                .sizes(64)
+                .into_iter()
+                .filter(|&k| k < dirs.len())
+                .collect();
+            let build = |k: usize| {
+                BasisChoice::parse(&format!("{}:{k}", fam.name()))
+                    .unwrap()
+                    .build(&dirs, fam.needs_samples().then(samples))
+                    .unwrap()
+            };
+            let largest = build(*sizes.last().unwrap());
+            let big_k = largest.len();
+            let big_penalty = largest.penalty();
+            let scale = big_penalty.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            for &k in &sizes {
+                let basis = build(k);
+                for &d in &probes {
+                    let (small, big) = (basis.values(d), largest.values(d));
+                    for i in 0..k {
+                        assert!(
+                            (small[i] - big[i]).abs() <= 1e-9 * (1.0 + big[i].abs()),
+                            "{}:{k} function {i} at {d:?}: {} against {}",
+                            fam.name(),
+                            small[i],
+                            big[i]
+                        );
+                    }
+                }
+                let penalty = basis.penalty();
+                for r in 0..k {
+                    for c in 0..k {
+                        let (a, b) = (penalty[r * k + c], big_penalty[r * big_k + c]);
+                        assert!(
+                            (a - b).abs() <= 1e-9 * scale,
+                            "{}:{k} penalty ({r}, {c}): {a} against {b}",
+                            fam.name()
+                        );
+                    }
+                }
+            }
+            checked.push(fam.name());
+        }
+        assert_eq!(checked, ["sh", "hsh", "rbf", "bilinear"]);
+        // Beyond one eigendecomposition the data-driven families promise nothing.
+        let (rbf_small, rbf_big) = (
+            BasisChoice::parse("rbf:9").unwrap(),
+            BasisChoice::parse("rbf:16").unwrap(),
+        );
+        assert!(rbf_small.nests_in(&rbf_big, 60));
+        assert!(!rbf_small.nests_in(&rbf_big, crate::linalg::EXACT_PCA_LIGHTS + 1));
+        assert!(!rbf_big.nests_in(&rbf_small, 60));
+        assert!(!BasisChoice::parse("sg:9")
+            .unwrap()
+            .nests_in(&BasisChoice::parse("sg:16").unwrap(), 60));
+        let wide = BasisChoice::parse("rbf:16:width=3").unwrap();
+        assert!(!rbf_small.nests_in(&wide, 60));
     }
 
     #[test]

@@ -65,6 +65,13 @@ impl Family for RbfFamily {
         &["width", "pca", "ridge", "centres"]
     }
 
+    fn nested(&self, lights: usize) -> bool {
+        // The functions are the interpolants of the samples' principal directions in
+        // order, from one eigendecomposition up to `EXACT_PCA_LIGHTS` (beyond, subspace
+        // iteration finds the first `k` for each `k`).
+        lights <= crate::linalg::EXACT_PCA_LIGHTS
+    }
+
     fn build(&self, k: usize, context: &BuildContext) -> Result<Box<dyn Basis>> {
         let samples = context
             .samples

@@ -273,9 +273,17 @@ impl Penalties {
 /// Objectives that validate on the same pixels share each fold's basis: building a
 /// data-driven basis (its principal components, its roughness penalty) is a good part
 /// of a fold's cost, and it depends on the fold's lights and pixels, not the objective.
+///
+/// `nested` is one candidate, or sizes of one nested family ([`Family::nested`]) with
+/// the same options, ascending: those are judged together from the largest size's
+/// basis and systems in each fold. A size's functions are the largest's first ones, so
+/// its normal matrix is the leading block and its factor the factor's leading block
+/// (`linalg::cholesky_pivots`): each size is solved as it would be alone, and a fold
+/// builds one basis instead of one per size. The scores are per candidate of `nested`,
+/// per objective.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn validate(
-    choice: &BasisChoice,
+    nested: &[BasisChoice],
     space: MapSpace,
     objectives: &[Objective],
     regularizer: Regularizer,
@@ -286,24 +294,62 @@ pub(super) fn validate(
     folds: usize,
     ladders: &[Range<usize>],
     penalties: &Penalties,
-) -> Result<Vec<CandidateScore>> {
+) -> Result<Vec<Vec<CandidateScore>>> {
     assert_eq!(ladders.len(), objectives.len());
     assert!(
         space == MapSpace::Linear || objectives.iter().all(|&o| o == Objective::Linear),
         "display-referred maps are fitted with the plain objective"
     );
     let n = sub.n;
-    let keeps: Vec<usize> = objectives
-        .iter()
-        .map(|o| match o {
-            Objective::Perceptual => perceptual_pixels(sub.count, n, choice.k),
-            _ => sub.count,
-        })
-        .collect();
+    let keeps_of = |choice: &BasisChoice| -> Vec<usize> {
+        objectives
+            .iter()
+            .map(|o| match o {
+                Objective::Perceptual => perceptual_pixels(sub.count, n, choice.k),
+                _ => sub.count,
+            })
+            .collect()
+    };
+    // Sizes that validate on different pixels (a dense capture's perceptual budget) are
+    // judged apart.
+    if nested
+        .windows(2)
+        .any(|w| keeps_of(&w[0]) != keeps_of(&w[1]))
+    {
+        return nested
+            .iter()
+            .map(|choice| {
+                let mut one = validate(
+                    std::slice::from_ref(choice),
+                    space,
+                    objectives,
+                    regularizer,
+                    criterion,
+                    dirs,
+                    q,
+                    sub,
+                    folds,
+                    ladders,
+                    penalties,
+                )?;
+                Ok(one.remove(0))
+            })
+            .collect();
+    }
+    assert!(
+        nested
+            .windows(2)
+            .all(|w| w[0].k < w[1].k && w[0].nests_in(&w[1], n)),
+        "sizes of one nested family, ascending"
+    );
+    let largest = nested.last().expect("a candidate to validate");
+    let sizes: Vec<usize> = nested.iter().map(|c| c.k).collect();
+    let keeps = keeps_of(largest);
     let mut distinct = keeps.clone();
     distinct.sort_unstable();
     distinct.dedup();
-    let mut scores: Vec<Option<CandidateScore>> = vec![None; objectives.len()];
+    let mut scores: Vec<Vec<Option<CandidateScore>>> =
+        vec![vec![None; objectives.len()]; nested.len()];
     for keep in distinct {
         let group: Vec<usize> = (0..objectives.len())
             .filter(|&i| keeps[i] == keep)
@@ -344,7 +390,8 @@ pub(super) fn validate(
             .into_par_iter()
             .map(|fold| {
                 fold_result(
-                    choice,
+                    largest,
+                    &sizes,
                     space,
                     &grouped,
                     regularizer,
@@ -358,32 +405,42 @@ pub(super) fn validate(
             })
             .collect::<Result<Vec<_>>>()?;
         for (g, &i) in group.iter().enumerate() {
-            // Squared display errors per captured light (each is held out once) and λ.
-            let mut per_light = vec![[0.0f64; SLOTS]; n];
-            for (held, errors) in &fold_results {
-                for (&j, e) in held.iter().zip(&errors[g]) {
-                    per_light[j] = *e;
+            for (size, choice) in nested.iter().enumerate() {
+                // Squared display errors per captured light (each is held out once) and
+                // λ.
+                let mut per_light = vec![[0.0f64; SLOTS]; n];
+                for (held, errors) in &fold_results {
+                    for (&j, e) in held.iter().zip(&errors[g][size]) {
+                        per_light[j] = *e;
+                    }
                 }
+                scores[size][i] = Some(score_lights(
+                    choice, space, criterion, q, &relevance, &per_light, series,
+                )?);
             }
-            scores[i] = Some(score_lights(
-                choice, space, criterion, q, &relevance, &per_light, series,
-            )?);
         }
     }
     Ok(scores
         .into_iter()
-        .map(|s| s.expect("every objective is in a group"))
+        .map(|per_objective| {
+            per_objective
+                .into_iter()
+                .map(|s| s.expect("every objective is in a group"))
+                .collect()
+        })
         .collect())
 }
 
 /// The errors of one fold of [`validate`] and each objective: the fold's held-out
-/// lights, and per objective their errors.
-type FoldErrors = (Vec<usize>, Vec<Vec<[f64; SLOTS]>>);
+/// lights, and per objective and size their errors.
+type FoldErrors = (Vec<usize>, Vec<Vec<Vec<[f64; SLOTS]>>>);
 
-/// One fold of [`validate`]: its basis built once, then each objective's errors.
+/// One fold of [`validate`]: the basis of `choice` (the largest of `sizes`) built
+/// once, then each objective's errors at each size.
 #[allow(clippy::too_many_arguments)]
 fn fold_result(
     choice: &BasisChoice,
+    sizes: &[usize],
     space: MapSpace,
     objectives: &[(Objective, Range<usize>)],
     regularizer: Regularizer,
@@ -420,6 +477,7 @@ fn fold_result(
         .map(|(objective, ladder)| {
             fold_errors(
                 basis.as_ref(),
+                sizes,
                 space,
                 *objective,
                 ladder.clone(),
@@ -508,8 +566,8 @@ fn score_lights(
 }
 
 /// Factor `m + λ·total·P` (plus the definiteness term), `k×k`, of each of the first
-/// `used` lanes into `f`; unused lanes factor the identity. Which lanes' matrices were
-/// positive definite.
+/// `used` lanes into `f`; unused lanes factor the identity. Per lane, how many leading
+/// pivots were positive (`k`: positive definite).
 fn factor_lanes(
     f: &mut [Lanes],
     m: &[Lanes],
@@ -518,7 +576,7 @@ fn factor_lanes(
     lambda: f64,
     k: usize,
     used: usize,
-) -> [bool; LANES] {
+) -> [usize; LANES] {
     // The lower triangle only: all that the factorisation and the solve read.
     for r in 0..k {
         for c in 0..=r {
@@ -535,13 +593,16 @@ fn factor_lanes(
             dst[used..].fill(if r == c { 1.0 } else { 0.0 });
         }
     }
-    linalg::cholesky_lanes(f, k)
+    linalg::cholesky_lanes_pivots(f, k)
 }
 
-/// Summed squared display errors over the subsample at each held-out light, per λ.
+/// Summed squared display errors over the subsample at each held-out light, per λ, for
+/// each of `sizes` (ascending, the last `basis.len()`): the basis' first functions of
+/// that many, solved with the leading block of its systems' factors.
 #[allow(clippy::too_many_arguments)]
 fn fold_errors(
     basis: &dyn Basis,
+    sizes: &[usize],
     space: MapSpace,
     objective: Objective,
     ladder: Range<usize>,
@@ -552,8 +613,9 @@ fn fold_errors(
     train_values: &[f32],
     held: &[usize],
     sub: &Subsample,
-) -> Vec<[f64; SLOTS]> {
+) -> Vec<Vec<[f64; SLOTS]>> {
     let k = basis.len();
+    debug_assert!(sizes.last() == Some(&k) && sizes.windows(2).all(|w| w[0] < w[1]));
     let nt = train_dirs.len();
     let a_train: Vec<f64> = train_dirs.iter().flat_map(|d| basis.values(*d)).collect();
     let a_held: Vec<f64> = held_dirs.iter().flat_map(|d| basis.values(*d)).collect();
@@ -575,27 +637,35 @@ fn fold_errors(
         }
         (m, w.iter().sum())
     };
-    let factor = |m: &[f64], total: f64, lambda: f64| -> Option<Vec<f64>> {
+    // The factor and how many of its leading pivots were positive.
+    let factor = |m: &[f64], total: f64, lambda: f64| -> (Vec<f64>, usize) {
         let mut f = m.to_vec();
         for (v, &p) in f.iter_mut().zip(penalty) {
             *v += total * lambda * p;
         }
         (0..k).for_each(|i| f[i * k + i] += total * super::DEFINITENESS);
-        linalg::cholesky(&mut f, k).then_some(f)
+        let pivots = linalg::cholesky_pivots(&mut f, k);
+        (f, pivots)
     };
     // The linear objective shares one matrix across pixels, so each λ's held-out
     // predictions are one linear map of a series' training values: the operator
     // `A_held (AᵀQA + λ·total·P)⁻¹ AᵀQ` (held × train), applied to a block of series
-    // by one matrix product instead of a solve per series.
-    let shared: Option<Vec<Option<Vec<f64>>>> = (objective == Objective::Linear).then(|| {
+    // by one matrix product instead of a solve per series. Per λ, per size.
+    let shared: Option<Vec<Vec<Option<Vec<f64>>>>> = (objective == Objective::Linear).then(|| {
         let (m, total) = normal(q_train);
         (0..LADDER)
             .map(|li| {
                 if !ladder.contains(&li) {
-                    return None;
+                    return vec![None; sizes.len()];
                 }
-                let f = factor(&m, total, VALIDATION_LADDER[li])?;
-                Some(prediction_operator(&f, &a_train, &a_held, q_train, k))
+                let (f, pivots) = factor(&m, total, VALIDATION_LADDER[li]);
+                sizes
+                    .iter()
+                    .map(|&size| {
+                        (size <= pivots)
+                            .then(|| prediction_operator(&f, size, &a_train, &a_held, q_train, k))
+                    })
+                    .collect()
             })
             .collect()
     });
@@ -619,7 +689,7 @@ fn fold_errors(
     (0..series.div_ceil(SERIES_BLOCK))
         .into_par_iter()
         .map(|block| {
-            let mut acc = vec![[0.0f64; SLOTS]; lights];
+            let mut acc = vec![vec![[0.0f64; SLOTS]; lights]; sizes.len()];
             let first = block * SERIES_BLOCK;
             let len = SERIES_BLOCK.min(series - first);
             // The held-out observations and how a screen shows them, per series of the
@@ -684,11 +754,13 @@ fn fold_errors(
                     .map(|&v| v as f64)
                     .collect();
                 for li in ladder.clone() {
-                    let ok = vec![operators[li].is_some(); len];
-                    if let Some(g) = &operators[li] {
-                        linalg::matmul(len, nt, lights, &values, g, &mut preds);
+                    for (acc, operator) in acc.iter_mut().zip(&operators[li]) {
+                        let ok = vec![operator.is_some(); len];
+                        if let Some(g) = operator {
+                            linalg::matmul(len, nt, lights, &values, g, &mut preds);
+                        }
+                        tally(acc, li, 0..len, &mut preds, &mut shown, &ok);
                     }
-                    tally(&mut acc, li, 0..len, &mut preds, &mut shown, &ok);
                 }
                 return acc;
             }
@@ -738,10 +810,11 @@ fn fold_errors(
                     }
                 }
                 // λ two at a time: their solves run side by side
-                // (`linalg::cholesky_solve_lanes_pair`), each as it would alone.
+                // (`linalg::cholesky_solve_lanes_pair`), each as it would alone; each
+                // size with its leading block of the factors.
                 for pair in ladder.clone().step_by(2) {
                     let lis = [pair, pair + 1];
-                    let oks = [
+                    let pivots = [
                         factor_lanes(&mut f, &m, penalty, total, VALIDATION_LADDER[pair], k, used),
                         factor_lanes(
                             &mut f2,
@@ -753,29 +826,26 @@ fn fold_errors(
                             used,
                         ),
                     ];
-                    coef.copy_from_slice(&rhs0);
-                    coef2.copy_from_slice(&rhs0);
-                    linalg::cholesky_solve_lanes_pair(&f, &f2, k, &mut coef, &mut coef2);
-                    for (slot, &li) in lis.iter().enumerate() {
-                        let coef = if slot == 0 { &coef } else { &coef2 };
-                        // Every lane's predictions at the held-out lights.
-                        for l in 0..used {
-                            for h in 0..lights {
-                                let mut pred = 0.0;
-                                for (a, c) in a_held[h * k..(h + 1) * k].iter().zip(coef) {
-                                    pred += a * c[l];
+                    for (acc, &size) in acc.iter_mut().zip(sizes) {
+                        let (coef, coef2) = (&mut coef[..size], &mut coef2[..size]);
+                        coef.copy_from_slice(&rhs0[..size]);
+                        coef2.copy_from_slice(&rhs0[..size]);
+                        linalg::cholesky_solve_lanes_pair(&f, &f2, size, k, coef, coef2);
+                        for (slot, &li) in lis.iter().enumerate() {
+                            let coef = if slot == 0 { &*coef } else { &*coef2 };
+                            // Every lane's predictions at the held-out lights.
+                            for l in 0..used {
+                                for h in 0..lights {
+                                    let mut pred = 0.0;
+                                    for (a, c) in a_held[h * k..h * k + size].iter().zip(coef) {
+                                        pred += a * c[l];
+                                    }
+                                    preds[l * lights + h] = pred;
                                 }
-                                preds[l * lights + h] = pred;
                             }
+                            let ok = pivots[slot].map(|p| p >= size);
+                            tally(acc, li, g..g + used, &mut preds, &mut shown, &ok);
                         }
-                        tally(
-                            &mut acc,
-                            li,
-                            g..g + used,
-                            &mut preds,
-                            &mut shown,
-                            &oks[slot],
-                        );
                     }
                 }
             }
@@ -785,20 +855,25 @@ fn fold_errors(
         .into_iter()
         // Summed in block order: the same scores on every run and every shard (a
         // parallel reduction's order follows the work stealing).
-        .fold(vec![[0.0; SLOTS]; lights], |mut a, b| {
-            for (x, y) in a.iter_mut().zip(b) {
+        .fold(vec![vec![[0.0; SLOTS]; lights]; sizes.len()], |mut a, b| {
+            for (x, y) in a.iter_mut().flatten().zip(b.into_iter().flatten()) {
                 x.iter_mut().zip(y).for_each(|(x, y)| *x += y);
             }
             a
         })
         .into_iter()
-        // λ left out of the ladder score nothing (an infinite error).
-        .map(|mut e| {
-            for li in (0..LADDER).filter(|li| !ladder.contains(li)) {
-                e[li] = f64::INFINITY;
-                e[LINEAR + li] = f64::INFINITY;
-            }
-            e
+        .map(|per_light| {
+            per_light
+                .into_iter()
+                // λ left out of the ladder score nothing (an infinite error).
+                .map(|mut e| {
+                    for li in (0..LADDER).filter(|li| !ladder.contains(li)) {
+                        e[li] = f64::INFINITY;
+                        e[LINEAR + li] = f64::INFINITY;
+                    }
+                    e
+                })
+                .collect()
         })
         .collect()
 }
@@ -806,9 +881,11 @@ fn fold_errors(
 /// The held-out predictions of the shared linear fit as a map of a series' training
 /// values, transposed (`train × held`): `(A_held F⁻¹ AᵀQ)ᵀ` for the Cholesky factor `f`
 /// of the regularised normal matrix (`k×k`), training rows `a_train` (`train × k`) and
-/// held-out rows `a_held` (`held × k`).
+/// held-out rows `a_held` (`held × k`), all restricted to the first `size` functions
+/// (the factor's leading block).
 fn prediction_operator(
     f: &[f64],
+    size: usize,
     a_train: &[f64],
     a_held: &[f64],
     q_train: &[f64],
@@ -816,15 +893,15 @@ fn prediction_operator(
 ) -> Vec<f64> {
     let (nt, lights) = (q_train.len(), a_held.len() / k.max(1));
     let mut operator = vec![0.0; nt * lights];
-    let mut column = vec![0.0; k];
+    let mut column = vec![0.0; size];
     for (j, &q) in q_train.iter().enumerate() {
         column
             .iter_mut()
-            .zip(&a_train[j * k..(j + 1) * k])
+            .zip(&a_train[j * k..j * k + size])
             .for_each(|(c, &a)| *c = q * a);
-        linalg::cholesky_solve(f, k, &mut column);
+        linalg::cholesky_solve_leading(f, size, k, &mut column);
         for h in 0..lights {
-            operator[j * lights + h] = a_held[h * k..(h + 1) * k]
+            operator[j * lights + h] = a_held[h * k..h * k + size]
                 .iter()
                 .zip(&column)
                 .map(|(a, c)| a * c)
@@ -861,6 +938,77 @@ mod tests {
             );
             for li in best.saturating_sub(1)..(best + 2).min(LADDER) {
                 assert!(ladder.contains(&li), "λ {best}: {ladder:?} lacks {li}");
+            }
+        }
+    }
+
+    /// A nested family's sizes judged together score exactly as each judged alone,
+    /// under both objectives, in both spaces, for an analytic and a data-driven family.
+    #[test]
+    fn nested_sizes_judged_together_score_as_each_alone() {
+        let dirs = crate::sphere::hemisphere_fibonacci(48);
+        let n = dirs.len();
+        let count = 40;
+        // Pixels of a diffuse term and a glossy lobe that moves from pixel to pixel.
+        let values: Vec<f32> = (0..count)
+            .flat_map(|p| {
+                let lobe = Vec3::new(0.1 * (p % 5) as f64, 0.15 * (p % 3) as f64, 0.9)
+                    .normalized()
+                    .unwrap();
+                let dirs = &dirs;
+                (0..n).flat_map(move |j| {
+                    let d = dirs[j];
+                    (0..3).map(move |c| {
+                        let shine = d.dot(lobe).max(0.0).powi(12 + 4 * c);
+                        (0.05 + 0.3 * d.z.max(0.0) * (1.0 + 0.1 * c as f64) + 0.6 * shine) as f32
+                    })
+                })
+            })
+            .collect();
+        let q = vec![1.0 / n as f64; n];
+        let sub = Subsample {
+            values: &values,
+            count,
+            n,
+        };
+        for family in ["sh", "rbf"] {
+            let nested: Vec<BasisChoice> = [4, 9, 16]
+                .iter()
+                .map(|k| BasisChoice::parse(&format!("{family}:{k}")).unwrap())
+                .collect();
+            for (space, objectives) in [
+                (
+                    MapSpace::Linear,
+                    vec![Objective::Perceptual, Objective::Linear],
+                ),
+                (MapSpace::Srgb, vec![Objective::Linear]),
+            ] {
+                let ladders = vec![WHOLE_LADDER; objectives.len()];
+                let judge = |choices: &[BasisChoice]| {
+                    validate(
+                        choices,
+                        space,
+                        &objectives,
+                        Regularizer::Roughness,
+                        Criterion::Display,
+                        &dirs,
+                        &q,
+                        &sub,
+                        folds(n),
+                        &ladders,
+                        &Penalties::default(),
+                    )
+                    .unwrap()
+                };
+                let together = judge(&nested);
+                assert_eq!(together.len(), nested.len());
+                for (choice, scores) in nested.iter().zip(&together) {
+                    let alone = judge(std::slice::from_ref(choice)).remove(0);
+                    assert_eq!(&alone, scores, "{} in {space:?}", choice.name());
+                    assert!(scores.iter().all(|s| s.psnr.is_finite() && s.psnr > 10.0));
+                }
+                // The sizes differ: each was solved with its own functions.
+                assert_ne!(together[0][0].psnr, together[2][0].psnr);
             }
         }
     }

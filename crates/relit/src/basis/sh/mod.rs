@@ -39,6 +39,11 @@ impl Family for ShFamily {
             .collect()
     }
 
+    fn nested(&self, _: usize) -> bool {
+        // Bands in order, each with its closed-form penalty.
+        true
+    }
+
     fn build(&self, k: usize, _: &BuildContext) -> Result<Box<dyn Basis>> {
         let bands = (k as f64).sqrt().round() as usize;
         if bands * bands != k {
