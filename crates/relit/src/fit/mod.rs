@@ -840,24 +840,33 @@ fn choose_basis(
         .collect();
     // The scores of each candidate of `nested` (one, or sizes of one nested family:
     // `select::validate`) under `which` of the variants (indices into `variants`), in
-    // that order, each at the λ of its ladder.
+    // that order, each at the λ of its ladder (`ladders[w][c]`); none where that
+    // ladder is empty.
     let judge = |nested: &[BasisChoice],
                  which: &[usize],
                  screening: bool,
                  folds: usize,
-                 ladders: &[std::ops::Range<usize>]|
-     -> Result<Vec<Vec<CandidateScore>>> {
+                 ladders: &[Vec<std::ops::Range<usize>>]|
+     -> Result<Vec<Vec<Option<CandidateScore>>>> {
         let mut scores: Vec<Vec<Option<CandidateScore>>> =
             vec![vec![None; which.len()]; nested.len()];
         for (space, values, screened) in &views {
             let picked: Vec<usize> = (0..which.len())
                 .filter(|&w| variants[which[w]].0 == *space)
                 .collect();
-            if picked.is_empty() {
+            // The candidates judged in this space (a nested family's sizes stay one).
+            let active: Vec<usize> = (0..nested.len())
+                .filter(|&c| picked.iter().any(|&w| !ladders[w][c].is_empty()))
+                .collect();
+            if active.is_empty() {
                 continue;
             }
             let objectives: Vec<Objective> = picked.iter().map(|&w| variants[which[w]].1).collect();
-            let own_ladders: Vec<_> = picked.iter().map(|&w| ladders[w].clone()).collect();
+            let own_ladders: Vec<Vec<_>> = picked
+                .iter()
+                .map(|&w| active.iter().map(|&c| ladders[w][c].clone()).collect())
+                .collect();
+            let members: Vec<BasisChoice> = active.iter().map(|&c| nested[c].clone()).collect();
             let (values, count) = if screening {
                 (screened, screen_keep)
             } else {
@@ -865,7 +874,7 @@ fn choose_basis(
             };
             let view = select::Subsample { values, count, n };
             let got = select::validate(
-                nested,
+                &members,
                 *space,
                 &objectives,
                 options.regularizer,
@@ -877,21 +886,15 @@ fn choose_basis(
                 &own_ladders,
                 &penalties,
             )?;
-            for (scores, got) in scores.iter_mut().zip(got) {
+            for (&c, got) in active.iter().zip(got) {
                 for (&w, score) in picked.iter().zip(got) {
-                    scores[w] = Some(score);
+                    if !ladders[w][c].is_empty() {
+                        scores[c][w] = Some(score);
+                    }
                 }
             }
         }
-        Ok(scores
-            .into_iter()
-            .map(|scores| {
-                scores
-                    .into_iter()
-                    .map(|s| s.expect("every variant has its space"))
-                    .collect()
-            })
-            .collect())
+        Ok(scores)
     };
     let lambda_index = |score: &CandidateScore| {
         select::VALIDATION_LADDER
@@ -900,7 +903,6 @@ fn choose_basis(
             .unwrap_or(0)
     };
     let every: Vec<usize> = (0..variants.len()).collect();
-    let whole = vec![select::WHOLE_LADDER; variants.len()];
     // Successive halving: every candidate under every variant on a few pixels, then the
     // best few (candidate, variant) pairs on all of them, each at the λ around the one
     // its screening found best. A finalist is judged only as the variant that brought it
@@ -919,10 +921,19 @@ fn choose_basis(
         // alone. Collected in candidate order, so the ranking is the same.
         let judged: Vec<Vec<CandidateScore>> = nested_runs(&choices, n)
             .into_par_iter()
-            .map(|run| judge(&choices[run], &every, true, folds, &whole))
+            .map(|run| {
+                let whole = vec![vec![select::WHOLE_LADDER; run.len()]; variants.len()];
+                judge(&choices[run], &every, true, folds, &whole)
+            })
             .collect::<Result<Vec<_>>>()?
             .into_iter()
             .flatten()
+            .map(|scores| {
+                scores
+                    .into_iter()
+                    .map(|s| s.expect("every candidate screened under every variant"))
+                    .collect()
+            })
             .collect();
         let mut screening: Vec<(usize, usize, CandidateScore)> = judged
             .into_iter()
@@ -945,10 +956,42 @@ fn choose_basis(
             }
         }
     }
+    // A candidate's finalist variants are judged together (variants of one space share
+    // each fold's basis), and so are finalists that are sizes of one nested family
+    // (one basis and factorisation per fold), each under its own variants and λ.
+    let is_finalist = |i: usize, v: usize| finalists.iter().find(|f| f.0 == i && f.1 == v);
+    let mut final_scores: Vec<Vec<Option<CandidateScore>>> =
+        vec![vec![None; variants.len()]; choices.len()];
+    for run in nested_runs(&choices, n) {
+        let members: Vec<usize> = run
+            .filter(|&i| finalists.iter().any(|f| f.0 == i))
+            .collect();
+        let which: Vec<usize> = (0..variants.len())
+            .filter(|&v| members.iter().any(|&i| is_finalist(i, v).is_some()))
+            .collect();
+        if members.is_empty() {
+            continue;
+        }
+        let ladders: Vec<Vec<std::ops::Range<usize>>> = which
+            .iter()
+            .map(|&v| {
+                members
+                    .iter()
+                    .map(|&i| is_finalist(i, v).map_or(0..0, |f| f.2.clone()))
+                    .collect()
+            })
+            .collect();
+        let nested: Vec<BasisChoice> = members.iter().map(|&i| choices[i].clone()).collect();
+        let got = judge(&nested, &which, false, select::folds(n), &ladders)?;
+        for (&i, got) in members.iter().zip(got) {
+            for (&v, score) in which.iter().zip(got) {
+                final_scores[i][v] = score;
+            }
+        }
+    }
     let mut best: Option<(usize, (MapSpace, Objective), CandidateScore)> = None;
     let mut contenders: Vec<(usize, (MapSpace, Objective), CandidateScore)> = Vec::new();
-    // A candidate's finalist variants are judged together (variants of one space share
-    // each fold's basis), candidates in the order they became finalists.
+    // Candidates in the order they became finalists.
     let mut order_of: Vec<usize> = Vec::new();
     for f in &finalists {
         if !order_of.contains(&f.0) {
@@ -956,20 +999,11 @@ fn choose_basis(
         }
     }
     for i in order_of {
-        let (which, ladders): (Vec<usize>, Vec<_>) = finalists
-            .iter()
-            .filter(|f| f.0 == i)
-            .map(|f| (f.1, f.2.clone()))
-            .unzip();
-        let got = judge(
-            std::slice::from_ref(&choices[i]),
-            &which,
-            false,
-            select::folds(n),
-            &ladders,
-        )?
-        .remove(0);
-        for (&v, score) in which.iter().zip(got) {
+        let which: Vec<usize> = finalists.iter().filter(|f| f.0 == i).map(|f| f.1).collect();
+        for v in which {
+            let score = final_scores[i][v]
+                .take()
+                .expect("every finalist judged under its variants");
             if !matches!(&best, Some((_, _, b)) if !score.beats(b)) {
                 best = Some((i, variants[v], score.clone()));
             }

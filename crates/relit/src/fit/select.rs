@@ -279,8 +279,9 @@ impl Penalties {
 /// basis and systems in each fold. A size's functions are the largest's first ones, so
 /// its normal matrix is the leading block and its factor the factor's leading block
 /// (`linalg::cholesky_pivots`): each size is solved as it would be alone, and a fold
-/// builds one basis instead of one per size. The scores are per candidate of `nested`,
-/// per objective.
+/// builds one basis instead of one per size. `ladders` are per objective, per candidate
+/// (an empty one: that candidate is not judged under that objective, and its score
+/// there means nothing). The scores are per candidate of `nested`, per objective.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn validate(
     nested: &[BasisChoice],
@@ -292,10 +293,11 @@ pub(super) fn validate(
     q: &[f64],
     sub: &Subsample,
     folds: usize,
-    ladders: &[Range<usize>],
+    ladders: &[Vec<Range<usize>>],
     penalties: &Penalties,
 ) -> Result<Vec<Vec<CandidateScore>>> {
     assert_eq!(ladders.len(), objectives.len());
+    assert!(ladders.iter().all(|l| l.len() == nested.len()));
     assert!(
         space == MapSpace::Linear || objectives.iter().all(|&o| o == Objective::Linear),
         "display-referred maps are fitted with the plain objective"
@@ -318,7 +320,10 @@ pub(super) fn validate(
     {
         return nested
             .iter()
-            .map(|choice| {
+            .enumerate()
+            .map(|(c, choice)| {
+                let own: Vec<Vec<Range<usize>>> =
+                    ladders.iter().map(|l| vec![l[c].clone()]).collect();
                 let mut one = validate(
                     std::slice::from_ref(choice),
                     space,
@@ -329,7 +334,7 @@ pub(super) fn validate(
                     q,
                     sub,
                     folds,
-                    ladders,
+                    &own,
                     penalties,
                 )?;
                 Ok(one.remove(0))
@@ -354,7 +359,7 @@ pub(super) fn validate(
         let group: Vec<usize> = (0..objectives.len())
             .filter(|&i| keeps[i] == keep)
             .collect();
-        let grouped: Vec<(Objective, Range<usize>)> = group
+        let grouped: Vec<(Objective, Vec<Range<usize>>)> = group
             .iter()
             .map(|&i| (objectives[i], ladders[i].clone()))
             .collect();
@@ -442,7 +447,7 @@ fn fold_result(
     choice: &BasisChoice,
     sizes: &[usize],
     space: MapSpace,
-    objectives: &[(Objective, Range<usize>)],
+    objectives: &[(Objective, Vec<Range<usize>>)],
     regularizer: Regularizer,
     dirs: &[Vec3],
     q: &[f64],
@@ -480,7 +485,7 @@ fn fold_result(
                 sizes,
                 space,
                 *objective,
-                ladder.clone(),
+                ladder,
                 &penalty,
                 &train_dirs,
                 &held_dirs,
@@ -596,16 +601,17 @@ fn factor_lanes(
     linalg::cholesky_lanes_pivots(f, k)
 }
 
-/// Summed squared display errors over the subsample at each held-out light, per λ, for
-/// each of `sizes` (ascending, the last `basis.len()`): the basis' first functions of
-/// that many, solved with the leading block of its systems' factors.
+/// Summed squared display errors over the subsample at each held-out light, per λ of
+/// its ladder, for each of `sizes` (ascending, the last `basis.len()`): the basis'
+/// first functions of that many, solved with the leading block of its systems'
+/// factors. A size with an empty ladder is not judged.
 #[allow(clippy::too_many_arguments)]
 fn fold_errors(
     basis: &dyn Basis,
     sizes: &[usize],
     space: MapSpace,
     objective: Objective,
-    ladder: Range<usize>,
+    ladders: &[Range<usize>],
     penalty: &[f64],
     train_dirs: &[Vec3],
     held_dirs: &[Vec3],
@@ -616,6 +622,14 @@ fn fold_errors(
 ) -> Vec<Vec<[f64; SLOTS]>> {
     let k = basis.len();
     debug_assert!(sizes.last() == Some(&k) && sizes.windows(2).all(|w| w[0] < w[1]));
+    debug_assert_eq!(ladders.len(), sizes.len());
+    // Every λ some size is judged at (the ladders come in the pairs the solves take).
+    let judged = ladders.iter().filter(|l| !l.is_empty());
+    let span = judged.clone().map(|l| l.start).min().unwrap_or(0)
+        ..judged.clone().map(|l| l.end).max().unwrap_or(0);
+    debug_assert!(ladders
+        .iter()
+        .all(|l| l.is_empty() || (l.start.is_multiple_of(2) && l.end.is_multiple_of(2))));
     let nt = train_dirs.len();
     let a_train: Vec<f64> = train_dirs.iter().flat_map(|d| basis.values(*d)).collect();
     let a_held: Vec<f64> = held_dirs.iter().flat_map(|d| basis.values(*d)).collect();
@@ -650,20 +664,26 @@ fn fold_errors(
     // The linear objective shares one matrix across pixels, so each λ's held-out
     // predictions are one linear map of a series' training values: the operator
     // `A_held (AᵀQA + λ·total·P)⁻¹ AᵀQ` (held × train), applied to a block of series
-    // by one matrix product instead of a solve per series. Per λ, per size.
-    let shared: Option<Vec<Vec<Option<Vec<f64>>>>> = (objective == Objective::Linear).then(|| {
+    // by one matrix product instead of a solve per series. Per λ, per size judged at
+    // that λ: the operator, or none where the system was not positive definite.
+    type Operators = Vec<Option<Option<Vec<f64>>>>;
+    let shared: Option<Vec<Operators>> = (objective == Objective::Linear).then(|| {
         let (m, total) = normal(q_train);
         (0..LADDER)
             .map(|li| {
-                if !ladder.contains(&li) {
+                if !ladders.iter().any(|l| l.contains(&li)) {
                     return vec![None; sizes.len()];
                 }
                 let (f, pivots) = factor(&m, total, VALIDATION_LADDER[li]);
                 sizes
                     .iter()
-                    .map(|&size| {
-                        (size <= pivots)
-                            .then(|| prediction_operator(&f, size, &a_train, &a_held, q_train, k))
+                    .zip(ladders)
+                    .map(|(&size, own)| {
+                        own.contains(&li).then(|| {
+                            (size <= pivots).then(|| {
+                                prediction_operator(&f, size, &a_train, &a_held, q_train, k)
+                            })
+                        })
                     })
                     .collect()
             })
@@ -707,11 +727,12 @@ fn fold_errors(
                 })
                 .collect();
             let (mut preds, mut shown) = (vec![0.0; len * lights], vec![0.0; len * lights]);
-            // Tally the predictions of series `rows` (of the block) at λ `li`, each as a
-            // screen shows it; series whose system was not positive definite score an
-            // infinite error.
+            // Tally the predictions of series `rows` (of the block) at λ `li` of a ladder
+            // that starts at `first_li`, each as a screen shows it; series whose system
+            // was not positive definite score an infinite error.
             let tally = |acc: &mut [[f64; SLOTS]],
                          li: usize,
+                         first_li: usize,
                          rows: Range<usize>,
                          preds: &mut [f64],
                          shown: &mut [f64],
@@ -742,7 +763,7 @@ fn fold_errors(
                         let d = pred - o;
                         a[LINEAR + li] += d * d;
                         a[LADDER + li] += pred;
-                        if li == ladder.start {
+                        if li == first_li {
                             a[2 * LADDER] += o;
                         }
                     }
@@ -753,13 +774,16 @@ fn fold_errors(
                     .iter()
                     .map(|&v| v as f64)
                     .collect();
-                for li in ladder.clone() {
-                    for (acc, operator) in acc.iter_mut().zip(&operators[li]) {
+                for li in span.clone() {
+                    for ((acc, operator), own) in acc.iter_mut().zip(&operators[li]).zip(ladders) {
+                        let Some(operator) = operator else {
+                            continue;
+                        };
                         let ok = vec![operator.is_some(); len];
                         if let Some(g) = operator {
                             linalg::matmul(len, nt, lights, &values, g, &mut preds);
                         }
-                        tally(acc, li, 0..len, &mut preds, &mut shown, &ok);
+                        tally(acc, li, own.start, 0..len, &mut preds, &mut shown, &ok);
                     }
                 }
                 return acc;
@@ -812,7 +836,10 @@ fn fold_errors(
                 // λ two at a time: their solves run side by side
                 // (`linalg::cholesky_solve_lanes_pair`), each as it would alone; each
                 // size with its leading block of the factors.
-                for pair in ladder.clone().step_by(2) {
+                for pair in span.clone().step_by(2) {
+                    if !ladders.iter().any(|l| l.contains(&pair)) {
+                        continue;
+                    }
                     let lis = [pair, pair + 1];
                     let pivots = [
                         factor_lanes(&mut f, &m, penalty, total, VALIDATION_LADDER[pair], k, used),
@@ -826,7 +853,10 @@ fn fold_errors(
                             used,
                         ),
                     ];
-                    for (acc, &size) in acc.iter_mut().zip(sizes) {
+                    for ((acc, &size), own) in acc.iter_mut().zip(sizes).zip(ladders) {
+                        if !own.contains(&pair) {
+                            continue;
+                        }
                         let (coef, coef2) = (&mut coef[..size], &mut coef2[..size]);
                         coef.copy_from_slice(&rhs0[..size]);
                         coef2.copy_from_slice(&rhs0[..size]);
@@ -844,7 +874,7 @@ fn fold_errors(
                                 }
                             }
                             let ok = pivots[slot].map(|p| p >= size);
-                            tally(acc, li, g..g + used, &mut preds, &mut shown, &ok);
+                            tally(acc, li, own.start, g..g + used, &mut preds, &mut shown, &ok);
                         }
                     }
                 }
@@ -862,7 +892,8 @@ fn fold_errors(
             a
         })
         .into_iter()
-        .map(|per_light| {
+        .zip(ladders)
+        .map(|(per_light, ladder)| {
             per_light
                 .into_iter()
                 // λ left out of the ladder score nothing (an infinite error).
@@ -983,7 +1014,7 @@ mod tests {
                 ),
                 (MapSpace::Srgb, vec![Objective::Linear]),
             ] {
-                let ladders = vec![WHOLE_LADDER; objectives.len()];
+                let ladders = |members: usize| vec![vec![WHOLE_LADDER; members]; objectives.len()];
                 let judge = |choices: &[BasisChoice]| {
                     validate(
                         choices,
@@ -995,7 +1026,7 @@ mod tests {
                         &q,
                         &sub,
                         folds(n),
-                        &ladders,
+                        &ladders(choices.len()),
                         &Penalties::default(),
                     )
                     .unwrap()
