@@ -1040,6 +1040,35 @@ mod tests {
                 }
                 // The sizes differ: each was solved with its own functions.
                 assert_ne!(together[0][0].psnr, together[2][0].psnr);
+                // Each size at its own part of the ladder (a finalist's), one not judged.
+                let own = [0..4, 0..0, 2..6];
+                let ladders: Vec<Vec<Range<usize>>> =
+                    objectives.iter().map(|_| own.to_vec()).collect();
+                let judge_at = |choices: &[BasisChoice], ladders: &[Vec<Range<usize>>]| {
+                    validate(
+                        choices,
+                        space,
+                        &objectives,
+                        Regularizer::Roughness,
+                        Criterion::Display,
+                        &dirs,
+                        &q,
+                        &sub,
+                        folds(n),
+                        ladders,
+                        &Penalties::default(),
+                    )
+                    .unwrap()
+                };
+                let together = judge_at(&nested, &ladders);
+                for (c, choice) in nested.iter().enumerate().filter(|(c, _)| *c != 1) {
+                    let alone_ladders: Vec<Vec<Range<usize>>> =
+                        objectives.iter().map(|_| vec![own[c].clone()]).collect();
+                    let alone = judge_at(std::slice::from_ref(choice), &alone_ladders).remove(0);
+                    assert_eq!(alone, together[c], "{} at {:?}", choice.name(), own[c]);
+                    let lambdas = &VALIDATION_LADDER[own[c].clone()];
+                    assert!(alone.iter().all(|s| lambdas.contains(&s.lambda)));
+                }
             }
         }
     }
