@@ -842,6 +842,18 @@ mod tests {
         }
     }
 
+    /// `M Mᵀ + ridge·I` (symmetric positive definite) for an `n×n` matrix `M` of small
+    /// integers modulo `modulus`, scaled.
+    fn spd(n: usize, modulus: usize, ridge: f64) -> Vec<f64> {
+        let m: Vec<f64> = (0..n * n)
+            .map(|i| ((i * 7 % modulus) as f64 - (modulus / 2) as f64) / 3.0)
+            .collect();
+        let mut a = vec![0.0; n * n];
+        matmul_bt(n, n, n, &m, &m, &mut a);
+        (0..n).for_each(|i| a[i * n + i] += ridge);
+        a
+    }
+
     /// What lets a validation judge every size of a nested basis from the largest one's
     /// systems: the leading block of a factor is the factor of the leading block, and a
     /// solve with it is that block's solve, bit for bit (scalar and lanes), also for a
@@ -849,12 +861,7 @@ mod tests {
     #[test]
     fn a_leading_block_of_a_factor_solves_as_its_own_system() {
         let n = 25;
-        let m: Vec<f64> = (0..n * n)
-            .map(|i| ((i * 7 % 13) as f64 - 6.0) / 3.0)
-            .collect();
-        let mut whole = vec![0.0; n * n];
-        matmul_bt(n, n, n, &m, &m, &mut whole);
-        (0..n).for_each(|i| whole[i * n + i] += 0.1);
+        let whole = spd(n, 13, 0.1);
         let mut failing = whole.clone();
         failing[17 * n + 17] = -1.0;
         for (a, positive) in [(&whole, n), (&failing, 17)] {
@@ -976,13 +983,7 @@ mod tests {
     #[test]
     fn cholesky_solves_an_spd_system() {
         let n = 5;
-        // a = Mᵀ M + I is SPD.
-        let m: Vec<f64> = (0..n * n)
-            .map(|i| ((i * 7 % 11) as f64 - 5.0) / 3.0)
-            .collect();
-        let mut a = vec![0.0; n * n];
-        matmul_bt(n, n, n, &m, &m, &mut a);
-        (0..n).for_each(|i| a[i * n + i] += 1.0);
+        let a = spd(n, 11, 1.0);
         let x_true: Vec<f64> = (0..n).map(|i| i as f64 - 1.5).collect();
         let mut b = vec![0.0; n];
         matmul_bt(1, n, n, &x_true, &a, &mut b); // a is symmetric: x·aᵀ = a·x

@@ -1014,36 +1014,6 @@ mod tests {
                 ),
                 (MapSpace::Srgb, vec![Objective::Linear]),
             ] {
-                let ladders = |members: usize| vec![vec![WHOLE_LADDER; members]; objectives.len()];
-                let judge = |choices: &[BasisChoice]| {
-                    validate(
-                        choices,
-                        space,
-                        &objectives,
-                        Regularizer::Roughness,
-                        Criterion::Display,
-                        &dirs,
-                        &q,
-                        &sub,
-                        folds(n),
-                        &ladders(choices.len()),
-                        &Penalties::default(),
-                    )
-                    .unwrap()
-                };
-                let together = judge(&nested);
-                assert_eq!(together.len(), nested.len());
-                for (choice, scores) in nested.iter().zip(&together) {
-                    let alone = judge(std::slice::from_ref(choice)).remove(0);
-                    assert_eq!(&alone, scores, "{} in {space:?}", choice.name());
-                    assert!(scores.iter().all(|s| s.psnr.is_finite() && s.psnr > 10.0));
-                }
-                // The sizes differ: each was solved with its own functions.
-                assert_ne!(together[0][0].psnr, together[2][0].psnr);
-                // Each size at its own part of the ladder (a finalist's), one not judged.
-                let own = [0..4, 0..0, 2..6];
-                let ladders: Vec<Vec<Range<usize>>> =
-                    objectives.iter().map(|_| own.to_vec()).collect();
                 let judge_at = |choices: &[BasisChoice], ladders: &[Vec<Range<usize>>]| {
                     validate(
                         choices,
@@ -1060,6 +1030,25 @@ mod tests {
                     )
                     .unwrap()
                 };
+                let judge = |choices: &[BasisChoice]| {
+                    judge_at(
+                        choices,
+                        &vec![vec![WHOLE_LADDER; choices.len()]; objectives.len()],
+                    )
+                };
+                let together = judge(&nested);
+                assert_eq!(together.len(), nested.len());
+                for (choice, scores) in nested.iter().zip(&together) {
+                    let alone = judge(std::slice::from_ref(choice)).remove(0);
+                    assert_eq!(&alone, scores, "{} in {space:?}", choice.name());
+                    assert!(scores.iter().all(|s| s.psnr.is_finite() && s.psnr > 10.0));
+                }
+                // The sizes differ: each was solved with its own functions.
+                assert_ne!(together[0][0].psnr, together[2][0].psnr);
+                // Each size at its own part of the ladder (a finalist's), one not judged.
+                let own = [0..4, 0..0, 2..6];
+                let ladders: Vec<Vec<Range<usize>>> =
+                    objectives.iter().map(|_| own.to_vec()).collect();
                 let together = judge_at(&nested, &ladders);
                 for (c, choice) in nested.iter().enumerate().filter(|(c, _)| *c != 1) {
                     let alone_ladders: Vec<Vec<Range<usize>>> =
