@@ -819,17 +819,23 @@ fn fold_errors(
                 let mut total = [0.0; LANES];
                 rhs0.iter_mut().for_each(|r| *r = [0.0; LANES]);
                 for l in 0..used {
-                    let (b, s) = (g + l, first + g + l);
-                    let obs = &train_values[s * nt..(s + 1) * nt];
-                    let weights = &weights[b * nt..(b + 1) * nt];
+                    let b = g + l;
                     for (x, &(r, col)) in pairs.iter().enumerate() {
                         m[col * k + r][l] = packed[b * t + x];
                     }
-                    total[l] = weights.iter().sum();
-                    for (j, (&v, &w)) in obs.iter().zip(weights).enumerate() {
-                        let row = &a_train[j * k..(j + 1) * k];
-                        for r in 0..k {
-                            rhs0[r][l] += w * row[r] * v as f64;
+                    total[l] = weights[b * nt..(b + 1) * nt].iter().sum();
+                }
+                // The right-hand sides, every lane at once (each lane's sums in the
+                // order of its own lights; unused lanes add zeros).
+                for j in 0..nt {
+                    let (mut w, mut v) = ([0.0; LANES], [0.0; LANES]);
+                    for l in 0..used {
+                        w[l] = weights[(g + l) * nt + j];
+                        v[l] = train_values[(first + g + l) * nt + j] as f64;
+                    }
+                    for (r, &a) in a_train[j * k..(j + 1) * k].iter().enumerate() {
+                        for l in 0..LANES {
+                            rhs0[r][l] += w[l] * a * v[l];
                         }
                     }
                 }
@@ -864,13 +870,15 @@ fn fold_errors(
                         for (slot, &li) in lis.iter().enumerate() {
                             let coef = if slot == 0 { &*coef } else { &*coef2 };
                             // Every lane's predictions at the held-out lights.
-                            for l in 0..used {
-                                for h in 0..lights {
-                                    let mut pred = 0.0;
-                                    for (a, c) in a_held[h * k..h * k + size].iter().zip(coef) {
-                                        pred += a * c[l];
+                            for h in 0..lights {
+                                let mut pred = [0.0; LANES];
+                                for (&a, c) in a_held[h * k..h * k + size].iter().zip(coef) {
+                                    for l in 0..LANES {
+                                        pred[l] += a * c[l];
                                     }
-                                    preds[l * lights + h] = pred;
+                                }
+                                for (l, &p) in pred.iter().enumerate().take(used) {
+                                    preds[l * lights + h] = p;
                                 }
                             }
                             let ok = pivots[slot].map(|p| p >= size);
