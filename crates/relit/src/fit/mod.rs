@@ -966,12 +966,12 @@ fn choose_basis(
         let members: Vec<usize> = run
             .filter(|&i| finalists.iter().any(|f| f.0 == i))
             .collect();
-        let which: Vec<usize> = (0..variants.len())
-            .filter(|&v| members.iter().any(|&i| is_finalist(i, v).is_some()))
-            .collect();
         if members.is_empty() {
             continue;
         }
+        let which: Vec<usize> = (0..variants.len())
+            .filter(|&v| members.iter().any(|&i| is_finalist(i, v).is_some()))
+            .collect();
         let ladders: Vec<Vec<std::ops::Range<usize>>> = which
             .iter()
             .map(|&v| {
