@@ -903,6 +903,8 @@ fn choose_basis(
             .unwrap_or(0)
     };
     let every: Vec<usize> = (0..variants.len()).collect();
+    // The candidates that are sizes of one nested family, judged together in both rounds.
+    let runs = nested_runs(&choices, n);
     // Successive halving: every candidate under every variant on a few pixels, then the
     // best few (candidate, variant) pairs on all of them, each at the λ around the one
     // its screening found best. A finalist is judged only as the variant that brought it
@@ -919,8 +921,9 @@ fn choose_basis(
         // for all of them: on RealRTI items 23 candidates screen as 9), the runs side
         // by side: each one's folds and blocks are too few to keep both cores busy
         // alone. Collected in candidate order, so the ranking is the same.
-        let judged: Vec<Vec<CandidateScore>> = nested_runs(&choices, n)
-            .into_par_iter()
+        let judged: Vec<Vec<CandidateScore>> = runs
+            .par_iter()
+            .cloned()
             .map(|run| {
                 let whole = vec![vec![select::WHOLE_LADDER; run.len()]; variants.len()];
                 judge(&choices[run], &every, true, folds, &whole)
@@ -962,7 +965,7 @@ fn choose_basis(
     let is_finalist = |i: usize, v: usize| finalists.iter().find(|f| f.0 == i && f.1 == v);
     let mut final_scores: Vec<Vec<Option<CandidateScore>>> =
         vec![vec![None; variants.len()]; choices.len()];
-    for run in nested_runs(&choices, n) {
+    for run in runs {
         let members: Vec<usize> = run
             .filter(|&i| finalists.iter().any(|f| f.0 == i))
             .collect();
