@@ -2354,8 +2354,9 @@ fn weighted_solve(tables: &Tables, len: usize, channels: std::ops::Range<usize>,
     let (k, n, t) = (design.k, design.n, pairs.len());
     linalg::matmul_f32(len, n, t, &s.weights, outer, &mut s.packed);
     for c in channels.clone() {
-        for x in 0..len * n {
-            s.weighted_obs[x] = s.weights[x] * s.obs[c * len * n + x] as f32;
+        let obs = &s.obs[c * len * n..(c + 1) * len * n];
+        for ((wo, &w), &o) in s.weighted_obs[..len * n].iter_mut().zip(&s.weights).zip(obs) {
+            *wo = w * o as f32;
         }
         linalg::matmul_f32(
             len,
