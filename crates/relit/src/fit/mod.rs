@@ -698,10 +698,20 @@ impl<'a> SpillReader<'a> {
         }
     }
 
-    /// `piece` of every image, as [`spill::Spill::read_piece`] reads one.
+    /// `piece` of every image, as [`spill::Spill::read_region`] reads it.
     fn read(&self, piece: Piece, buffer: &mut Vec<f32>) -> Result<()> {
         self.spill
             .read_region(piece, buffer, self.values.as_deref())
+    }
+
+    /// Where the file holds codes, `piece` of every image as its codes
+    /// ([`spill::Spill::read_region_codes`]); `Ok(false)` for a file of floats.
+    fn read_codes(&self, piece: Piece, buffer: &mut Vec<u8>) -> Result<bool> {
+        if self.values.is_none() {
+            return Ok(false);
+        }
+        self.spill.read_region_codes(piece, buffer)?;
+        Ok(true)
     }
 }
 
@@ -2138,6 +2148,8 @@ struct Scratch {
     obs: Vec<f64>,
     /// `srgb_extended` of each observation, laid out as `obs`.
     encoded: Vec<f64>,
+    /// `perceptual_weight` of each observation, laid out as `obs`.
+    slopes: Vec<f64>,
     weights: Vec<f32>,
     weighted_obs: Vec<f32>,
     packed: Vec<f32>,
@@ -2151,6 +2163,110 @@ struct Scratch {
     lane_m: Vec<linalg::Lanes>,
     lane_coef: Vec<linalg::Lanes>,
     lane_coef2: Vec<linalg::Lanes>,
+}
+
+impl Scratch {
+    /// For chunks of at most [`CHUNK`] pixels of `n` samples and `k` coefficients.
+    fn new(n: usize, k: usize) -> Scratch {
+        let t = k * (k + 1) / 2;
+        Scratch {
+            obs: vec![0.0; 3 * CHUNK * n],
+            encoded: vec![0.0; 3 * CHUNK * n],
+            slopes: vec![0.0; 3 * CHUNK * n],
+            weights: vec![0.0; CHUNK * n],
+            weighted_obs: vec![0.0; CHUNK * n],
+            packed: vec![0.0; CHUNK * t],
+            rhs: vec![0.0; 3 * CHUNK * k],
+            coef: vec![0.0; 3 * CHUNK * k],
+            pred: vec![0.0; CHUNK * n],
+            pred_encoded: vec![0.0; CHUNK * n],
+            m: vec![0.0; k * k],
+            lane_m: vec![[0.0; LANES]; k * k],
+            lane_coef: vec![[0.0; LANES]; k],
+            lane_coef2: vec![[0.0; LANES]; k],
+        }
+    }
+}
+
+/// What each code of a file of codes stands for in the per-pixel solve: its value, the
+/// value's `srgb_extended` and its `perceptual_weight`, each computed once a table
+/// rather than once a sample (the images of a capture mostly share one table).
+struct CodeTables {
+    /// Distinct tables, `256·channel + code` each.
+    tables: Vec<Vec<CodeValue>>,
+    /// Each image's table.
+    of_image: Vec<usize>,
+}
+
+#[derive(Clone, Copy)]
+struct CodeValue {
+    value: f64,
+    encoded: f64,
+    slope: f64,
+}
+
+impl CodeTables {
+    /// From each image's values of its codes (`SpillReader::values`).
+    fn new(values: &[Vec<f32>]) -> CodeTables {
+        let mut distinct: Vec<&[f32]> = Vec::new();
+        let mut of_image = Vec::with_capacity(values.len());
+        for v in values {
+            let same = |d: &&[f32]| {
+                d.iter()
+                    .zip(v.iter())
+                    .all(|(a, b)| a.to_bits() == b.to_bits())
+            };
+            let at = match distinct.iter().position(|d| d.len() == v.len() && same(d)) {
+                Some(at) => at,
+                None => {
+                    distinct.push(v);
+                    distinct.len() - 1
+                }
+            };
+            of_image.push(at);
+        }
+        let tables = distinct
+            .iter()
+            .map(|values| {
+                values
+                    .iter()
+                    .map(|&v| {
+                        let value = v as f64;
+                        let encoded = srgb_extended(value);
+                        CodeValue {
+                            value,
+                            encoded,
+                            slope: perceptual_weight_encoded(value, encoded),
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+        CodeTables { tables, of_image }
+    }
+
+    /// Pixels `a..a + len` of a piece of `count` pixels' codes (`[image][pixel][channel]`)
+    /// into the scratch's observations, their encodings and weights, as `solve_chunk`
+    /// computes them from the values.
+    fn look_up(&self, codes: &[u8], count: usize, a: usize, len: usize, s: &mut Scratch) {
+        let n = self.of_image.len();
+        for (j, &t) in self.of_image.iter().enumerate() {
+            let table: &[CodeValue; 768] = self.tables[t]
+                .as_slice()
+                .try_into()
+                .expect("a table has 256 values a channel");
+            let row = &codes[(j * count + a) * 3..(j * count + a + len) * 3];
+            for (p, rgb) in row.chunks_exact(3).enumerate() {
+                for (c, &code) in rgb.iter().enumerate() {
+                    let x = (c * len + p) * n + j;
+                    let v = table[256 * c + code as usize];
+                    s.obs[x] = v.value;
+                    s.encoded[x] = v.encoded;
+                    s.slopes[x] = v.slope;
+                }
+            }
+        }
+    }
 }
 
 /// Indices of the packed upper triangle of a k×k symmetric matrix, row by row.
@@ -2188,44 +2304,43 @@ fn solve_per_pixel(
     let a32: Vec<f32> = design.a.iter().map(|&v| v as f32).collect();
     let lower: Vec<usize> = pairs.iter().map(|&(r, c)| c * k + r).collect();
     let packed_penalty: Vec<f64> = lower.iter().map(|&x| design.penalty[x]).collect();
+    let coded = reader.values.as_deref().map(CodeTables::new);
     progress.begin("fitting pieces", reader.pieces.len() as u64);
-    let mut buffer = Vec::new();
+    let (mut buffer, mut codes) = (Vec::new(), Vec::new());
     for &piece in &reader.pieces {
-        reader.read(piece, &mut buffer)?;
+        let have_codes = reader.read_codes(piece, &mut codes)?;
+        if !have_codes {
+            reader.read(piece, &mut buffer)?;
+        }
         let count = piece.pixels();
-        let samples = &buffer;
+        let (samples, codes) = (&buffer, &codes);
         let results: Vec<Vec<f32>> = (0..count.div_ceil(CHUNK))
             .into_par_iter()
             .map_init(
-                || Scratch {
-                    obs: vec![0.0; 3 * CHUNK * n],
-                    encoded: vec![0.0; 3 * CHUNK * n],
-                    weights: vec![0.0; CHUNK * n],
-                    weighted_obs: vec![0.0; CHUNK * n],
-                    packed: vec![0.0; CHUNK * t],
-                    rhs: vec![0.0; 3 * CHUNK * k],
-                    coef: vec![0.0; 3 * CHUNK * k],
-                    pred: vec![0.0; CHUNK * n],
-                    pred_encoded: vec![0.0; CHUNK * n],
-                    m: vec![0.0; k * k],
-                    lane_m: vec![[0.0; LANES]; k * k],
-                    lane_coef: vec![[0.0; LANES]; k],
-                    lane_coef2: vec![[0.0; LANES]; k],
-                },
+                || Scratch::new(n, k),
                 |scratch, chunk| {
                     let a = chunk * CHUNK;
                     let len = CHUNK.min(count - a);
                     let mut out = vec![0f32; len * 3 * k];
                     // Along each image's part of the piece (contiguous), into the chunk's
                     // small pixel-major buffers, one per channel.
-                    for j in 0..n {
-                        let row = &samples[(j * count + a) * 3..(j * count + a + len) * 3];
-                        for (p, rgb) in row.chunks_exact(3).enumerate() {
-                            for (c, &v) in rgb.iter().enumerate() {
-                                scratch.obs[(c * len + p) * n + j] = v as f64;
-                            }
+                    let looked_up = match (&coded, have_codes) {
+                        (Some(coded), true) => {
+                            coded.look_up(codes, count, a, len, scratch);
+                            true
                         }
-                    }
+                        _ => {
+                            for j in 0..n {
+                                let row = &samples[(j * count + a) * 3..(j * count + a + len) * 3];
+                                for (p, rgb) in row.chunks_exact(3).enumerate() {
+                                    for (c, &v) in rgb.iter().enumerate() {
+                                        scratch.obs[(c * len + p) * n + j] = v as f64;
+                                    }
+                                }
+                            }
+                            false
+                        }
+                    };
                     let tables = Tables {
                         design,
                         outer: &outer,
@@ -2235,7 +2350,7 @@ fn solve_per_pixel(
                         packed_penalty: &packed_penalty,
                         lambda,
                     };
-                    solve_chunk(&tables, reweights, len, scratch);
+                    solve_chunk(&tables, reweights, len, scratch, looked_up);
                     for c in 0..3 {
                         for p in 0..len {
                             for i in 0..k {
@@ -2279,28 +2394,31 @@ struct Tables<'a> {
 /// channels then share one normal matrix and one factorisation (a third of the work of
 /// that pass), and the held-out PSNR on the eight shared RTI items moved by at most
 /// 0.01 dB (scripts/realrti_table.py, 2026-12-05).
-fn solve_chunk(tables: &Tables, reweights: usize, len: usize, s: &mut Scratch) {
+///
+/// `looked_up`: `scratch.encoded` and `scratch.slopes` already hold each observation's
+/// encoding and perceptual weight ([`CodeTables::look_up`]); otherwise they are
+/// computed here, the same values.
+fn solve_chunk(tables: &Tables, reweights: usize, len: usize, s: &mut Scratch, looked_up: bool) {
     let (n, q) = (tables.design.n, &tables.design.q);
     let block = len * n;
-    // Every observation encoded once: its first weight and each secant read it.
-    srgb_extended_batch(&s.obs[..3 * block], &mut s.encoded[..3 * block]);
+    if !looked_up {
+        // Every observation encoded once: its first weight and each secant read it.
+        srgb_extended_batch(&s.obs[..3 * block], &mut s.encoded[..3 * block]);
+        for ((slope, &v), &e) in s.slopes[..3 * block].iter_mut().zip(&s.obs).zip(&s.encoded) {
+            *slope = perceptual_weight_encoded(v, e);
+        }
+    }
     if reweights == 0 {
         for c in 0..3 {
-            let obs = &s.obs[c * block..(c + 1) * block];
-            let encoded = &s.encoded[c * block..(c + 1) * block];
-            weigh(&mut s.weights[..block], q, |x| {
-                perceptual_weight_encoded(obs[x], encoded[x])
-            });
+            let slopes = &s.slopes[c * block..(c + 1) * block];
+            weigh(&mut s.weights[..block], q, |x| slopes[x]);
             weighted_solve(tables, len, c..c + 1, s);
         }
         return;
     }
-    let (obs, encoded) = (&s.obs, &s.encoded);
+    let slopes = &s.slopes;
     weigh(&mut s.weights[..block], q, |x| {
-        (0..3)
-            .map(|c| perceptual_weight_encoded(obs[c * block + x], encoded[c * block + x]))
-            .sum::<f64>()
-            / 3.0
+        (0..3).map(|c| slopes[c * block + x]).sum::<f64>() / 3.0
     });
     weighted_solve(tables, len, 0..3, s);
     for c in 0..3 {
@@ -2355,7 +2473,11 @@ fn weighted_solve(tables: &Tables, len: usize, channels: std::ops::Range<usize>,
     linalg::matmul_f32(len, n, t, &s.weights, outer, &mut s.packed);
     for c in channels.clone() {
         let obs = &s.obs[c * len * n..(c + 1) * len * n];
-        for ((wo, &w), &o) in s.weighted_obs[..len * n].iter_mut().zip(&s.weights).zip(obs) {
+        for ((wo, &w), &o) in s.weighted_obs[..len * n]
+            .iter_mut()
+            .zip(&s.weights)
+            .zip(obs)
+        {
             *wo = w * o as f32;
         }
         linalg::matmul_f32(

@@ -173,14 +173,43 @@ impl Spill {
         pieces
     }
 
-    /// Read the rectangle `region` of every image into `buffer` as [`Spill::read_piece`]
-    /// reads a piece, from whichever of the file's pieces hold it: one read per image
-    /// where it is one of them, one per image, tile and piece it crosses otherwise.
+    /// Read the rectangle `region` of every image into `buffer` as `[image][pixel][channel]`,
+    /// the region's pixels row by row, from whichever of the file's pieces hold it: one
+    /// read per image where it is one of them, one per image, tile and piece it crosses
+    /// otherwise. A file of codes needs `values`: per image, what each code of each
+    /// channel stands for (`256·channel + code`).
     pub fn read_region(
         &self,
         region: Piece,
         buffer: &mut Vec<f32>,
         values: Option<&[Vec<f32>]>,
+    ) -> Result<()> {
+        let tables = self.tables(values)?;
+        self.read_region_as(region, buffer, |j, src, dst| {
+            decode_samples(src, dst, tables.map(|t| t[j].as_slice()))
+        })
+    }
+
+    /// [`Spill::read_region`] of a file of codes, the codes as the file stores them
+    /// (`[image][pixel][channel]`): a reader that looks up more than the value of a code
+    /// (the per-pixel solve also its encoding and weight) does so once, and holds a
+    /// quarter of the floats' bytes.
+    pub fn read_region_codes(&self, region: Piece, buffer: &mut Vec<u8>) -> Result<()> {
+        if self.samples != Samples::Codes {
+            return Err(Error::invalid(
+                "a spill file of floats has no codes to read",
+            ));
+        }
+        self.read_region_as(region, buffer, |_, src, dst| dst.copy_from_slice(src))
+    }
+
+    /// The rectangle `region` of every image into `buffer`, three values a pixel, each
+    /// run of an image's samples turned into values by `decode(image, bytes, values)`.
+    fn read_region_as<T: Copy + Default + Send>(
+        &self,
+        region: Piece,
+        buffer: &mut Vec<T>,
+        decode: impl Fn(usize, &[u8], &mut [T]) + Sync,
     ) -> Result<()> {
         if region.pixels() == 0
             || region.x0 + region.width > self.width
@@ -190,13 +219,12 @@ impl Spill {
         }
         let (s, r) = self.piece_at(region.x0 / self.tile_w, region.y0);
         if r == 0 && self.piece(s).0 == region {
-            return self.read_piece(s, buffer, values).map(|_| ());
+            return self.read_piece_as(s, buffer, decode).map(|_| ());
         }
-        let tables = self.tables(values)?;
         let count = region.pixels();
         let sample = self.samples.pixel_bytes();
         buffer.clear();
-        buffer.resize(count * 3 * self.images, 0.0);
+        buffer.resize(count * 3 * self.images, T::default());
         let first_column = region.x0 / self.tile_w;
         let last_column = (region.x0 + region.width - 1) / self.tile_w;
         buffer
@@ -217,13 +245,12 @@ impl Spill {
                         bytes.resize(run * tile_w * sample, 0);
                         let at = self.offset(s, j) + (r * tile_w * sample) as u64;
                         read_at(&self.file, bytes, at)?;
-                        let table = tables.map(|t| t[j].as_slice());
                         for i in 0..run {
                             let row = (y + i - region.y0) * region.width;
                             let src = &bytes[((i * tile_w) + from - tile_x0) * sample..]
                                 [..(to - from) * sample];
                             let dst = &mut image[3 * (row + from - region.x0)..][..3 * (to - from)];
-                            decode_samples(src, dst, table);
+                            decode(j, src, dst);
                         }
                         y += run;
                     }
@@ -347,21 +374,20 @@ impl Spill {
         }
     }
 
-    /// Read piece `s` of every image into `buffer` as `[image][pixel][channel]`, the
-    /// piece's pixels row by row; returns the piece. A file of codes needs `values`:
-    /// per image, what each code of each channel stands for (`256·channel + code`).
-    pub fn read_piece(
+    /// Piece `s` of every image into `buffer` as `[image][pixel][channel]`, the piece's
+    /// pixels row by row, each image's samples turned into values by
+    /// `decode(image, bytes, values)`; returns the piece.
+    fn read_piece_as<T: Copy + Default + Send>(
         &self,
         s: usize,
-        buffer: &mut Vec<f32>,
-        values: Option<&[Vec<f32>]>,
+        buffer: &mut Vec<T>,
+        decode: impl Fn(usize, &[u8], &mut [T]) + Sync,
     ) -> Result<Piece> {
         let (piece, _) = self.piece(s);
         let count = piece.pixels();
-        let tables = self.tables(values)?;
         let sample = self.samples.pixel_bytes();
         buffer.clear();
-        buffer.resize(count * 3 * self.images, 0.0);
+        buffer.resize(count * 3 * self.images, T::default());
         // The images' parts in parallel, each reading its bytes into a buffer of one
         // image's part (a thread's, reused), so that the bytes add a part a thread to
         // the floats, not a second piece.
@@ -372,7 +398,7 @@ impl Spill {
                 || vec![0u8; count * sample],
                 |bytes, (j, image)| -> Result<()> {
                     read_at(&self.file, bytes, self.offset(s, j))?;
-                    decode_samples(bytes, image, tables.map(|t| t[j].as_slice()));
+                    decode(j, bytes, image);
                     Ok(())
                 },
             )?;
@@ -615,8 +641,21 @@ mod tests {
                 let tables = (samples == Samples::Codes).then_some(tables.as_slice());
                 let mut seen = vec![0; w * h];
                 let mut buffer = Vec::new();
-                for s in 0..spill.pieces() {
-                    let piece = spill.read_piece(s, &mut buffer, tables).unwrap();
+                let mut read_codes = Vec::new();
+                for (s, &piece) in spill.pieces_for(tiles).iter().enumerate() {
+                    spill.read_region(piece, &mut buffer, tables).unwrap();
+                    if samples == Samples::Codes {
+                        spill.read_region_codes(piece, &mut read_codes).unwrap();
+                        for (j, image) in codes.iter().enumerate() {
+                            for p in 0..piece.pixels() {
+                                let q = piece.band_pixel(p, w);
+                                let got = &read_codes[(j * piece.pixels() + p) * 3..][..3];
+                                assert_eq!(got, &image[3 * q..3 * q + 3]);
+                            }
+                        }
+                    } else {
+                        assert!(spill.read_region_codes(piece, &mut read_codes).is_err());
+                    }
                     let (tw, th) = tiles.unwrap_or((w, rows));
                     assert!(piece.height <= rows, "{tiles:?} {rows}");
                     assert_eq!(
@@ -650,7 +689,8 @@ mod tests {
                 let bytes = if samples == Samples::Codes { 3 } else { 12 };
                 assert_eq!(spill.bytes(), (w * h * bytes * n) as u64);
                 if samples == Samples::Codes && spill.pieces() > 0 {
-                    assert!(spill.read_piece(0, &mut buffer, None).is_err());
+                    let first = spill.pieces_for(tiles)[0];
+                    assert!(spill.read_region(first, &mut buffer, None).is_err());
                 }
             }
         }

@@ -676,3 +676,49 @@ fn the_perceptual_fit_shares_its_first_weights_across_channels_and_reweights_eac
         "own first weights {own}, shared {shared}"
     );
 }
+
+#[test]
+fn codes_looked_up_are_the_values_encodings_and_weights_computed_from_them() {
+    // Three images over two tables, one of lights of intensity 0.6 (values above 1,
+    // where the encoding is the extended line and the weight the slope at white), and
+    // codes that take every value of every channel.
+    let curve: Vec<f32> = (0..768)
+        .map(|x| ((x % 256) as f32 / 255.0).powf(2.2))
+        .collect();
+    let bright: Vec<f32> = curve.iter().map(|v| v / 0.6).collect();
+    let values = vec![curve.clone(), bright, curve];
+    let tables = CodeTables::new(&values);
+    assert_eq!(tables.tables.len(), 2, "equal tables are kept once");
+    let (n, count) = (values.len(), 2 * CHUNK);
+    let codes: Vec<u8> = (0..n * count * 3)
+        .map(|x| ((x % 3) * 31 + (x / 3) * 7 + x / (3 * count) * 13) as u8)
+        .collect();
+    let mut s = Scratch::new(n, 4);
+    for a in (0..count).step_by(CHUNK) {
+        let len = CHUNK.min(count - a);
+        tables.look_up(&codes, count, a, len, &mut s);
+        let block = 3 * len * n;
+        let (obs, encoded, slopes) = (
+            s.obs[..block].to_vec(),
+            s.encoded[..block].to_vec(),
+            s.slopes[..block].to_vec(),
+        );
+        for (j, image) in values.iter().enumerate() {
+            for p in 0..len {
+                for c in 0..3 {
+                    let code = codes[(j * count + a + p) * 3 + c] as usize;
+                    assert_eq!(obs[(c * len + p) * n + j], image[256 * c + code] as f64);
+                }
+            }
+        }
+        // What `solve_chunk` computes from the values when they were not looked up.
+        let mut want = vec![0.0; block];
+        srgb_extended_batch(&obs, &mut want);
+        assert!(obs.iter().any(|&v| v > 1.0));
+        for x in 0..block {
+            assert_eq!(encoded[x].to_bits(), want[x].to_bits(), "{}", obs[x]);
+            let slope = perceptual_weight_encoded(obs[x], want[x]);
+            assert_eq!(slopes[x].to_bits(), slope.to_bits(), "{}", obs[x]);
+        }
+    }
+}
