@@ -722,3 +722,28 @@ fn codes_looked_up_are_the_values_encodings_and_weights_computed_from_them() {
         }
     }
 }
+
+#[test]
+fn secants_weighed_at_once_are_each_secant_weight() {
+    // Predictions far from, near (within and beyond the tangent's reach) and equal to
+    // their observations, below 0 and above 1.
+    let q = [0.5, 1.0, 2.0];
+    let obs: Vec<f64> = (0..12).map(|x| -0.1 + 0.12 * x as f64).collect();
+    let offsets = [0.3, 4e-6, 2e-5, 0.0, -0.05, -3e-6];
+    let pred: Vec<f64> = obs
+        .iter()
+        .enumerate()
+        .map(|(x, o)| o + offsets[x % offsets.len()])
+        .collect();
+    let (mut pe, mut oe) = (vec![0.0; 12], vec![0.0; 12]);
+    srgb_extended_batch(&pred, &mut pe);
+    srgb_extended_batch(&obs, &mut oe);
+    let mut got = vec![0f32; 12];
+    weigh_secants(&mut got, &q, [&pred, &obs], [&pe, &oe]);
+    let mut want = vec![0f32; 12];
+    weigh(&mut want, &q, |x| {
+        secant_weight_encoded(pred[x], obs[x], pe[x], oe[x])
+    });
+    assert!(want.iter().all(|w| w.is_finite() && *w > 0.0), "{want:?}");
+    assert_eq!(got, want);
+}
