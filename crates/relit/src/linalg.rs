@@ -294,30 +294,63 @@ fn substitute(mut s: Lanes, terms: impl Iterator<Item = (Lanes, Lanes)>, d: Lane
     s
 }
 
-/// `c = a · b` in single precision, for row-major `a` (m×k), `b` (k×n), `c` (m×n).
-pub fn matmul_f32(m: usize, k: usize, n: usize, a: &[f32], b: &[f32], c: &mut [f32]) {
-    assert!(a.len() >= m * k && b.len() >= k * n && c.len() >= m * n);
-    if m == 0 || n == 0 {
+/// One single-precision value per lane.
+pub type LanesF32 = [f32; LANES];
+
+/// The columns of a [`lane_products`] table come in tiles of this many (a tile's sums
+/// stay in registers while the table's rows go by).
+pub const PRODUCT_TILE: usize = 12;
+
+/// `out[x][l] = Σ_j lanes[j][l] · table[j·cols + x]` for each of the `cols` columns of a
+/// row-major table of `lanes.len()` rows (`cols` a multiple of [`PRODUCT_TILE`]): per
+/// lane, a row vector times a matrix shared by the lanes. Each sum runs over `j` in
+/// order from zero, by fused multiply-adds where the CPU has them (as matrixmultiply's
+/// kernels compute a matrix product; products and sums otherwise, as its kernels for
+/// processors without FMA do). The per-pixel fit forms eight pixels' normal matrices and
+/// right-hand sides so, lane-major as the lane factorisation reads them, without
+/// packing the shared table again for each product.
+pub fn lane_products(lanes: &[LanesF32], table: &[f32], cols: usize, out: &mut [LanesF32]) {
+    assert!(
+        cols.is_multiple_of(PRODUCT_TILE) && table.len() >= lanes.len() * cols && out.len() >= cols
+    );
+    #[cfg(target_arch = "x86_64")]
+    if is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma") {
+        // SAFETY: AVX2 and FMA are present; the lengths were checked above.
+        unsafe { lane_products_fma(lanes, table, cols, out) };
         return;
     }
-    // SAFETY: the slices are at least as long as the strides below address.
-    unsafe {
-        matrixmultiply::sgemm(
-            m,
-            k,
-            n,
-            1.0,
-            a.as_ptr(),
-            k as isize,
-            1,
-            b.as_ptr(),
-            n as isize,
-            1,
-            0.0,
-            c.as_mut_ptr(),
-            n as isize,
-            1,
-        );
+    for x0 in (0..cols).step_by(PRODUCT_TILE) {
+        let mut acc = [[0f32; LANES]; PRODUCT_TILE];
+        for (j, w) in lanes.iter().enumerate() {
+            let row = &table[j * cols + x0..j * cols + x0 + PRODUCT_TILE];
+            for (a, &t) in acc.iter_mut().zip(row) {
+                for l in 0..LANES {
+                    a[l] += w[l] * t;
+                }
+            }
+        }
+        out[x0..x0 + PRODUCT_TILE].copy_from_slice(&acc);
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn lane_products_fma(lanes: &[LanesF32], table: &[f32], cols: usize, out: &mut [LanesF32]) {
+    use std::arch::x86_64::*;
+    for x0 in (0..cols).step_by(PRODUCT_TILE) {
+        let mut acc = [_mm256_setzero_ps(); PRODUCT_TILE];
+        for (j, w) in lanes.iter().enumerate() {
+            // SAFETY: row j's tile lies inside the table (checked by the caller).
+            let row = unsafe { table.as_ptr().add(j * cols + x0) };
+            let w = unsafe { _mm256_loadu_ps(w.as_ptr()) };
+            for (i, a) in acc.iter_mut().enumerate() {
+                *a = _mm256_fmadd_ps(w, unsafe { _mm256_broadcast_ss(&*row.add(i)) }, *a);
+            }
+        }
+        for (o, a) in out[x0..x0 + PRODUCT_TILE].iter_mut().zip(acc) {
+            // SAFETY: eight floats are written to a lane array of eight.
+            unsafe { _mm256_storeu_ps(o.as_mut_ptr(), a) };
+        }
     }
 }
 
@@ -702,6 +735,40 @@ fn orthonormalize(q: &mut [f64], n: usize, cols: usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn lane_products_are_each_lanes_sums_in_order() {
+        // Each output a chain over the rows in order from zero: fused where the CPU
+        // fuses (the dispatched kernel), products then sums otherwise.
+        #[cfg(target_arch = "x86_64")]
+        let fused = is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma");
+        #[cfg(not(target_arch = "x86_64"))]
+        let fused = false;
+        let mut state = 7u32;
+        let mut next = || {
+            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (state >> 8) as f32 / (1u32 << 24) as f32 - 0.3
+        };
+        for (rows, cols) in [(1, PRODUCT_TILE), (49, 48), (300, 2 * PRODUCT_TILE)] {
+            let lanes: Vec<LanesF32> = (0..rows).map(|_| std::array::from_fn(|_| next())).collect();
+            let table: Vec<f32> = (0..rows * cols).map(|_| next()).collect();
+            let mut out = vec![[f32::NAN; LANES]; cols];
+            lane_products(&lanes, &table, cols, &mut out);
+            for (x, got) in out.iter().enumerate() {
+                for l in 0..LANES {
+                    let want = lanes.iter().enumerate().fold(0f32, |acc, (j, w)| {
+                        let t = table[j * cols + x];
+                        if fused {
+                            w[l].mul_add(t, acc)
+                        } else {
+                            acc + w[l] * t
+                        }
+                    });
+                    assert_eq!(got[l].to_bits(), want.to_bits(), "{rows}×{cols} ({x}, {l})");
+                }
+            }
+        }
+    }
 
     #[test]
     fn principal_directions_are_the_same_bits_on_any_number_of_threads() {

@@ -2152,11 +2152,16 @@ struct Scratch {
     encoded: Vec<f64>,
     /// `perceptual_weight` of each observation, laid out as `obs`.
     slopes: Vec<f64>,
+    /// Each sample's weight, pixel by pixel (len×N).
     weights: Vec<f32>,
-    weighted_obs: Vec<f32>,
-    packed: Vec<f32>,
-    /// Right-hand sides and coefficients, one len×k block per channel.
-    rhs: Vec<f32>,
+    /// A lane group's weights, and weighted observations, light by light (N).
+    weight_lanes: Vec<linalg::LanesF32>,
+    weighted_obs: Vec<linalg::LanesF32>,
+    /// A lane group's normal matrix sums (the packed pairs, padded to a tile).
+    sums: Vec<linalg::LanesF32>,
+    /// A lane group's right-hand sides of two channels (k, padded to a tile).
+    rhs: [Vec<linalg::LanesF32>; 2],
+    /// Coefficients, one len×k block per channel.
     coef: Vec<f64>,
     pred: Vec<f64>,
     /// `srgb_extended` of each prediction.
@@ -2165,6 +2170,11 @@ struct Scratch {
     lane_m: Vec<linalg::Lanes>,
     lane_coef: Vec<linalg::Lanes>,
     lane_coef2: Vec<linalg::Lanes>,
+}
+
+/// `columns` rounded up to whole tiles of [`linalg::lane_products`].
+fn tiled(columns: usize) -> usize {
+    columns.next_multiple_of(linalg::PRODUCT_TILE)
 }
 
 impl Scratch {
@@ -2176,9 +2186,10 @@ impl Scratch {
             encoded: vec![0.0; 3 * CHUNK * n],
             slopes: vec![0.0; 3 * CHUNK * n],
             weights: vec![0.0; CHUNK * n],
-            weighted_obs: vec![0.0; CHUNK * n],
-            packed: vec![0.0; CHUNK * t],
-            rhs: vec![0.0; 3 * CHUNK * k],
+            weight_lanes: vec![[0.0; LANES]; n],
+            weighted_obs: vec![[0.0; LANES]; n],
+            sums: vec![[0.0; LANES]; tiled(t)],
+            rhs: [vec![[0.0; LANES]; tiled(k)], vec![[0.0; LANES]; tiled(k)]],
             coef: vec![0.0; 3 * CHUNK * k],
             pred: vec![0.0; CHUNK * n],
             pred_encoded: vec![0.0; CHUNK * n],
@@ -2296,14 +2307,19 @@ fn solve_per_pixel(
     // normal matrices of a chunk of pixels are one matrix product W · outer.
     // Single precision: the products sum N positive terms, so their relative error stays
     // near 1e-7; the factorisation that follows is done in double precision.
-    let mut outer = vec![0f32; n * t];
+    // Both tables' rows padded to whole tiles of `linalg::lane_products` with zeros.
+    let (t_cols, k_cols) = (tiled(t), tiled(k));
+    let mut outer = vec![0f32; n * t_cols];
+    let mut a32 = vec![0f32; n * k_cols];
     for j in 0..n {
         let row = design.row(j);
         for (x, &(r, c)) in pairs.iter().enumerate() {
-            outer[j * t + x] = (row[r] * row[c]) as f32;
+            outer[j * t_cols + x] = (row[r] * row[c]) as f32;
+        }
+        for (dst, &v) in a32[j * k_cols..].iter_mut().zip(row) {
+            *dst = v as f32;
         }
     }
-    let a32: Vec<f32> = design.a.iter().map(|&v| v as f32).collect();
     let lower: Vec<usize> = pairs.iter().map(|&(r, c)| c * k + r).collect();
     let packed_penalty: Vec<f64> = lower.iter().map(|&x| design.penalty[x]).collect();
     let coded = reader.values.as_deref().map(CodeTables::new);
@@ -2375,9 +2391,10 @@ fn solve_per_pixel(
 /// What every weighted solve of a fit shares.
 struct Tables<'a> {
     design: &'a Design,
-    /// N×T outer products of the basis rows (packed upper triangle), single precision.
+    /// N×T outer products of the basis rows (packed upper triangle), single precision,
+    /// each row padded to whole tiles ([`tiled`]).
     outer: &'a [f32],
-    /// The N×k basis values, single precision.
+    /// The N×k basis values, single precision, padded as `outer`.
     a32: &'a [f32],
     pairs: &'a [(usize, usize)],
     /// Where each packed pair `(r, c)` goes in a k×k system: its lower triangle, `c·k + r`.
@@ -2502,31 +2519,20 @@ fn weighted_solve(tables: &Tables, len: usize, channels: std::ops::Range<usize>,
         packed_penalty,
         lambda,
     } = *tables;
-    let (k, n, t) = (design.k, design.n, pairs.len());
-    linalg::matmul_f32(len, n, t, &s.weights, outer, &mut s.packed);
-    for c in channels.clone() {
-        let obs = &s.obs[c * len * n..(c + 1) * len * n];
-        for ((wo, &w), &o) in s.weighted_obs[..len * n]
-            .iter_mut()
-            .zip(&s.weights)
-            .zip(obs)
-        {
-            *wo = w * o as f32;
-        }
-        linalg::matmul_f32(
-            len,
-            n,
-            k,
-            &s.weighted_obs,
-            a32,
-            &mut s.rhs[c * len * k..(c + 1) * len * k],
-        );
-    }
+    let (k, n) = (design.k, design.n);
+    let (t_cols, k_cols) = (outer.len() / n, a32.len() / n);
     // Pixels a lane group at a time (`linalg::cholesky_lanes`: each lane is the scalar
     // solve bit for bit); a lane whose system is singular is solved again alone, with
     // the larger λ of `solve_regularized`.
     for g in (0..len).step_by(LANES) {
         let used = LANES.min(len - g);
+        // The group's weights light by light; unused lanes weigh nothing.
+        for (j, w) in s.weight_lanes.iter_mut().enumerate() {
+            *w = [0.0; LANES];
+            for (l, w) in w.iter_mut().enumerate().take(used) {
+                *w = s.weights[(g + l) * n + j];
+            }
+        }
         let mut total = [1.0; LANES];
         for (l, t_l) in total.iter_mut().enumerate().take(used) {
             let p = g + l;
@@ -2536,24 +2542,25 @@ fn weighted_solve(tables: &Tables, len: usize, channels: std::ops::Range<usize>,
                 .sum();
             *t_l = sum.max(1e-30);
         }
-        // The lower triangle only (all that the factorisation and the solve read),
-        // every lane of an entry at once: the weighted sums plus the penalty and the
-        // definiteness term, added in `Design::regularize`'s order so that a lane is
-        // the scalar system bit for bit. Unused lanes get the identity.
-        // A pixel's packed sums are contiguous: read them lane by lane.
+        linalg::lane_products(&s.weight_lanes, outer, t_cols, &mut s.sums);
+        // The lower triangle only (all that the factorisation and the solve read): the
+        // weighted sums plus the penalty and the definiteness term, added in
+        // `Design::regularize`'s order so that a lane is the scalar system bit for bit.
+        // Unused lanes get the identity.
+        for ((&x, sums), &penalty) in lower.iter().zip(&s.sums).zip(packed_penalty) {
+            let m = &mut s.lane_m[x];
+            for l in 0..used {
+                m[l] = sums[l] as f64 + total[l] * lambda * penalty;
+            }
+        }
         if used < LANES {
             for (&x, &(r, c)) in lower.iter().zip(pairs) {
                 s.lane_m[x][used..].fill(if r == c { 1.0 } else { 0.0 });
             }
         }
-        for (l, &total_l) in total.iter().enumerate().take(used) {
-            let sums = &s.packed[(g + l) * t..(g + l + 1) * t];
-            let scaled = total_l * lambda;
-            for ((&x, &sum), &penalty) in lower.iter().zip(sums).zip(packed_penalty) {
-                s.lane_m[x][l] = sum as f64 + scaled * penalty;
-            }
-            for i in 0..k {
-                s.lane_m[i * k + i][l] += total_l * DEFINITENESS;
+        for i in 0..k {
+            for (m, &t_l) in s.lane_m[i * k + i].iter_mut().zip(&total).take(used) {
+                *m += t_l * DEFINITENESS;
             }
         }
         let ok = linalg::cholesky_lanes(&mut s.lane_m, k);
@@ -2562,9 +2569,25 @@ fn weighted_solve(tables: &Tables, len: usize, channels: std::ops::Range<usize>,
         let mut ch = channels.start;
         while ch < channels.end {
             let both = ch + 1 < channels.end;
-            gather_lanes(&s.rhs[ch * len * k..], g, used, k, &mut s.lane_coef);
+            for slot in 0..1 + both as usize {
+                let obs = &s.obs[(ch + slot) * len * n..(ch + slot + 1) * len * n];
+                for (j, (wo, w)) in s.weighted_obs.iter_mut().zip(&s.weight_lanes).enumerate() {
+                    for l in 0..used {
+                        wo[l] = w[l] * obs[(g + l) * n + j] as f32;
+                    }
+                    wo[used..].fill(0.0);
+                }
+                linalg::lane_products(&s.weighted_obs, a32, k_cols, &mut s.rhs[slot]);
+                let coef = if slot == 0 {
+                    &mut s.lane_coef
+                } else {
+                    &mut s.lane_coef2
+                };
+                for (c, r) in coef.iter_mut().zip(&s.rhs[slot]) {
+                    *c = r.map(|v| v as f64);
+                }
+            }
             if both {
-                gather_lanes(&s.rhs[(ch + 1) * len * k..], g, used, k, &mut s.lane_coef2);
                 linalg::cholesky_solve_lanes_pair(
                     &s.lane_m,
                     &s.lane_m,
@@ -2576,11 +2599,12 @@ fn weighted_solve(tables: &Tables, len: usize, channels: std::ops::Range<usize>,
             } else {
                 linalg::cholesky_solve_lanes(&s.lane_m, k, &mut s.lane_coef);
             }
-            for (ch, solved) in [(ch, &s.lane_coef), (ch + 1, &s.lane_coef2)]
+            for (slot, solved) in [&s.lane_coef, &s.lane_coef2]
                 .into_iter()
+                .enumerate()
                 .take(1 + both as usize)
             {
-                let rhs = &s.rhs[ch * len * k..(ch + 1) * len * k];
+                let ch = ch + slot;
                 for l in 0..used {
                     let p = g + l;
                     let coef = &mut s.coef[(ch * len + p) * k..(ch * len + p + 1) * k];
@@ -2590,31 +2614,19 @@ fn weighted_solve(tables: &Tables, len: usize, channels: std::ops::Range<usize>,
                         }
                         continue;
                     }
-                    for (x, &(r, c)) in pairs.iter().enumerate() {
-                        let v = s.packed[p * t + x] as f64;
+                    for (&(r, c), sums) in pairs.iter().zip(&s.sums) {
+                        let v = sums[l] as f64;
                         s.m[r * k + c] = v;
                         s.m[c * k + r] = v;
                     }
-                    for (dst, &v) in coef.iter_mut().zip(&rhs[p * k..(p + 1) * k]) {
-                        *dst = v as f64;
+                    for (dst, rhs) in coef.iter_mut().zip(&s.rhs[slot]) {
+                        *dst = rhs[l] as f64;
                     }
                     solve_regularized(design, &mut s.m, coef, lambda, total[l]);
                 }
             }
             ch += 1 + both as usize;
         }
-    }
-}
-
-/// The right-hand sides of pixels `g..g + used` (pixel-major, `k` each, in `rhs`) as
-/// lanes; unused lanes are zero.
-fn gather_lanes(rhs: &[f32], g: usize, used: usize, k: usize, dst: &mut [linalg::Lanes]) {
-    for (i, d) in dst.iter_mut().enumerate().take(k) {
-        let mut v = [0.0; LANES];
-        for (l, v) in v.iter_mut().enumerate().take(used) {
-            *v = rhs[(g + l) * k + i] as f64;
-        }
-        *d = v;
     }
 }
 
