@@ -360,6 +360,66 @@ pub fn matmul(m: usize, k: usize, n: usize, a: &[f64], b: &[f64], c: &mut [f64])
     dgemm(m, k, n, (a, k, 1), (b, n, 1), c);
 }
 
+/// [`lane_products`] in double precision: `out[x][l] = Σ_j lanes[j][l] · table[j·cols +
+/// x]`, each sum over `j` in order from zero, fused where the CPU has FMA. The per-pixel
+/// fit predicts eight pixels' samples from their coefficients so.
+pub fn lane_products_f64(lanes: &[Lanes], table: &[f64], cols: usize, out: &mut [Lanes]) {
+    assert!(
+        cols.is_multiple_of(PRODUCT_TILE) && table.len() >= lanes.len() * cols && out.len() >= cols
+    );
+    #[cfg(target_arch = "x86_64")]
+    if is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma") {
+        // SAFETY: AVX2 and FMA are present; the lengths were checked above.
+        unsafe { lane_products_f64_fma(lanes, table, cols, out) };
+        return;
+    }
+    for x0 in (0..cols).step_by(PRODUCT_TILE) {
+        let mut acc = [[0f64; LANES]; PRODUCT_TILE];
+        for (j, w) in lanes.iter().enumerate() {
+            let row = &table[j * cols + x0..j * cols + x0 + PRODUCT_TILE];
+            for (a, &t) in acc.iter_mut().zip(row) {
+                for l in 0..LANES {
+                    a[l] += w[l] * t;
+                }
+            }
+        }
+        out[x0..x0 + PRODUCT_TILE].copy_from_slice(&acc);
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn lane_products_f64_fma(lanes: &[Lanes], table: &[f64], cols: usize, out: &mut [Lanes]) {
+    use std::arch::x86_64::*;
+    // Half a tile of columns at a time: a lane vector is two registers of doubles.
+    const HALF: usize = PRODUCT_TILE / 2;
+    for x0 in (0..cols).step_by(HALF) {
+        let mut acc = [[_mm256_setzero_pd(); 2]; HALF];
+        for (j, w) in lanes.iter().enumerate() {
+            // SAFETY: row j's half tile lies inside the table (checked by the caller).
+            let row = unsafe { table.as_ptr().add(j * cols + x0) };
+            let w = unsafe {
+                [
+                    _mm256_loadu_pd(w.as_ptr()),
+                    _mm256_loadu_pd(w.as_ptr().add(4)),
+                ]
+            };
+            for (i, a) in acc.iter_mut().enumerate() {
+                let t = unsafe { _mm256_broadcast_sd(&*row.add(i)) };
+                a[0] = _mm256_fmadd_pd(w[0], t, a[0]);
+                a[1] = _mm256_fmadd_pd(w[1], t, a[1]);
+            }
+        }
+        for (o, a) in out[x0..x0 + HALF].iter_mut().zip(acc) {
+            // SAFETY: eight doubles are written to a lane array of eight.
+            unsafe {
+                _mm256_storeu_pd(o.as_mut_ptr(), a[0]);
+                _mm256_storeu_pd(o.as_mut_ptr().add(4), a[1]);
+            }
+        }
+    }
+}
+
 /// `c = a · bᵀ` for row-major `a` (m×k), `b` (n×k), `c` (m×n), overwriting `c`.
 pub fn matmul_bt(m: usize, k: usize, n: usize, a: &[f64], b: &[f64], c: &mut [f64]) {
     assert!(a.len() >= m * k && b.len() >= n * k && c.len() >= m * n);
@@ -765,6 +825,28 @@ mod tests {
                         }
                     });
                     assert_eq!(got[l].to_bits(), want.to_bits(), "{rows}×{cols} ({x}, {l})");
+                }
+            }
+            // The same in double precision.
+            let lanes: Vec<Lanes> = lanes.iter().map(|w| w.map(|v| v as f64 / 3.0)).collect();
+            let table: Vec<f64> = table.iter().map(|&v| v as f64 / 7.0).collect();
+            let mut out = vec![[f64::NAN; LANES]; cols];
+            lane_products_f64(&lanes, &table, cols, &mut out);
+            for (x, got) in out.iter().enumerate() {
+                for l in 0..LANES {
+                    let want = lanes.iter().enumerate().fold(0f64, |acc, (j, w)| {
+                        let t = table[j * cols + x];
+                        if fused {
+                            w[l].mul_add(t, acc)
+                        } else {
+                            acc + w[l] * t
+                        }
+                    });
+                    assert_eq!(
+                        got[l].to_bits(),
+                        want.to_bits(),
+                        "f64 {rows}×{cols} ({x}, {l})"
+                    );
                 }
             }
         }

@@ -66,7 +66,7 @@ pub use select::{candidates, parse_candidates, CandidateScore, Criterion, VALIDA
 use crate::basis::{Basis, BasisChoice, BasisSpec, Samples};
 use crate::capture::Capture;
 use crate::color;
-use crate::linalg::{self, LANES};
+use crate::linalg::{self, Lanes, LanesF32, LANES};
 use crate::maps::{CoefficientMaps, FitInfo, MapSpace, Metadata, RelightableImage, ShardInfo};
 use crate::metrics;
 use crate::progress::Progress;
@@ -2145,31 +2145,39 @@ fn scatter_planar<R: AsRef<[f32]> + Sync>(runs: &[R], piece: Piece, maps: &mut C
 }
 
 /// Scratch space of one per-pixel solve task.
+///
+/// A chunk's pixels are laid out in lane groups of [`LANES`] (pixel `p` is lane
+/// `p % LANES` of group `p / LANES`), light by light within a group: the layout the
+/// lane kernels read ([`linalg::lane_products`], [`linalg::cholesky_lanes`]), so that
+/// no system is gathered from pixel-major rows. Lanes past the chunk's last pixel hold
+/// zeros and weigh nothing.
 struct Scratch {
-    /// The chunk's observations, one len×N block per colour channel.
-    obs: Vec<f64>,
+    /// The chunk's observations: per channel, per group, per light, the lanes.
+    obs: Vec<Lanes>,
     /// `srgb_extended` of each observation, laid out as `obs`.
-    encoded: Vec<f64>,
+    encoded: Vec<Lanes>,
     /// `perceptual_weight` of each observation, laid out as `obs`.
-    slopes: Vec<f64>,
-    /// Each sample's weight, pixel by pixel (len×N).
-    weights: Vec<f32>,
-    /// A lane group's weights, and weighted observations, light by light (N).
-    weight_lanes: Vec<linalg::LanesF32>,
-    weighted_obs: Vec<linalg::LanesF32>,
+    slopes: Vec<Lanes>,
+    /// Each sample's weight: per group, per light, the lanes (one channel's block).
+    weights: Vec<LanesF32>,
+    /// A lane group's weighted observations, light by light.
+    weighted_obs: Vec<LanesF32>,
     /// A lane group's normal matrix sums (the packed pairs, padded to a tile).
-    sums: Vec<linalg::LanesF32>,
+    sums: Vec<LanesF32>,
     /// A lane group's right-hand sides of two channels (k, padded to a tile).
-    rhs: [Vec<linalg::LanesF32>; 2],
-    /// Coefficients, one len×k block per channel.
-    coef: Vec<f64>,
-    pred: Vec<f64>,
-    /// `srgb_extended` of each prediction.
-    pred_encoded: Vec<f64>,
+    rhs: [Vec<LanesF32>; 2],
+    /// Coefficients: per channel, per group, per coefficient, the lanes.
+    coef: Vec<Lanes>,
+    /// One channel's predictions and their `srgb_extended`, laid out as `weights`.
+    pred: Vec<Lanes>,
+    pred_encoded: Vec<Lanes>,
+    /// A lane group's predictions, padded to a tile.
+    pred_tile: Vec<Lanes>,
     m: Vec<f64>,
-    lane_m: Vec<linalg::Lanes>,
-    lane_coef: Vec<linalg::Lanes>,
-    lane_coef2: Vec<linalg::Lanes>,
+    fallback: Vec<f64>,
+    lane_m: Vec<Lanes>,
+    lane_coef: Vec<Lanes>,
+    lane_coef2: Vec<Lanes>,
 }
 
 /// `columns` rounded up to whole tiles of [`linalg::lane_products`].
@@ -2181,22 +2189,44 @@ impl Scratch {
     /// For chunks of at most [`CHUNK`] pixels of `n` samples and `k` coefficients.
     fn new(n: usize, k: usize) -> Scratch {
         let t = k * (k + 1) / 2;
+        let groups = CHUNK.div_ceil(LANES);
         Scratch {
-            obs: vec![0.0; 3 * CHUNK * n],
-            encoded: vec![0.0; 3 * CHUNK * n],
-            slopes: vec![0.0; 3 * CHUNK * n],
-            weights: vec![0.0; CHUNK * n],
-            weight_lanes: vec![[0.0; LANES]; n],
+            obs: vec![[0.0; LANES]; 3 * groups * n],
+            encoded: vec![[0.0; LANES]; 3 * groups * n],
+            slopes: vec![[0.0; LANES]; 3 * groups * n],
+            weights: vec![[0.0; LANES]; groups * n],
             weighted_obs: vec![[0.0; LANES]; n],
             sums: vec![[0.0; LANES]; tiled(t)],
             rhs: [vec![[0.0; LANES]; tiled(k)], vec![[0.0; LANES]; tiled(k)]],
-            coef: vec![0.0; 3 * CHUNK * k],
-            pred: vec![0.0; CHUNK * n],
-            pred_encoded: vec![0.0; CHUNK * n],
+            coef: vec![[0.0; LANES]; 3 * groups * k],
+            pred: vec![[0.0; LANES]; groups * n],
+            pred_encoded: vec![[0.0; LANES]; groups * n],
+            pred_tile: vec![[0.0; LANES]; tiled(n)],
             m: vec![0.0; k * k],
+            fallback: vec![0.0; k],
             lane_m: vec![[0.0; LANES]; k * k],
             lane_coef: vec![[0.0; LANES]; k],
             lane_coef2: vec![[0.0; LANES]; k],
+        }
+    }
+
+    /// The observations of a chunk of `len` pixels from `sample(j, p, c)`, the lanes
+    /// past the last pixel zero.
+    fn fill(&mut self, n: usize, len: usize, mut sample: impl FnMut(usize, usize, usize) -> f64) {
+        let groups = len.div_ceil(LANES);
+        for c in 0..3 {
+            for g in 0..groups {
+                let used = LANES.min(len - g * LANES);
+                for (j, lanes) in self.obs[(c * groups + g) * n..][..n].iter_mut().enumerate() {
+                    for (l, v) in lanes.iter_mut().enumerate() {
+                        *v = if l < used {
+                            sample(j, g * LANES + l, c)
+                        } else {
+                            0.0
+                        };
+                    }
+                }
+            }
         }
     }
 }
@@ -2263,19 +2293,31 @@ impl CodeTables {
     /// computes them from the values.
     fn look_up(&self, codes: &[u8], count: usize, a: usize, len: usize, s: &mut Scratch) {
         let n = self.of_image.len();
+        let groups = len.div_ceil(LANES);
+        let zero = CodeValue {
+            value: 0.0,
+            encoded: 0.0,
+            slope: 0.0,
+        };
         for (j, &t) in self.of_image.iter().enumerate() {
             let table: &[CodeValue; 768] = self.tables[t]
                 .as_slice()
                 .try_into()
                 .expect("a table has 256 values a channel");
             let row = &codes[(j * count + a) * 3..(j * count + a + len) * 3];
-            for (p, rgb) in row.chunks_exact(3).enumerate() {
-                for (c, &code) in rgb.iter().enumerate() {
-                    let x = (c * len + p) * n + j;
-                    let v = table[256 * c + code as usize];
-                    s.obs[x] = v.value;
-                    s.encoded[x] = v.encoded;
-                    s.slopes[x] = v.slope;
+            for g in 0..groups {
+                let pixels = &row[g * LANES * 3..((g + 1) * LANES * 3).min(row.len())];
+                for c in 0..3 {
+                    let x = (c * groups + g) * n + j;
+                    let (obs, encoded, slopes) =
+                        (&mut s.obs[x], &mut s.encoded[x], &mut s.slopes[x]);
+                    for l in 0..LANES {
+                        let v = match pixels.get(3 * l + c) {
+                            Some(&code) => table[256 * c + code as usize],
+                            None => zero,
+                        };
+                        (obs[l], encoded[l], slopes[l]) = (v.value, v.encoded, v.slope);
+                    }
                 }
             }
         }
@@ -2320,6 +2362,13 @@ fn solve_per_pixel(
             *dst = v as f32;
         }
     }
+    let n_cols = tiled(n);
+    let mut a_t = vec![0f64; k * n_cols];
+    for j in 0..n {
+        for (i, &v) in design.row(j).iter().enumerate() {
+            a_t[i * n_cols + j] = v;
+        }
+    }
     let lower: Vec<usize> = pairs.iter().map(|&(r, c)| c * k + r).collect();
     let packed_penalty: Vec<f64> = lower.iter().map(|&x| design.penalty[x]).collect();
     let coded = reader.values.as_deref().map(CodeTables::new);
@@ -2340,22 +2389,15 @@ fn solve_per_pixel(
                     let a = chunk * CHUNK;
                     let len = CHUNK.min(count - a);
                     let mut out = vec![0f32; len * 3 * k];
-                    // Along each image's part of the piece (contiguous), into the chunk's
-                    // small pixel-major buffers, one per channel.
                     let looked_up = match (&coded, have_codes) {
                         (Some(coded), true) => {
                             coded.look_up(codes, count, a, len, scratch);
                             true
                         }
                         _ => {
-                            for j in 0..n {
-                                let row = &samples[(j * count + a) * 3..(j * count + a + len) * 3];
-                                for (p, rgb) in row.chunks_exact(3).enumerate() {
-                                    for (c, &v) in rgb.iter().enumerate() {
-                                        scratch.obs[(c * len + p) * n + j] = v as f64;
-                                    }
-                                }
-                            }
+                            scratch.fill(n, len, |j, p, c| {
+                                samples[(j * count + a + p) * 3 + c] as f64
+                            });
                             false
                         }
                     };
@@ -2363,17 +2405,20 @@ fn solve_per_pixel(
                         design,
                         outer: &outer,
                         a32: &a32,
+                        a_t: &a_t,
                         pairs: &pairs,
                         lower: &lower,
                         packed_penalty: &packed_penalty,
                         lambda,
                     };
                     solve_chunk(&tables, reweights, len, scratch, looked_up);
+                    let groups = len.div_ceil(LANES);
                     for c in 0..3 {
                         for p in 0..len {
+                            let (g, l) = (p / LANES, p % LANES);
                             for i in 0..k {
                                 out[p * 3 * k + 3 * i + c] =
-                                    scratch.coef[(c * len + p) * k + i] as f32;
+                                    scratch.coef[(c * groups + g) * k + i][l] as f32;
                             }
                         }
                     }
@@ -2396,6 +2441,8 @@ struct Tables<'a> {
     outer: &'a [f32],
     /// The N×k basis values, single precision, padded as `outer`.
     a32: &'a [f32],
+    /// The k×N transposed basis values, each row padded to whole tiles: the predictions.
+    a_t: &'a [f64],
     pairs: &'a [(usize, usize)],
     /// Where each packed pair `(r, c)` goes in a k×k system: its lower triangle, `c·k + r`.
     lower: &'a [usize],
@@ -2404,8 +2451,8 @@ struct Tables<'a> {
     lambda: f64,
 }
 
-/// Iteratively reweighted solve of `len` pixels' observations in `scratch.obs` (three
-/// len×N channel blocks) into `scratch.coef` (three len×k blocks).
+/// Iteratively reweighted solve of `len` pixels' observations in `scratch.obs` into
+/// `scratch.coef` (both laid out in lane groups: [`Scratch`]).
 ///
 /// Each channel's last solve is weighted by its own samples. The first prediction, which
 /// only sets the reweighted passes' weights, comes from one solve per pixel whose
@@ -2418,48 +2465,58 @@ struct Tables<'a> {
 /// encoding and perceptual weight ([`CodeTables::look_up`]); otherwise they are
 /// computed here, the same values.
 fn solve_chunk(tables: &Tables, reweights: usize, len: usize, s: &mut Scratch, looked_up: bool) {
-    let (n, q) = (tables.design.n, &tables.design.q);
-    let block = len * n;
+    let (n, k, q) = (tables.design.n, tables.design.k, &tables.design.q);
+    let groups = len.div_ceil(LANES);
+    let block = groups * n;
     if !looked_up {
         // Every observation encoded once: its first weight and each secant read it.
-        srgb_extended_batch(&s.obs[..3 * block], &mut s.encoded[..3 * block]);
-        for ((slope, &v), &e) in s.slopes[..3 * block].iter_mut().zip(&s.obs).zip(&s.encoded) {
+        srgb_extended_batch(
+            s.obs[..3 * block].as_flattened(),
+            s.encoded[..3 * block].as_flattened_mut(),
+        );
+        let (obs, encoded) = (s.obs[..3 * block].as_flattened(), s.encoded.as_flattened());
+        for ((slope, &v), &e) in s.slopes[..3 * block]
+            .as_flattened_mut()
+            .iter_mut()
+            .zip(obs)
+            .zip(encoded)
+        {
             *slope = perceptual_weight_encoded(v, e);
         }
     }
     if reweights == 0 {
         for c in 0..3 {
-            let slopes = &s.slopes[c * block..(c + 1) * block];
+            let slopes = s.slopes[c * block..(c + 1) * block].as_flattened();
             weigh(&mut s.weights[..block], q, |x| slopes[x]);
             weighted_solve(tables, len, c..c + 1, s);
         }
         return;
     }
-    let slopes = &s.slopes;
+    let slopes = s.slopes.as_flattened();
+    let lanes_block = block * LANES;
     weigh(&mut s.weights[..block], q, |x| {
-        (0..3).map(|c| slopes[c * block + x]).sum::<f64>() / 3.0
+        (0..3).map(|c| slopes[c * lanes_block + x]).sum::<f64>() / 3.0
     });
     weighted_solve(tables, len, 0..3, s);
+    let n_cols = tables.a_t.len() / k;
     for c in 0..3 {
         for _ in 0..reweights {
-            let k = tables.design.k;
-            linalg::matmul_bt(
-                len,
-                k,
-                n,
-                &s.coef[c * len * k..(c + 1) * len * k],
-                &tables.design.a,
-                &mut s.pred,
+            for g in 0..groups {
+                let coef = &s.coef[(c * groups + g) * k..(c * groups + g + 1) * k];
+                linalg::lane_products_f64(coef, tables.a_t, n_cols, &mut s.pred_tile);
+                s.pred[g * n..(g + 1) * n].copy_from_slice(&s.pred_tile[..n]);
+            }
+            srgb_extended_batch(
+                s.pred[..block].as_flattened(),
+                s.pred_encoded[..block].as_flattened_mut(),
             );
-            srgb_extended_batch(&s.pred[..block], &mut s.pred_encoded[..block]);
-            let (pred, obs) = (&s.pred, &s.obs[c * block..(c + 1) * block]);
-            let (pred_encoded, obs_encoded) =
-                (&s.pred_encoded, &s.encoded[c * block..(c + 1) * block]);
+            let obs = &s.obs[c * block..(c + 1) * block];
+            let obs_encoded = &s.encoded[c * block..(c + 1) * block];
             weigh_secants(
                 &mut s.weights[..block],
                 q,
-                [&pred[..block], obs],
-                [&pred_encoded[..block], obs_encoded],
+                [&s.pred[..block], obs],
+                [&s.pred_encoded[..block], obs_encoded],
             );
             weighted_solve(tables, len, c..c + 1, s);
         }
@@ -2469,46 +2526,44 @@ fn solve_chunk(tables: &Tables, reweights: usize, len: usize, s: &mut Scratch, l
 /// [`weigh`] by [`secant_weight_encoded`] of `(pred, obs)` and their encodings, bit for
 /// bit: every secant first (a loop without branches, which vectorises), then the
 /// tangents where the ends are too close for a secant.
-fn weigh_secants(weights: &mut [f32], q: &[f64], [pred, obs]: [&[f64]; 2], [pe, oe]: [&[f64]; 2]) {
+fn weigh_secants(
+    weights: &mut [LanesF32],
+    q: &[f64],
+    [pred, obs]: [&[Lanes]; 2],
+    [pe, oe]: [&[Lanes]; 2],
+) {
     let n = q.len();
-    let runs = weights
-        .chunks_exact_mut(n)
-        .zip(pred.chunks_exact(n).zip(obs.chunks_exact(n)))
-        .zip(pe.chunks_exact(n).zip(oe.chunks_exact(n)));
-    for ((w, (pred, obs)), (pe, oe)) in runs {
-        for ((((w, &qj), (&p, &o)), &pe), &oe) in w
-            .iter_mut()
-            .zip(q)
-            .zip(pred.iter().zip(obs))
-            .zip(pe)
-            .zip(oe)
-        {
-            let s = (pe - oe) / (p - o);
-            *w = (qj * (s * s)) as f32;
+    for (gj, w) in weights.iter_mut().enumerate() {
+        let qj = q[gj % n];
+        let (p, o, pe, oe) = (&pred[gj], &obs[gj], &pe[gj], &oe[gj]);
+        for l in 0..LANES {
+            let s = (pe[l] - oe[l]) / (p[l] - o[l]);
+            w[l] = (qj * (s * s)) as f32;
         }
-        for ((w, &qj), (&p, &o)) in w.iter_mut().zip(q).zip(pred.iter().zip(obs)) {
-            if (p - o).abs() < TANGENT_BELOW {
-                *w = (qj * perceptual_weight(0.5 * (p + o))) as f32;
+        for l in 0..LANES {
+            if (p[l] - o[l]).abs() < TANGENT_BELOW {
+                w[l] = (qj * perceptual_weight(0.5 * (p[l] + o[l]))) as f32;
             }
         }
     }
 }
 
-/// `weights[x] = q[j] · weight(x)` for sample `x` of light `j`, a pixel's run of the N
-/// lights at a time (an index modulo N per sample had cost a division each).
+/// `weights[x] = q[j] · weight(x)` for sample `x` of light `j`, where `x` indexes the
+/// flattened lane layout of one channel ([`Scratch`]).
 #[inline]
-fn weigh(weights: &mut [f32], q: &[f64], weight: impl Fn(usize) -> f64) {
+fn weigh(weights: &mut [LanesF32], q: &[f64], weight: impl Fn(usize) -> f64) {
     let n = q.len();
-    for (p, run) in weights.chunks_exact_mut(n).enumerate() {
-        for (j, (w, &qj)) in run.iter_mut().zip(q).enumerate() {
-            *w = (qj * weight(p * n + j)) as f32;
+    for (gj, w) in weights.iter_mut().enumerate() {
+        let qj = q[gj % n];
+        for (l, w) in w.iter_mut().enumerate() {
+            *w = (qj * weight(gj * LANES + l)) as f32;
         }
     }
 }
 
-/// Solve the channels `channels` of `len` pixels under the weights `s.weights` (len×N),
-/// which they share: one normal matrix and one factorisation per pixel, a right-hand
-/// side per channel.
+/// Solve the channels `channels` of `len` pixels under the weights `s.weights`, which
+/// they share: one normal matrix and one factorisation per pixel, a right-hand side per
+/// channel.
 fn weighted_solve(tables: &Tables, len: usize, channels: std::ops::Range<usize>, s: &mut Scratch) {
     let Tables {
         design,
@@ -2518,31 +2573,27 @@ fn weighted_solve(tables: &Tables, len: usize, channels: std::ops::Range<usize>,
         lower,
         packed_penalty,
         lambda,
+        ..
     } = *tables;
     let (k, n) = (design.k, design.n);
     let (t_cols, k_cols) = (outer.len() / n, a32.len() / n);
-    // Pixels a lane group at a time (`linalg::cholesky_lanes`: each lane is the scalar
-    // solve bit for bit); a lane whose system is singular is solved again alone, with
-    // the larger λ of `solve_regularized`.
-    for g in (0..len).step_by(LANES) {
-        let used = LANES.min(len - g);
-        // The group's weights light by light; unused lanes weigh nothing.
-        for (j, w) in s.weight_lanes.iter_mut().enumerate() {
-            *w = [0.0; LANES];
-            for (l, w) in w.iter_mut().enumerate().take(used) {
-                *w = s.weights[(g + l) * n + j];
+    let groups = len.div_ceil(LANES);
+    // A lane group at a time (`linalg::cholesky_lanes`: each lane is the scalar solve
+    // bit for bit); a lane whose system is singular is solved again alone, with the
+    // larger λ of `solve_regularized`.
+    for g in 0..groups {
+        let used = LANES.min(len - g * LANES);
+        let weights = &mut s.weights[g * n..(g + 1) * n];
+        // Lanes past the last pixel weigh nothing.
+        weights.iter_mut().for_each(|w| w[used..].fill(0.0));
+        let mut sum = [0.0f64; LANES];
+        for w in weights.iter() {
+            for l in 0..LANES {
+                sum[l] += w[l] as f64;
             }
         }
-        let mut total = [1.0; LANES];
-        for (l, t_l) in total.iter_mut().enumerate().take(used) {
-            let p = g + l;
-            let sum: f64 = s.weights[p * n..(p + 1) * n]
-                .iter()
-                .map(|&w| w as f64)
-                .sum();
-            *t_l = sum.max(1e-30);
-        }
-        linalg::lane_products(&s.weight_lanes, outer, t_cols, &mut s.sums);
+        let total: Lanes = std::array::from_fn(|l| if l < used { sum[l].max(1e-30) } else { 1.0 });
+        linalg::lane_products(weights, outer, t_cols, &mut s.sums);
         // The lower triangle only (all that the factorisation and the solve read): the
         // weighted sums plus the penalty and the definiteness term, added in
         // `Design::regularize`'s order so that a lane is the scalar system bit for bit.
@@ -2566,16 +2617,16 @@ fn weighted_solve(tables: &Tables, len: usize, channels: std::ops::Range<usize>,
         let ok = linalg::cholesky_lanes(&mut s.lane_m, k);
         // The channels that share this factor two at a time, solved side by side
         // (`linalg::cholesky_solve_lanes_pair`, each bit for bit its own solve).
+        let weights = &s.weights[g * n..(g + 1) * n];
         let mut ch = channels.start;
         while ch < channels.end {
             let both = ch + 1 < channels.end;
             for slot in 0..1 + both as usize {
-                let obs = &s.obs[(ch + slot) * len * n..(ch + slot + 1) * len * n];
-                for (j, (wo, w)) in s.weighted_obs.iter_mut().zip(&s.weight_lanes).enumerate() {
-                    for l in 0..used {
-                        wo[l] = w[l] * obs[(g + l) * n + j] as f32;
+                let obs = &s.obs[((ch + slot) * groups + g) * n..][..n];
+                for ((wo, w), o) in s.weighted_obs.iter_mut().zip(weights).zip(obs) {
+                    for l in 0..LANES {
+                        wo[l] = w[l] * o[l] as f32;
                     }
-                    wo[used..].fill(0.0);
                 }
                 linalg::lane_products(&s.weighted_obs, a32, k_cols, &mut s.rhs[slot]);
                 let coef = if slot == 0 {
@@ -2604,25 +2655,21 @@ fn weighted_solve(tables: &Tables, len: usize, channels: std::ops::Range<usize>,
                 .enumerate()
                 .take(1 + both as usize)
             {
-                let ch = ch + slot;
-                for l in 0..used {
-                    let p = g + l;
-                    let coef = &mut s.coef[(ch * len + p) * k..(ch * len + p + 1) * k];
-                    if ok[l] {
-                        for (dst, v) in coef.iter_mut().zip(solved) {
-                            *dst = v[l];
-                        }
-                        continue;
-                    }
+                let coef = &mut s.coef[((ch + slot) * groups + g) * k..][..k];
+                coef.copy_from_slice(solved);
+                for l in (0..used).filter(|&l| !ok[l]) {
                     for (&(r, c), sums) in pairs.iter().zip(&s.sums) {
                         let v = sums[l] as f64;
                         s.m[r * k + c] = v;
                         s.m[c * k + r] = v;
                     }
-                    for (dst, rhs) in coef.iter_mut().zip(&s.rhs[slot]) {
+                    for (dst, rhs) in s.fallback.iter_mut().zip(&s.rhs[slot]) {
                         *dst = rhs[l] as f64;
                     }
-                    solve_regularized(design, &mut s.m, coef, lambda, total[l]);
+                    solve_regularized(design, &mut s.m, &mut s.fallback, lambda, total[l]);
+                    for (c, &v) in coef.iter_mut().zip(&s.fallback) {
+                        c[l] = v;
+                    }
                 }
             }
             ch += 1 + both as usize;

@@ -681,7 +681,8 @@ fn the_perceptual_fit_shares_its_first_weights_across_channels_and_reweights_eac
 fn codes_looked_up_are_the_values_encodings_and_weights_computed_from_them() {
     // Three images over two tables, one of lights of intensity 0.6 (values above 1,
     // where the encoding is the extended line and the weight the slope at white), and
-    // codes that take every value of every channel.
+    // codes that take every value of every channel; a whole chunk and a part of one
+    // whose last lane group is partly used.
     let curve: Vec<f32> = (0..768)
         .map(|x| ((x % 256) as f32 / 255.0).powf(2.2))
         .collect();
@@ -689,36 +690,45 @@ fn codes_looked_up_are_the_values_encodings_and_weights_computed_from_them() {
     let values = vec![curve.clone(), bright, curve];
     let tables = CodeTables::new(&values);
     assert_eq!(tables.tables.len(), 2, "equal tables are kept once");
-    let (n, count) = (values.len(), 2 * CHUNK);
+    let (n, count) = (values.len(), CHUNK + 13);
     let codes: Vec<u8> = (0..n * count * 3)
         .map(|x| ((x % 3) * 31 + (x / 3) * 7 + x / (3 * count) * 13) as u8)
         .collect();
     let mut s = Scratch::new(n, 4);
-    for a in (0..count).step_by(CHUNK) {
-        let len = CHUNK.min(count - a);
+    for (a, len) in [(0, CHUNK), (CHUNK, 13)] {
         tables.look_up(&codes, count, a, len, &mut s);
-        let block = 3 * len * n;
-        let (obs, encoded, slopes) = (
-            s.obs[..block].to_vec(),
-            s.encoded[..block].to_vec(),
-            s.slopes[..block].to_vec(),
-        );
+        let groups = len.div_ceil(LANES);
         for (j, image) in values.iter().enumerate() {
-            for p in 0..len {
-                for c in 0..3 {
-                    let code = codes[(j * count + a + p) * 3 + c] as usize;
-                    assert_eq!(obs[(c * len + p) * n + j], image[256 * c + code] as f64);
+            for c in 0..3 {
+                for g in 0..groups {
+                    for l in 0..LANES {
+                        let p = g * LANES + l;
+                        let want = if p < len {
+                            image[256 * c + codes[(j * count + a + p) * 3 + c] as usize] as f64
+                        } else {
+                            0.0
+                        };
+                        assert_eq!(s.obs[(c * groups + g) * n + j][l], want);
+                    }
                 }
             }
         }
         // What `solve_chunk` computes from the values when they were not looked up.
-        let mut want = vec![0.0; block];
-        srgb_extended_batch(&obs, &mut want);
+        let block = 3 * groups * n;
+        let obs = s.obs[..block].as_flattened();
+        let mut want = vec![0.0; obs.len()];
+        srgb_extended_batch(obs, &mut want);
         assert!(obs.iter().any(|&v| v > 1.0));
-        for x in 0..block {
+        let (encoded, slopes) = (
+            s.encoded[..block].as_flattened(),
+            s.slopes[..block].as_flattened(),
+        );
+        for x in 0..obs.len() {
             assert_eq!(encoded[x].to_bits(), want[x].to_bits(), "{}", obs[x]);
-            let slope = perceptual_weight_encoded(obs[x], want[x]);
-            assert_eq!(slopes[x].to_bits(), slope.to_bits(), "{}", obs[x]);
+            if obs[x] != 0.0 {
+                let slope = perceptual_weight_encoded(obs[x], want[x]);
+                assert_eq!(slopes[x].to_bits(), slope.to_bits(), "{}", obs[x]);
+            }
         }
     }
 }
@@ -726,24 +736,40 @@ fn codes_looked_up_are_the_values_encodings_and_weights_computed_from_them() {
 #[test]
 fn secants_weighed_at_once_are_each_secant_weight() {
     // Predictions far from, near (within and beyond the tangent's reach) and equal to
-    // their observations, below 0 and above 1.
+    // their observations, below 0 and above 1: three lights of a lane group.
     let q = [0.5, 1.0, 2.0];
-    let obs: Vec<f64> = (0..12).map(|x| -0.1 + 0.12 * x as f64).collect();
+    let samples = q.len() * LANES;
+    let obs: Vec<f64> = (0..samples).map(|x| -0.1 + 0.06 * x as f64).collect();
     let offsets = [0.3, 4e-6, 2e-5, 0.0, -0.05, -3e-6];
     let pred: Vec<f64> = obs
         .iter()
         .enumerate()
         .map(|(x, o)| o + offsets[x % offsets.len()])
         .collect();
-    let (mut pe, mut oe) = (vec![0.0; 12], vec![0.0; 12]);
+    let (mut pe, mut oe) = (vec![0.0; samples], vec![0.0; samples]);
     srgb_extended_batch(&pred, &mut pe);
     srgb_extended_batch(&obs, &mut oe);
-    let mut got = vec![0f32; 12];
-    weigh_secants(&mut got, &q, [&pred, &obs], [&pe, &oe]);
-    let mut want = vec![0f32; 12];
+    let lanes = |v: &[f64]| -> Vec<Lanes> {
+        v.chunks_exact(LANES)
+            .map(|c| c.try_into().unwrap())
+            .collect()
+    };
+    let mut got = vec![[0f32; LANES]; q.len()];
+    weigh_secants(
+        &mut got,
+        &q,
+        [&lanes(&pred), &lanes(&obs)],
+        [&lanes(&pe), &lanes(&oe)],
+    );
+    let mut want = vec![[0f32; LANES]; q.len()];
     weigh(&mut want, &q, |x| {
         secant_weight_encoded(pred[x], obs[x], pe[x], oe[x])
     });
-    assert!(want.iter().all(|w| w.is_finite() && *w > 0.0), "{want:?}");
+    assert!(
+        want.as_flattened()
+            .iter()
+            .all(|w| w.is_finite() && *w > 0.0),
+        "{want:?}"
+    );
     assert_eq!(got, want);
 }
