@@ -2181,7 +2181,7 @@ struct Scratch {
 }
 
 /// `columns` rounded up to whole tiles of [`linalg::lane_products`].
-fn tiled(columns: usize) -> usize {
+pub(super) fn tiled(columns: usize) -> usize {
     columns.next_multiple_of(linalg::PRODUCT_TILE)
 }
 

@@ -691,16 +691,17 @@ fn fold_errors(
     });
     let series = sub.count * 3;
     let lights = held.len();
-    // The perceptual objective's normal matrices, a block of series at a time: the
-    // weights (block × N) times the table of the rows' outer products (N × packed
-    // upper triangle) in one matrix product.
+    // The perceptual objective's normal matrices, a lane group of series at a time:
+    // the weights (lanes × N) times the table of the rows' outer products (N × packed
+    // upper triangle, padded to whole tiles) by `linalg::lane_products_f64`.
     let pairs = super::packed_pairs(k);
-    let t = pairs.len();
+    let t_cols = super::tiled(pairs.len());
     let outer: Vec<f64> = if shared.is_none() {
         (0..nt)
             .flat_map(|j| {
                 let row = &a_train[j * k..(j + 1) * k];
-                pairs.iter().map(move |&(r, c)| row[r] * row[c])
+                let products = pairs.iter().map(move |&(r, c)| row[r] * row[c]);
+                products.chain(std::iter::repeat_n(0.0, t_cols - pairs.len()))
             })
             .collect()
     } else {
@@ -804,10 +805,10 @@ fn fold_errors(
                     .map(|((&v, &e), &q)| q * perceptual_weight_encoded(v, e))
                     .collect()
             };
-            let mut packed = vec![0.0; len * t];
-            linalg::matmul(len, nt, t, &weights, &outer, &mut packed);
             // Series a lane group at a time: each lane's systems are the scalar
             // systems, factored and solved side by side (`linalg::cholesky_lanes`).
+            let mut weight_lanes = vec![[0.0; LANES]; nt];
+            let mut sums = vec![[0.0; LANES]; t_cols];
             let mut m = vec![[0.0; LANES]; k * k];
             let mut f = vec![[0.0; LANES]; k * k];
             let mut f2 = vec![[0.0; LANES]; k * k];
@@ -818,20 +819,29 @@ fn fold_errors(
                 let used = LANES.min(len - g);
                 let mut total = [0.0; LANES];
                 rhs0.iter_mut().for_each(|r| *r = [0.0; LANES]);
-                for l in 0..used {
-                    let b = g + l;
-                    for (x, &(r, col)) in pairs.iter().enumerate() {
-                        m[col * k + r][l] = packed[b * t + x];
+                for (j, w) in weight_lanes.iter_mut().enumerate() {
+                    for (l, w) in w.iter_mut().enumerate() {
+                        *w = if l < used {
+                            weights[(g + l) * nt + j]
+                        } else {
+                            0.0
+                        };
                     }
-                    total[l] = weights[b * nt..(b + 1) * nt].iter().sum();
+                }
+                for (l, total) in total.iter_mut().enumerate().take(used) {
+                    let b = g + l;
+                    *total = weights[b * nt..(b + 1) * nt].iter().sum();
+                }
+                linalg::lane_products_f64(&weight_lanes, &outer, t_cols, &mut sums);
+                for (&(r, col), sum) in pairs.iter().zip(&sums) {
+                    m[col * k + r] = *sum;
                 }
                 // The right-hand sides, every lane at once (each lane's sums in the
                 // order of its own lights; unused lanes add zeros).
-                for j in 0..nt {
-                    let (mut w, mut v) = ([0.0; LANES], [0.0; LANES]);
-                    for l in 0..used {
-                        w[l] = weights[(g + l) * nt + j];
-                        v[l] = train_values[(first + g + l) * nt + j] as f64;
+                for (j, &w) in weight_lanes.iter().enumerate() {
+                    let mut v = [0.0; LANES];
+                    for (l, v) in v.iter_mut().enumerate().take(used) {
+                        *v = train_values[(first + g + l) * nt + j] as f64;
                     }
                     for (r, &a) in a_train[j * k..(j + 1) * k].iter().enumerate() {
                         for l in 0..LANES {
