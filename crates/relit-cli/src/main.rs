@@ -142,12 +142,20 @@ extern "C" {
 /// to 64 MiB free, and growing a heap 4 MiB at a time, took a tenth off the default
 /// fit's time on the shared RTI items (`scripts/fit_releases.py`, same maps), for 0–3
 /// MiB more peak memory.
+///
+/// The threshold is 2 MiB rather than 256 KiB: the compressed EXR blocks (about a
+/// megabyte each) and the choice's larger buffers were otherwise mapped and faulted in
+/// afresh each time (a twentieth of item3's samples). That took 5 % off the eight
+/// items' summed time for 0.1–5.3 MiB more peak (item3 34.1 → 39.4, still 0.64× relight-cli's),
+/// and the streamed fit's peak stays flat in the image's size (item1 repeated to
+/// 2048×512, 4096×1024 and 8192×2048: 26.2–27.8, 27.0–28.6 and 28.2–29.2 MiB; 256 KiB:
+/// 25.2–27.1, 26.6–27.1 and 26.4–28.3).
 fn return_freed_buffers() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     // SAFETY: mallopt(M_MMAP_THRESHOLD = -3 / M_TRIM_THRESHOLD = -1 / M_TOP_PAD = -2,
     // bytes) only sets glibc allocator parameters; called before any thread exists.
     unsafe {
-        glibc_mallopt(-3, 256 << 10);
+        glibc_mallopt(-3, 2 << 20);
         glibc_mallopt(-1, 64 << 20);
         glibc_mallopt(-2, 4 << 20);
     }
