@@ -681,7 +681,10 @@ fn fold_errors(
                     .map(|(&size, own)| {
                         own.contains(&li).then(|| {
                             (size <= pivots).then(|| {
-                                prediction_operator(&f, size, &a_train, &a_held, q_train, k)
+                                padded_columns(
+                                    &prediction_operator(&f, size, &a_train, &a_held, q_train, k),
+                                    held_dirs.len(),
+                                )
                             })
                         })
                     })
@@ -771,10 +774,28 @@ fn fold_errors(
                 }
             };
             if let Some(operators) = &shared {
-                let values: Vec<f64> = train_values[first * nt..(first + len) * nt]
-                    .iter()
-                    .map(|&v| v as f64)
+                // The block's series in lane groups, light by light: each group's
+                // predictions are its lanes times an operator (`linalg::lane_products_f64`,
+                // the sums in the order of a matrix product's).
+                let groups: Vec<Vec<Lanes>> = (0..len)
+                    .step_by(LANES)
+                    .map(|g| {
+                        (0..nt)
+                            .map(|j| {
+                                std::array::from_fn(|l| {
+                                    let s = first + g + l;
+                                    if g + l < len {
+                                        train_values[s * nt + j] as f64
+                                    } else {
+                                        0.0
+                                    }
+                                })
+                            })
+                            .collect()
+                    })
                     .collect();
+                let cols = super::tiled(lights);
+                let mut out = vec![[0.0; LANES]; cols];
                 for li in span.clone() {
                     for ((acc, operator), own) in acc.iter_mut().zip(&operators[li]).zip(ladders) {
                         let Some(operator) = operator else {
@@ -782,7 +803,16 @@ fn fold_errors(
                         };
                         let ok = vec![operator.is_some(); len];
                         if let Some(g) = operator {
-                            linalg::matmul(len, nt, lights, &values, g, &mut preds);
+                            for (group, lanes) in groups.iter().enumerate() {
+                                linalg::lane_products_f64(lanes, g, cols, &mut out);
+                                let used = LANES.min(len - group * LANES);
+                                for l in 0..used {
+                                    let row = (group * LANES + l) * lights;
+                                    for (h, p) in preds[row..row + lights].iter_mut().enumerate() {
+                                        *p = out[h][l];
+                                    }
+                                }
+                            }
                         }
                         tally(acc, li, own.start, 0..len, &mut preds, &mut shown, &ok);
                     }
@@ -958,6 +988,20 @@ fn prediction_operator(
         }
     }
     operator
+}
+
+/// A row-major matrix of `columns` columns with each row padded with zeros to whole
+/// tiles of [`linalg::lane_products_f64`].
+fn padded_columns(matrix: &[f64], columns: usize) -> Vec<f64> {
+    let cols = super::tiled(columns);
+    matrix
+        .chunks_exact(columns.max(1))
+        .flat_map(|row| {
+            row.iter()
+                .copied()
+                .chain(std::iter::repeat_n(0.0, cols - columns))
+        })
+        .collect()
 }
 
 /// The whole λ ladder.
