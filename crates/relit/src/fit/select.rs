@@ -806,10 +806,10 @@ fn fold_errors(
                             for (group, lanes) in groups.iter().enumerate() {
                                 linalg::lane_products_f64(lanes, g, cols, &mut out);
                                 let used = LANES.min(len - group * LANES);
-                                for l in 0..used {
-                                    let row = (group * LANES + l) * lights;
-                                    for (h, p) in preds[row..row + lights].iter_mut().enumerate() {
-                                        *p = out[h][l];
+                                let rows = &mut preds[group * LANES * lights..][..used * lights];
+                                for (l, row) in rows.chunks_exact_mut(lights).enumerate() {
+                                    for (p, o) in row.iter_mut().zip(&out) {
+                                        *p = o[l];
                                     }
                                 }
                             }
