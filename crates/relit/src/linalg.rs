@@ -310,27 +310,14 @@ pub const PRODUCT_TILE: usize = 12;
 /// right-hand sides so, lane-major as the lane factorisation reads them, without
 /// packing the shared table again for each product.
 pub fn lane_products(lanes: &[LanesF32], table: &[f32], cols: usize, out: &mut [LanesF32]) {
-    assert!(
-        cols.is_multiple_of(PRODUCT_TILE) && table.len() >= lanes.len() * cols && out.len() >= cols
-    );
+    check_lane_products(lanes.len(), table.len(), cols, out.len());
     #[cfg(target_arch = "x86_64")]
     if is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma") {
         // SAFETY: AVX2 and FMA are present; the lengths were checked above.
         unsafe { lane_products_fma(lanes, table, cols, out) };
         return;
     }
-    for x0 in (0..cols).step_by(PRODUCT_TILE) {
-        let mut acc = [[0f32; LANES]; PRODUCT_TILE];
-        for (j, w) in lanes.iter().enumerate() {
-            let row = &table[j * cols + x0..j * cols + x0 + PRODUCT_TILE];
-            for (a, &t) in acc.iter_mut().zip(row) {
-                for l in 0..LANES {
-                    a[l] += w[l] * t;
-                }
-            }
-        }
-        out[x0..x0 + PRODUCT_TILE].copy_from_slice(&acc);
-    }
+    lane_products_portable(lanes, table, cols, out);
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -354,37 +341,18 @@ unsafe fn lane_products_fma(lanes: &[LanesF32], table: &[f32], cols: usize, out:
     }
 }
 
-/// `c = a · b` for row-major `a` (m×k), `b` (k×n), `c` (m×n), overwriting `c`.
-pub fn matmul(m: usize, k: usize, n: usize, a: &[f64], b: &[f64], c: &mut [f64]) {
-    assert!(a.len() >= m * k && b.len() >= k * n && c.len() >= m * n);
-    dgemm(m, k, n, (a, k, 1), (b, n, 1), c);
-}
-
 /// [`lane_products`] in double precision: `out[x][l] = Σ_j lanes[j][l] · table[j·cols +
 /// x]`, each sum over `j` in order from zero, fused where the CPU has FMA. The per-pixel
 /// fit predicts eight pixels' samples from their coefficients so.
 pub fn lane_products_f64(lanes: &[Lanes], table: &[f64], cols: usize, out: &mut [Lanes]) {
-    assert!(
-        cols.is_multiple_of(PRODUCT_TILE) && table.len() >= lanes.len() * cols && out.len() >= cols
-    );
+    check_lane_products(lanes.len(), table.len(), cols, out.len());
     #[cfg(target_arch = "x86_64")]
     if is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma") {
         // SAFETY: AVX2 and FMA are present; the lengths were checked above.
         unsafe { lane_products_f64_fma(lanes, table, cols, out) };
         return;
     }
-    for x0 in (0..cols).step_by(PRODUCT_TILE) {
-        let mut acc = [[0f64; LANES]; PRODUCT_TILE];
-        for (j, w) in lanes.iter().enumerate() {
-            let row = &table[j * cols + x0..j * cols + x0 + PRODUCT_TILE];
-            for (a, &t) in acc.iter_mut().zip(row) {
-                for l in 0..LANES {
-                    a[l] += w[l] * t;
-                }
-            }
-        }
-        out[x0..x0 + PRODUCT_TILE].copy_from_slice(&acc);
-    }
+    lane_products_portable(lanes, table, cols, out);
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -418,6 +386,36 @@ unsafe fn lane_products_f64_fma(lanes: &[Lanes], table: &[f64], cols: usize, out
             }
         }
     }
+}
+
+/// The lengths [`lane_products`] and [`lane_products_f64`] need.
+fn check_lane_products(rows: usize, table: usize, cols: usize, out: usize) {
+    assert!(cols.is_multiple_of(PRODUCT_TILE) && table >= rows * cols && out >= cols);
+}
+
+/// [`lane_products`] without fused multiply-adds, in either precision.
+fn lane_products_portable<T>(lanes: &[[T; LANES]], table: &[T], cols: usize, out: &mut [[T; LANES]])
+where
+    T: Copy + Default + std::ops::Add<Output = T> + std::ops::Mul<Output = T>,
+{
+    for x0 in (0..cols).step_by(PRODUCT_TILE) {
+        let mut acc = [[T::default(); LANES]; PRODUCT_TILE];
+        for (j, w) in lanes.iter().enumerate() {
+            let row = &table[j * cols + x0..j * cols + x0 + PRODUCT_TILE];
+            for (a, &t) in acc.iter_mut().zip(row) {
+                for l in 0..LANES {
+                    a[l] = a[l] + w[l] * t;
+                }
+            }
+        }
+        out[x0..x0 + PRODUCT_TILE].copy_from_slice(&acc);
+    }
+}
+
+/// `c = a · b` for row-major `a` (m×k), `b` (k×n), `c` (m×n), overwriting `c`.
+pub fn matmul(m: usize, k: usize, n: usize, a: &[f64], b: &[f64], c: &mut [f64]) {
+    assert!(a.len() >= m * k && b.len() >= k * n && c.len() >= m * n);
+    dgemm(m, k, n, (a, k, 1), (b, n, 1), c);
 }
 
 /// `c = a · bᵀ` for row-major `a` (m×k), `b` (n×k), `c` (m×n), overwriting `c`.
@@ -796,10 +794,30 @@ fn orthonormalize(q: &mut [f64], n: usize, cols: usize) {
 mod tests {
     use super::*;
 
+    /// Each column's lane sums as a chain over the rows in order from zero, one `step(acc,
+    /// w, t)` a row.
+    fn lane_chains<T: Copy>(
+        lanes: &[[T; LANES]],
+        table: &[T],
+        cols: usize,
+        zero: T,
+        step: impl Fn(T, T, T) -> T,
+    ) -> Vec<[T; LANES]> {
+        (0..cols)
+            .map(|x| {
+                std::array::from_fn(|l| {
+                    (lanes.iter().enumerate())
+                        .fold(zero, |acc, (j, w)| step(acc, w[l], table[j * cols + x]))
+                })
+            })
+            .collect()
+    }
+
     #[test]
     fn lane_products_are_each_lanes_sums_in_order() {
         // Each output a chain over the rows in order from zero: fused where the CPU
-        // fuses (the dispatched kernel), products then sums otherwise.
+        // fuses (the dispatched kernel), products then sums otherwise (the portable
+        // loop, tested on every machine).
         #[cfg(target_arch = "x86_64")]
         let fused = is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma");
         #[cfg(not(target_arch = "x86_64"))]
@@ -812,42 +830,36 @@ mod tests {
         for (rows, cols) in [(1, PRODUCT_TILE), (49, 48), (300, 2 * PRODUCT_TILE)] {
             let lanes: Vec<LanesF32> = (0..rows).map(|_| std::array::from_fn(|_| next())).collect();
             let table: Vec<f32> = (0..rows * cols).map(|_| next()).collect();
+            let plain = lane_chains(&lanes, &table, cols, 0.0, |a, w, t| a + w * t);
+            let dispatched = if fused {
+                lane_chains(&lanes, &table, cols, 0.0, |a, w, t| w.mul_add(t, a))
+            } else {
+                plain.clone()
+            };
             let mut out = vec![[f32::NAN; LANES]; cols];
             lane_products(&lanes, &table, cols, &mut out);
-            for (x, got) in out.iter().enumerate() {
-                for l in 0..LANES {
-                    let want = lanes.iter().enumerate().fold(0f32, |acc, (j, w)| {
-                        let t = table[j * cols + x];
-                        if fused {
-                            w[l].mul_add(t, acc)
-                        } else {
-                            acc + w[l] * t
-                        }
-                    });
-                    assert_eq!(got[l].to_bits(), want.to_bits(), "{rows}×{cols} ({x}, {l})");
-                }
-            }
+            assert_eq!(out, dispatched, "{rows}×{cols}");
+            lane_products_portable(&lanes, &table, cols, &mut out);
+            assert_eq!(out, plain, "{rows}×{cols}");
             // The same in double precision.
             let lanes: Vec<Lanes> = lanes.iter().map(|w| w.map(|v| v as f64 / 3.0)).collect();
             let table: Vec<f64> = table.iter().map(|&v| v as f64 / 7.0).collect();
+            let plain = lane_chains(&lanes, &table, cols, 0.0, |a, w, t| a + w * t);
+            let dispatched = if fused {
+                lane_chains(&lanes, &table, cols, 0.0, |a, w, t| w.mul_add(t, a))
+            } else {
+                plain.clone()
+            };
             let mut out = vec![[f64::NAN; LANES]; cols];
             lane_products_f64(&lanes, &table, cols, &mut out);
-            for (x, got) in out.iter().enumerate() {
-                for l in 0..LANES {
-                    let want = lanes.iter().enumerate().fold(0f64, |acc, (j, w)| {
-                        let t = table[j * cols + x];
-                        if fused {
-                            w[l].mul_add(t, acc)
-                        } else {
-                            acc + w[l] * t
-                        }
-                    });
-                    assert_eq!(
-                        got[l].to_bits(),
-                        want.to_bits(),
-                        "f64 {rows}×{cols} ({x}, {l})"
-                    );
-                }
+            assert_eq!(out, dispatched, "f64 {rows}×{cols}");
+            lane_products_portable(&lanes, &table, cols, &mut out);
+            assert_eq!(out, plain, "f64 {rows}×{cols}");
+            if fused && rows > 1 {
+                assert_ne!(
+                    plain, dispatched,
+                    "fused chains round differently ({rows} rows)"
+                );
             }
         }
     }
