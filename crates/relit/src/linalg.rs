@@ -301,6 +301,12 @@ pub type LanesF32 = [f32; LANES];
 /// stay in registers while the table's rows go by).
 pub const PRODUCT_TILE: usize = 12;
 
+/// `columns` rounded up to whole tiles of [`lane_products`]: how wide its tables' rows are
+/// stored.
+pub fn tiled(columns: usize) -> usize {
+    columns.next_multiple_of(PRODUCT_TILE)
+}
+
 /// `out[x][l] = Σ_j lanes[j][l] · table[j·cols + x]` for each of the `cols` columns of a
 /// row-major table of `lanes.len()` rows (`cols` a multiple of [`PRODUCT_TILE`]): per
 /// lane, a row vector times a matrix shared by the lanes. Each sum runs over `j` in

@@ -698,7 +698,7 @@ fn fold_errors(
     // the weights (lanes × N) times the table of the rows' outer products (N × packed
     // upper triangle, padded to whole tiles) by `linalg::lane_products_f64`.
     let pairs = super::packed_pairs(k);
-    let t_cols = super::tiled(pairs.len());
+    let t_cols = linalg::tiled(pairs.len());
     let outer: Vec<f64> = if shared.is_none() {
         (0..nt)
             .flat_map(|j| {
@@ -794,7 +794,7 @@ fn fold_errors(
                             .collect()
                     })
                     .collect();
-                let cols = super::tiled(lights);
+                let cols = linalg::tiled(lights);
                 let mut out = vec![[0.0; LANES]; cols];
                 for li in span.clone() {
                     for ((acc, operator), own) in acc.iter_mut().zip(&operators[li]).zip(ladders) {
@@ -993,7 +993,7 @@ fn prediction_operator(
 /// A row-major matrix of `columns` columns with each row padded with zeros to whole
 /// tiles of [`linalg::lane_products_f64`].
 fn padded_columns(matrix: &[f64], columns: usize) -> Vec<f64> {
-    let cols = super::tiled(columns);
+    let cols = linalg::tiled(columns);
     matrix
         .chunks_exact(columns.max(1))
         .flat_map(|row| {
