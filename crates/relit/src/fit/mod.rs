@@ -704,16 +704,6 @@ impl<'a> SpillReader<'a> {
         self.spill
             .read_region(piece, buffer, self.values.as_deref())
     }
-
-    /// Where the file holds codes, `piece` of every image as its codes
-    /// ([`spill::Spill::read_region_codes`]); `Ok(false)` for a file of floats.
-    fn read_codes(&self, piece: Piece, buffer: &mut Vec<u8>) -> Result<bool> {
-        if self.values.is_none() {
-            return Ok(false);
-        }
-        self.spill.read_region_codes(piece, buffer)?;
-        Ok(true)
-    }
 }
 
 /// Pixels of the subsample the basis choice validates its finalists on: enough for

@@ -236,13 +236,14 @@ pub(super) fn solve_per_pixel(
     }
     let lower: Vec<usize> = pairs.iter().map(|&(r, c)| c * k + r).collect();
     let packed_penalty: Vec<f64> = lower.iter().map(|&x| design.penalty[x]).collect();
+    // A file of codes is read as its codes and looked up; a file of floats as values.
     let coded = reader.values.as_deref().map(CodeTables::new);
     progress.begin("fitting pieces", reader.pieces.len() as u64);
     let (mut buffer, mut codes) = (Vec::new(), Vec::new());
     for &piece in &reader.pieces {
-        let have_codes = reader.read_codes(piece, &mut codes)?;
-        if !have_codes {
-            reader.read(piece, &mut buffer)?;
+        match coded {
+            Some(_) => reader.spill.read_region_codes(piece, &mut codes)?,
+            None => reader.read(piece, &mut buffer)?,
         }
         let count = piece.pixels();
         let (samples, codes) = (&buffer, &codes);
@@ -254,12 +255,12 @@ pub(super) fn solve_per_pixel(
                     let a = chunk * CHUNK;
                     let len = CHUNK.min(count - a);
                     let mut out = vec![0f32; len * 3 * k];
-                    let looked_up = match (&coded, have_codes) {
-                        (Some(coded), true) => {
+                    let looked_up = match &coded {
+                        Some(coded) => {
                             coded.look_up(codes, count, a, len, scratch);
                             true
                         }
-                        _ => {
+                        None => {
                             scratch.fill(n, len, |j, p, c| {
                                 samples[(j * count + a + p) * 3 + c] as f64
                             });

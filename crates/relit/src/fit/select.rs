@@ -780,18 +780,11 @@ fn fold_errors(
                 let groups: Vec<Vec<Lanes>> = (0..len)
                     .step_by(LANES)
                     .map(|g| {
-                        (0..nt)
-                            .map(|j| {
-                                std::array::from_fn(|l| {
-                                    let s = first + g + l;
-                                    if g + l < len {
-                                        train_values[s * nt + j] as f64
-                                    } else {
-                                        0.0
-                                    }
-                                })
-                            })
-                            .collect()
+                        let mut lanes = vec![[0.0; LANES]; nt];
+                        series_lanes(&mut lanes, g, LANES.min(len - g), |x| {
+                            train_values[first * nt + x] as f64
+                        });
+                        lanes
                     })
                     .collect();
                 let cols = linalg::tiled(lights);
@@ -838,6 +831,7 @@ fn fold_errors(
             // Series a lane group at a time: each lane's systems are the scalar
             // systems, factored and solved side by side (`linalg::cholesky_lanes`).
             let mut weight_lanes = vec![[0.0; LANES]; nt];
+            let mut value_lanes = vec![[0.0; LANES]; nt];
             let mut sums = vec![[0.0; LANES]; t_cols];
             let mut m = vec![[0.0; LANES]; k * k];
             let mut f = vec![[0.0; LANES]; k * k];
@@ -849,15 +843,10 @@ fn fold_errors(
                 let used = LANES.min(len - g);
                 let mut total = [0.0; LANES];
                 rhs0.iter_mut().for_each(|r| *r = [0.0; LANES]);
-                for (j, w) in weight_lanes.iter_mut().enumerate() {
-                    for (l, w) in w.iter_mut().enumerate() {
-                        *w = if l < used {
-                            weights[(g + l) * nt + j]
-                        } else {
-                            0.0
-                        };
-                    }
-                }
+                series_lanes(&mut weight_lanes, g, used, |x| weights[x]);
+                series_lanes(&mut value_lanes, g, used, |x| {
+                    train_values[first * nt + x] as f64
+                });
                 for (l, total) in total.iter_mut().enumerate().take(used) {
                     let b = g + l;
                     *total = weights[b * nt..(b + 1) * nt].iter().sum();
@@ -868,11 +857,7 @@ fn fold_errors(
                 }
                 // The right-hand sides, every lane at once (each lane's sums in the
                 // order of its own lights; unused lanes add zeros).
-                for (j, &w) in weight_lanes.iter().enumerate() {
-                    let mut v = [0.0; LANES];
-                    for (l, v) in v.iter_mut().enumerate().take(used) {
-                        *v = train_values[(first + g + l) * nt + j] as f64;
-                    }
+                for (j, (&w, &v)) in weight_lanes.iter().zip(&value_lanes).enumerate() {
                     for (r, &a) in a_train[j * k..(j + 1) * k].iter().enumerate() {
                         for l in 0..LANES {
                             rhs0[r][l] += w[l] * a * v[l];
@@ -988,6 +973,21 @@ fn prediction_operator(
         }
     }
     operator
+}
+
+/// Series `g..g + used` of a block (series-major, `lights` values each, read by
+/// `value(series·lights + light)`) as lanes, light by light; lanes past `used` are zero.
+fn series_lanes(dst: &mut [Lanes], g: usize, used: usize, value: impl Fn(usize) -> f64) {
+    let lights = dst.len();
+    for (j, lanes) in dst.iter_mut().enumerate() {
+        for (l, v) in lanes.iter_mut().enumerate() {
+            *v = if l < used {
+                value((g + l) * lights + j)
+            } else {
+                0.0
+            };
+        }
+    }
 }
 
 /// A row-major matrix of `columns` columns with each row padded with zeros to whole
