@@ -92,28 +92,43 @@ pub fn perceptual(
         })
         .collect();
     let lights = weights.len() / k;
+    // Function by function, each light's weight side by side: a pixel's values at every
+    // light are then sums that advance together (one light's sum alone waits on each
+    // addition in turn), each still over the functions in order.
+    let by_function: Vec<f64> = (0..k)
+        .flat_map(|i| weights.iter().skip(i).step_by(k).copied())
+        .collect();
     let white = crate::color::srgb_slope(1.0);
+    let planes: Vec<[&[f32]; 3]> = (0..k)
+        .map(|i| [0, 1, 2].map(|ch| maps.plane(i, ch)))
+        .collect();
     (0..maps.pixels())
         .into_par_iter()
         .map_init(
-            || vec![0.0f64; 3 * k],
-            |c, p| {
-                for i in 0..k {
-                    for ch in 0..3 {
-                        c[3 * i + ch] = maps.plane(i, ch)[p] as f64;
-                    }
-                }
-                let mut sum = 0.0;
-                for w in weights.chunks_exact(k) {
-                    let mut v = [0.0f64; 3];
-                    for (i, &wi) in w.iter().enumerate() {
-                        for ch in 0..3 {
-                            v[ch] += wi * c[3 * i + ch];
+            || (vec![0.0f64; 3 * lights], vec![0.0f64; 3 * lights]),
+            |(values, encoded), p| {
+                values.fill(0.0);
+                {
+                    let (red, rest) = values.split_at_mut(lights);
+                    let (green, blue) = rest.split_at_mut(lights);
+                    for (w, plane) in by_function.chunks_exact(lights).zip(&planes) {
+                        let c = plane.map(|values| values[p] as f64);
+                        for (j, &wi) in w.iter().enumerate() {
+                            red[j] += wi * c[0];
+                            green[j] += wi * c[1];
+                            blue[j] += wi * c[2];
                         }
                     }
-                    sum += v
+                }
+                // `srgb_slope_tabulated` of every value, the encodings a batch at a time.
+                values.iter_mut().for_each(|v| *v = v.clamp(0.0, 1.0));
+                crate::color::linear_to_srgb_tabulated_batch(values, encoded);
+                let slope = |x: usize| crate::color::srgb_slope_of_encoded(values[x], encoded[x]);
+                let mut sum = 0.0;
+                for j in 0..lights {
+                    sum += [slope(j), slope(lights + j), slope(2 * lights + j)]
                         .iter()
-                        .map(|&v| crate::color::srgb_slope_tabulated(v).powi(2))
+                        .map(|s| s.powi(2))
                         .sum::<f64>();
                 }
                 (white / (sum / (3 * lights) as f64).sqrt()) as f32
