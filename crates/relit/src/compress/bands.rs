@@ -4,9 +4,15 @@
 //! Three passes over level 0's rows, each a band of one tile row at a time: the
 //! principal components' pixels; each plane's range and quantile subsample; then every
 //! tile coded as it comes, each finer mip level made from the rows above it as they
-//! come (a 2×2 block needs two rows) and coded a tile row at a time too. Every value is
-//! found from the same pixels, in the same order and arithmetic, as [`super::pack`]
-//! finds it from the whole image, so the file is the same byte for byte.
+//! come (a 2×2 block needs two rows) and coded a tile row at a time too. With a
+//! perceptual gain ([`super::gain`]) a first pass finds level 0's gain (kept, one value
+//! a pixel) and the gain plane's quantiser, and the second codes level 0's gain tiles
+//! as it goes and keeps in its place the gain a reader will decode (what the later
+//! passes divide by); a finer level's gain
+//! tiles are coded with its tile rows (a tile's gain depends on its own pixels alone).
+//! Every value is found from
+//! the same pixels, in the same order and arithmetic, as [`super::pack`] finds it from
+//! the whole image, so the file is the same byte for byte.
 //!
 //! Peak memory: two to three bands of `tile × width` pixels of `3K` f32 coefficients
 //! (the band read, what its source decodes it from, and the finer levels' pending rows,
@@ -14,11 +20,14 @@
 //! sections of one tile row.
 
 use super::{
-    albedo_at, chunks_of_planes, encode_floats, plane_entries, projection, projection_groups,
-    stored_basis, undivided, Counts, Header, Layout, PlaneStats, Settings, PCA_PIXELS,
+    albedo_at, chunks_of_planes, coded_gain, encode_floats, gain, gain_quantizer, plane_entries,
+    projection, projection_groups, stored_basis, undivided, Counts, Header, Layout, PlaneEntry,
+    PlaneStats, Quantizer, Settings, PCA_PIXELS,
 };
+use crate::basis::Basis;
 use crate::maps::{CoefficientMaps, Metadata, RelightableImage};
 use crate::progress::Progress;
+use crate::sphere::Vec3;
 use crate::{Error, Result};
 use rayon::prelude::*;
 use std::ops::Range;
@@ -62,10 +71,10 @@ pub trait SectionSink {
     fn put(&mut self, section: usize, bytes: Vec<u8>) -> Result<()>;
 }
 
-/// Whether files of `settings` can be packed a band at a time: not with a perceptual
-/// gain, a codebook or a projection a block, which are found from every pixel at once.
+/// Whether files of `settings` can be packed a band at a time: not with a codebook or a
+/// projection a block, which are found from every pixel at once.
 pub fn packs_in_bands(settings: &Settings) -> bool {
-    !settings.gain && settings.codebook.is_none() && settings.pca_block.is_none()
+    settings.codebook.is_none() && settings.pca_block.is_none()
 }
 
 /// Maps (f32, all three channels) above which writers pack a band at a time by default:
@@ -97,8 +106,8 @@ pub fn pack_in_bands(
 ) -> Result<Header> {
     if !packs_in_bands(settings) {
         return Err(Error::invalid(
-            "a perceptual gain, a codebook or a projection a block is found from the whole \
-             image: such a file is packed whole",
+            "a codebook or a projection a block is found from the whole image: such a file \
+             is packed whole",
         ));
     }
     let (width, height, k) = source.shape();
@@ -118,6 +127,37 @@ pub fn pack_in_bands(
         .map(|y| y..(y + settings.tile).min(height))
         .collect();
 
+    // Level 0's gain and the gain plane's quantiser, from every pixel's gain as `pack`
+    // finds them. The gain is replaced by what a reader decodes as its tiles are coded
+    // while the principal components' pixels are read.
+    let mut divisor: Option<Vec<f32>> = None;
+    let gain = match settings.gain {
+        false => None,
+        true => {
+            let directions = settings.directions.as_deref();
+            let mut stats = PlaneStats::empty(settings.codec);
+            let mut values = Vec::with_capacity(n);
+            progress.begin("measuring the gain", bands.len() as u64);
+            for rows in &bands {
+                let band = band_of(source, rows.clone())?;
+                let first = rows.start * width;
+                values.extend(gain::perceptual(&band.maps, basis.as_ref(), directions));
+                for (p, &v) in values.iter().enumerate().skip(first) {
+                    stats.see(p, n, v);
+                }
+                progress.advance(1);
+            }
+            progress.end();
+            divisor = Some(values);
+            Some(GainCoder {
+                basis: basis.as_ref(),
+                directions,
+                quantizer: gain_quantizer(&stats, settings.codec),
+                settings,
+            })
+        }
+    };
+
     // The principal components, from every `step`-th pixel as `pack` takes them.
     let channels = &projection_groups(layout, false)[0];
     let step = (n / PCA_PIXELS).max(1);
@@ -126,10 +166,26 @@ pub fn pack_in_bands(
     for rows in &bands {
         let band = band_of(source, rows.clone())?;
         let first = rows.start * width;
+        if let (Some(g), Some(plane)) = (&gain, &mut divisor) {
+            // The gain plane is the last: its sections come after every other plane's.
+            let tiles = width.div_ceil(settings.tile) * height.div_ceil(settings.tile);
+            let planes = planes_of(layout, &counts);
+            let across = width.div_ceil(settings.tile);
+            let values = &mut plane[first..rows.end * width];
+            let (sections, decoded) = g.code_values(values, width, rows.len())?;
+            for (tx, bytes) in sections.into_iter().enumerate() {
+                let index = rows.start / settings.tile * across + tx;
+                sink.put(planes * tiles + index, bytes)?;
+            }
+            values.copy_from_slice(&decoded);
+        }
+        let band_divisor = divisor.as_deref().map(|d| &d[first..]);
         for p in (first.next_multiple_of(step)..rows.end * width).step_by(step) {
             for &f in channels {
-                vectors
-                    .extend((0..k).map(|i| undivided(layout, &band.maps, i, f, p - first) as f64));
+                vectors.extend((0..k).map(|i| {
+                    let v = undivided(layout, &band.maps, i, f, p - first);
+                    divided(v, band_divisor, p - first) as f64
+                }));
             }
         }
         progress.advance(1);
@@ -150,13 +206,14 @@ pub fn pack_in_bands(
     progress.begin("measuring the planes", bands.len() as u64);
     for rows in &bands {
         let band = band_of(source, rows.clone())?;
+        let band_divisor = divisor.as_deref().map(|d| &d[rows.start * width..]);
         // A few rows' projection at a time: the band is the only large thing held.
         let pixels = band.maps.pixels();
         let span = (STATS_SPAN / width.max(1)).max(1) * width;
         for start in (0..pixels).step_by(span) {
             let at = start..(start + span).min(pixels);
             let first = rows.start * width + start;
-            let projected = projector.project(&band.maps, at);
+            let projected = projector.project(&band.maps, at, band_divisor);
             stats
                 .par_iter_mut()
                 .zip(&projected)
@@ -170,8 +227,16 @@ pub fn pack_in_bands(
     }
     progress.end();
     let albedo = planes - counts.iter().sum::<usize>();
-    let entries = plane_entries(settings, &counts, albedo, None, &|i| stats[i].clone())?;
+    let mut entries = plane_entries(settings, &counts, albedo, None, &|i| stats[i].clone())?;
     drop(stats);
+    // The gain plane, the last.
+    if let Some(g) = &gain {
+        entries.push(PlaneEntry {
+            channel: gain::CHANNEL.to_string(),
+            index: 0,
+            quantizer: g.quantizer,
+        });
+    }
 
     let levels = if settings.mip_levels {
         crate::maps::mip_sizes(width, height)
@@ -192,7 +257,7 @@ pub fn pack_in_bands(
         planes: entries,
         codebook: None,
         residual: Vec::new(),
-        gain: false,
+        gain: gain.is_some(),
         pca_block: None,
         depth: source.has_depth(),
         levels: levels.len(),
@@ -219,6 +284,8 @@ pub fn pack_in_bands(
     let coder = Coder {
         header: &header,
         projector: &projector,
+        gain: gain.as_ref(),
+        level0_divisor: divisor.as_deref(),
     };
     progress.begin("coding tiles", bands.len() as u64);
     for rows in &bands {
@@ -259,6 +326,50 @@ fn band_of(source: &dyn BandSource, rows: Range<usize>) -> Result<RelightableIma
     Ok(band)
 }
 
+/// The planes a file of `layout` with `counts` components a function holds before the
+/// gain: the functions' components, then `lrgb`'s albedo.
+fn planes_of(layout: Layout, counts: &[usize]) -> usize {
+    counts.iter().sum::<usize>() + 3 * (layout == Layout::Lrgb) as usize
+}
+
+/// `v`, a function's coefficient at pixel `p`, divided by the pixel's gain where there
+/// is one (as `pack` divides it: the albedo of `lrgb` is not).
+fn divided(v: f32, divisor: Option<&[f32]>, p: usize) -> f32 {
+    match divisor {
+        Some(d) => v / d[p],
+        None => v,
+    }
+}
+
+/// Codes a tile row's perceptual gain plane as `pack` does, which also gives the gain a
+/// reader will decode: what the function planes are divided by.
+struct GainCoder<'a> {
+    basis: &'a dyn Basis,
+    directions: Option<&'a [Vec3]>,
+    /// Level 0's, for every level.
+    quantizer: Quantizer,
+    settings: &'a Settings,
+}
+
+impl GainCoder<'_> {
+    /// The sections of the gain tiles of `maps` (rows of at most one tile, the whole
+    /// width), in order, and the decoded gain of every pixel.
+    fn code(&self, maps: &CoefficientMaps) -> Result<(Vec<Vec<u8>>, Vec<f32>)> {
+        let values = gain::perceptual(maps, self.basis, self.directions);
+        self.code_values(&values, maps.width, maps.height)
+    }
+
+    /// [`GainCoder::code`] of the gain `values` of `width × height` pixels.
+    fn code_values(
+        &self,
+        values: &[f32],
+        width: usize,
+        height: usize,
+    ) -> Result<(Vec<Vec<u8>>, Vec<f32>)> {
+        coded_gain(values, &self.quantizer, width, height, self.settings)
+    }
+}
+
 /// Projects a band's coefficients onto the file's planes: each function channel's
 /// components, then `lrgb`'s albedo.
 struct Projector<'a> {
@@ -270,11 +381,17 @@ struct Projector<'a> {
 
 impl Projector<'_> {
     fn planes(&self) -> usize {
-        self.counts.iter().sum::<usize>() + 3 * (self.layout == Layout::Lrgb) as usize
+        planes_of(self.layout, self.counts)
     }
 
-    /// Every plane's values at the pixels `span` of `maps`.
-    fn project(&self, maps: &CoefficientMaps, span: Range<usize>) -> Vec<Vec<f32>> {
+    /// Every plane's values at the pixels `span` of `maps`, the functions divided by
+    /// `divisor` (one value a pixel of `maps`) where there is one.
+    fn project(
+        &self,
+        maps: &CoefficientMaps,
+        span: Range<usize>,
+        divisor: Option<&[f32]>,
+    ) -> Vec<Vec<f32>> {
         const CHUNK: usize = 4096;
         let (pixels, k) = (span.len(), maps.k);
         let most = self.counts.iter().copied().max().unwrap_or(0);
@@ -291,7 +408,7 @@ impl Projector<'_> {
                     let mut plane = 0;
                     for (f, &count) in self.counts.iter().enumerate() {
                         for (i, ci) in c.iter_mut().enumerate() {
-                            *ci = undivided(self.layout, maps, i, f, p);
+                            *ci = divided(undivided(self.layout, maps, i, f, p), divisor, p);
                         }
                         self.principal.apply(&c, &mut y[..count]);
                         for &v in &y[..count] {
@@ -315,6 +432,9 @@ impl Projector<'_> {
 struct Coder<'a> {
     header: &'a Header,
     projector: &'a Projector<'a>,
+    gain: Option<&'a GainCoder<'a>>,
+    /// Level 0's decoded gain, its tiles coded already.
+    level0_divisor: Option<&'a [f32]>,
 }
 
 impl Coder<'_> {
@@ -322,6 +442,7 @@ impl Coder<'_> {
     /// plane's and the depth's, into `sink`.
     fn code_tile_row(
         &self,
+        l: usize,
         level: &Level,
         y0: usize,
         rows: &RelightableImage,
@@ -334,6 +455,22 @@ impl Coder<'_> {
         let tiles = across * h.div_ceil(t);
         let planes = header.planes.len();
         let row = y0 / t;
+        // The gain the planes are divided by: level 0's as kept, a finer level's from its
+        // gain tiles (the last plane's), coded here.
+        let divisor: Option<std::borrow::Cow<[f32]>> = match (self.gain, self.level0_divisor) {
+            (Some(_), Some(kept)) if l == 0 => Some(kept[y0 * w..][..rows.maps.pixels()].into()),
+            (Some(g), _) => {
+                let (sections, divisor) = g.code(&rows.maps)?;
+                for (tx, bytes) in sections.into_iter().enumerate() {
+                    sink.put(
+                        level.first_section + (planes - 1) * tiles + row * across + tx,
+                        bytes,
+                    )?;
+                }
+                Some(divisor.into())
+            }
+            (None, _) => None,
+        };
         let made: Vec<Vec<(usize, Vec<u8>)>> = (0..across)
             .into_par_iter()
             .map(|tx| {
@@ -343,7 +480,16 @@ impl Coder<'_> {
                     return Err(Error::invalid("the source's depth comes and goes"));
                 }
                 let index = row * across + tx;
-                let projected = self.projector.project(&tile.maps, 0..tile.maps.pixels());
+                let tile_divisor: Option<Vec<f32>> = divisor.as_ref().map(|d| {
+                    d.chunks_exact(w)
+                        .flat_map(|line| line[x0..x0 + tw].iter().copied())
+                        .collect()
+                });
+                let projected = self.projector.project(
+                    &tile.maps,
+                    0..tile.maps.pixels(),
+                    tile_divisor.as_deref(),
+                );
                 let mut sections: Vec<(usize, Vec<u8>)> = projected
                     .par_iter()
                     .zip(&header.planes)
@@ -454,7 +600,7 @@ fn feed(
         } else {
             rows
         };
-        coder.code_tile_row(level, y0, &row, sink)?;
+        coder.code_tile_row(l, level, y0, &row, sink)?;
         level.coded_rows += whole;
         rows = rest;
     }

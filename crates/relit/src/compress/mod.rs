@@ -669,7 +669,6 @@ fn pack_level(
     } = Counts::checked(settings, k)?;
     let layout = settings.layout;
     let (functions, _) = layout.channels();
-    let max_levels = settings.codec.max_levels();
 
     // The gain as a reader will decode it (the function planes carry its error).
     let gain_plane: Option<(std::borrow::Cow<[f32]>, Quantizer)> = if settings.gain {
@@ -679,18 +678,9 @@ fn pack_level(
             None => gain::perceptual(maps, basis.as_ref(), settings.directions.as_deref()).into(),
         };
         let fixed_gain = fixed.and_then(|f| f.planes.iter().find(|p| p.channel == gain::CHANNEL));
-        let quantizer = match (fixed_gain, settings.codec) {
-            (Some(entry), _) => entry.quantizer,
-            (None, TileCodec::Zstd { .. }) => {
-                let r = crate::storage::FiniteRange::of(values.iter().copied());
-                Quantizer::spanning(r.lo, r.hi, (r.hi - r.lo) / 255.0, max_levels)
-            }
-            (None, TileCodec::Jpeg { .. } | TileCodec::Webp { .. }) => plane_quantizer(
-                &PlaneStats::of(&values, settings.codec),
-                settings.codec,
-                0.0,
-                max_levels,
-            ),
+        let quantizer = match fixed_gain {
+            Some(entry) => entry.quantizer,
+            None => gain_quantizer(&PlaneStats::of(&values, settings.codec), settings.codec),
         };
         Some((values, quantizer))
     } else {
@@ -1259,6 +1249,22 @@ fn coded_gain(
         sections.push(bytes);
     }
     Ok((sections, gain))
+}
+
+/// The gain plane's quantiser, from its statistics (as [`PlaneStats::of`] the gain of
+/// every pixel of level 0 gives them): its range in 256 codes for zstd, as an albedo
+/// plane's for the image codecs. Finer mip levels keep level 0's.
+fn gain_quantizer(stats: &PlaneStats, codec: TileCodec) -> Quantizer {
+    let max_levels = codec.max_levels();
+    match codec {
+        TileCodec::Zstd { .. } => {
+            let r = stats.range;
+            Quantizer::spanning(r.lo, r.hi, (r.hi - r.lo) / 255.0, max_levels)
+        }
+        TileCodec::Jpeg { .. } | TileCodec::Webp { .. } => {
+            plane_quantizer(stats, codec, 0.0, max_levels)
+        }
+    }
 }
 
 /// Vector-quantise the per-pixel values of `entries`: the codebook (in the planes'

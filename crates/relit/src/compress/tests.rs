@@ -1174,8 +1174,9 @@ impl bands::SectionSink for Collected {
 
 /// Packing a band of rows at a time makes the file `pack` makes from the whole image,
 /// byte for byte: every layout, zstd and JPEG, all or fewer components, with and
-/// without mip levels and depth, sizes that are no multiple of the tile (odd ones, and
-/// a level of one row or column).
+/// without mip levels, depth and the perceptual gain (over the basis' domain or the
+/// capture's lights), sizes that are no multiple of the tile (odd ones, and a level of
+/// one row or column).
 #[test]
 fn a_file_packed_band_by_band_is_the_file_packed_whole() {
     let odd = image("sh:9", 77, 41);
@@ -1255,6 +1256,50 @@ fn a_file_packed_band_by_band_is_the_file_packed_whole() {
                 ..Settings::default()
             },
         ),
+        (
+            &big,
+            Settings {
+                layout: Layout::Ycc,
+                codec: TileCodec::parse("jpeg:90").unwrap(),
+                components: Some(3),
+                tile: 128,
+                gain: true,
+                mip_levels: true,
+                ..Settings::default()
+            },
+        ),
+        (
+            &odd,
+            Settings {
+                tile: 16,
+                gain: true,
+                mip_levels: true,
+                ..Settings::default()
+            },
+        ),
+        (
+            &odd,
+            Settings {
+                layout: Layout::Lrgb,
+                codec: TileCodec::parse("webp:75").unwrap(),
+                jpeg_range: JpegRange::PerPlane,
+                tile: 32,
+                gain: true,
+                directions: Some(crate::sphere::hemisphere_fibonacci(100)),
+                ..Settings::default()
+            },
+        ),
+        (
+            &flat,
+            Settings {
+                layout: Layout::Ycc,
+                codec: TileCodec::parse("jpeg:80").unwrap(),
+                tile: 16,
+                gain: true,
+                mip_levels: true,
+                ..Settings::default()
+            },
+        ),
     ];
     for (i, (img, settings)) in cases.into_iter().enumerate() {
         assert!(bands::packs_in_bands(&settings));
@@ -1274,10 +1319,6 @@ fn a_file_packed_band_by_band_is_the_file_packed_whole() {
     }
     // What needs every pixel at once is refused, not packed differently.
     for settings in [
-        Settings {
-            gain: true,
-            ..Settings::default()
-        },
         Settings {
             codebook: Some(16),
             ..Settings::default()
