@@ -527,8 +527,9 @@ mod tests {
     }
 
     /// A file packed a band at a time from an EXR file is the file packed from the
-    /// image read whole, byte for byte, with and without mip levels and depth; settings
-    /// that need every pixel at once are refused before anything is written.
+    /// image read whole, byte for byte, with and without mip levels, depth and the
+    /// perceptual gain; settings that need every pixel at once (a codebook) are refused
+    /// before anything is written.
     #[test]
     fn a_file_packed_in_bands_from_an_exr_file_is_the_file_packed_whole() {
         let dir = tempfile::tempdir().unwrap();
@@ -547,11 +548,20 @@ mod tests {
                 tile: 32,
                 ..Settings::default()
             },
+            Settings {
+                layout: Layout::Ycc,
+                codec: TileCodec::parse("jpeg:80").unwrap(),
+                components: Some(4),
+                tile: 16,
+                gain: true,
+                mip_levels: true,
+                ..Settings::default()
+            },
         ]
         .into_iter()
         .enumerate()
         {
-            if i == 1 {
+            if i >= 1 {
                 img.depth = None;
             }
             crate::codec::exr::write(&exr, &img, Precision::F32).unwrap();
@@ -565,11 +575,11 @@ mod tests {
             );
         }
         let refused = dir.path().join("refused.rlz");
-        let gain = Settings {
-            gain: true,
+        let codebook = Settings {
+            codebook: Some(16),
             ..Settings::default()
         };
-        assert!(write_in_bands(&exr, &refused, &gain, &crate::progress::Silent).is_err());
+        assert!(write_in_bands(&exr, &refused, &codebook, &crate::progress::Silent).is_err());
         assert!(!refused.exists(), "nothing written");
     }
 
