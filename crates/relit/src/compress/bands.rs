@@ -21,7 +21,7 @@
 use super::{
     albedo_at, chunks_of_planes, coded_gain, encode_floats, gain, gain_quantizer, plane_entries,
     projection, projection_groups, stored_basis, undivided, Counts, Header, Layout, PlaneEntry,
-    PlaneStats, Quantizer, Settings, PCA_PIXELS,
+    PlaneStats, Quantizer, Settings, BLOCK_PCA_PIXELS, PCA_PIXELS,
 };
 use crate::basis::Basis;
 use crate::maps::{CoefficientMaps, Metadata, RelightableImage};
@@ -70,10 +70,15 @@ pub trait SectionSink {
     fn put(&mut self, section: usize, bytes: Vec<u8>) -> Result<()>;
 }
 
-/// Whether files of `settings` can be packed a band at a time: not with a codebook or a
-/// projection a block, which are found from every pixel at once.
+/// Whether files of `settings` can be packed a band at a time: not with a codebook,
+/// which is found from every pixel at once, nor with principal components a block unless
+/// the blocks lie inside the bands (the tile a multiple of the block; mip levels refuse
+/// blocks anyway).
 pub fn packs_in_bands(settings: &Settings) -> bool {
-    settings.codebook.is_none() && settings.pca_block.is_none()
+    let blocks_fit = settings
+        .pca_block
+        .is_none_or(|side| side > 0 && settings.tile.is_multiple_of(side) && !settings.mip_levels);
+    settings.codebook.is_none() && blocks_fit
 }
 
 /// Maps (f32, all three channels) above which writers pack a band at a time by default:
@@ -105,8 +110,8 @@ pub fn pack_in_bands(
 ) -> Result<Header> {
     if !packs_in_bands(settings) {
         return Err(Error::invalid(
-            "a codebook or a projection a block is found from the whole image: such a file \
-             is packed whole",
+            "a codebook is found from the whole image, and blocks of principal components \
+             must lie inside the tile rows (without mip levels): such a file is packed whole",
         ));
     }
     let (width, height, k) = source.shape();
@@ -157,10 +162,11 @@ pub fn pack_in_bands(
         }
     };
 
-    // The principal components, from every `step`-th pixel as `pack` takes them.
-    let channels = &projection_groups(layout, false)[0];
+    // The principal components of each projection group, from every `step`-th pixel as
+    // `pack` takes them.
+    let groups = projection_groups(layout, settings.pca_block.is_some());
     let step = (n / PCA_PIXELS).max(1);
-    let mut vectors: Vec<f64> = Vec::new();
+    let mut vectors: Vec<Vec<f64>> = vec![Vec::new(); groups.len()];
     progress.begin("finding principal components", bands.len() as u64);
     for rows in &bands {
         let band = band_of(source, rows.clone())?;
@@ -180,39 +186,67 @@ pub fn pack_in_bands(
         }
         let band_divisor = divisor.as_deref().map(|d| &d[first..]);
         for p in (first.next_multiple_of(step)..rows.end * width).step_by(step) {
-            for &f in channels {
-                vectors.extend((0..k).map(|i| {
-                    let v = undivided(layout, &band.maps, i, f, p - first);
-                    divided(v, band_divisor, p - first) as f64
-                }));
+            for (channels, vectors) in groups.iter().zip(&mut vectors) {
+                for &f in channels {
+                    vectors.extend((0..k).map(|i| {
+                        let v = undivided(layout, &band.maps, i, f, p - first);
+                        divided(v, band_divisor, p - first) as f64
+                    }));
+                }
             }
         }
         progress.advance(1);
     }
     progress.end();
-    let principal = projection::principal(&gram, &vectors, k, counts[channels[0]])?;
-    drop(vectors);
-    let projector = Projector {
-        layout,
-        counts: &counts,
-        principal: &principal,
-        gram: &gram,
+    let whole: Vec<projection::Principal> = groups
+        .iter()
+        .zip(vectors)
+        .map(|(channels, vectors)| projection::principal(&gram, &vectors, k, counts[channels[0]]))
+        .collect::<Result<_>>()?;
+    // With principal components a block, each block's (found while its band is measured).
+    let mut principals: Vec<Vec<projection::Principal>> = match settings.pca_block {
+        None => vec![whole.clone()],
+        Some(_) => Vec::new(),
     };
+    let group_of: Vec<usize> = (0..counts.len())
+        .map(|f| super::group_of(&groups, f))
+        .collect();
 
     // Each plane's statistics, then its quantiser.
-    let planes = projector.planes();
+    let planes = planes_of(layout, &counts);
     let mut stats = vec![PlaneStats::empty(settings.codec); planes];
     progress.begin("measuring the planes", bands.len() as u64);
     for rows in &bands {
         let band = band_of(source, rows.clone())?;
         let band_divisor = divisor.as_deref().map(|d| &d[rows.start * width..]);
+        if let Some(side) = settings.pca_block {
+            principals.extend(block_principals(
+                &band,
+                rows.start,
+                side,
+                height,
+                &groups,
+                &whole,
+                band_divisor,
+                (layout, &counts, &gram),
+            )?);
+        }
+        let projector = Projector {
+            layout,
+            counts: &counts,
+            principals: &principals,
+            block: settings.pca_block,
+            across: settings.pca_block.map_or(0, |side| width.div_ceil(side)),
+            group_of: &group_of,
+            gram: &gram,
+        };
         // A few rows' projection at a time: the band is the only large thing held.
         let pixels = band.maps.pixels();
         let span = (STATS_SPAN / width.max(1)).max(1) * width;
         for start in (0..pixels).step_by(span) {
             let at = start..(start + span).min(pixels);
             let first = rows.start * width + start;
-            let projected = projector.project(&band.maps, at, band_divisor);
+            let projected = projector.project(&band.maps, at, band_divisor, (0, rows.start));
             stats
                 .par_iter_mut()
                 .zip(&projected)
@@ -245,7 +279,11 @@ pub fn pack_in_bands(
     let header = Header {
         meta: Metadata {
             format_version: crate::maps::FORMAT_VERSION,
-            basis: stored_basis(&meta.basis, &principal, components)?,
+            basis: match settings.pca_block {
+                // Blocks' planes decode into the input basis, each by its own map.
+                Some(_) => meta.basis.clone(),
+                None => stored_basis(&meta.basis, &whole[0], components)?,
+            },
             ..meta.clone()
         },
         width,
@@ -257,7 +295,7 @@ pub fn pack_in_bands(
         codebook: None,
         residual: Vec::new(),
         gain: gain.is_some(),
-        pca_block: None,
+        pca_block: settings.pca_block,
         depth: source.has_depth(),
         levels: levels.len(),
     };
@@ -280,6 +318,15 @@ pub fn pack_in_bands(
             halved_rows: 0,
         })
         .collect();
+    let projector = Projector {
+        layout,
+        counts: &counts,
+        principals: &principals,
+        block: settings.pca_block,
+        across: settings.pca_block.map_or(0, |side| width.div_ceil(side)),
+        group_of: &group_of,
+        gram: &gram,
+    };
     let coder = Coder {
         header: &header,
         projector: &projector,
@@ -301,7 +348,73 @@ pub fn pack_in_bands(
             "level {l} was left incomplete: the source gave other rows than it has"
         )));
     }
+    if settings.pca_block.is_some() {
+        // Each block's P as the reader uses it (f32), the last section, as `pack` makes it.
+        let bytes = principals
+            .iter()
+            .flatten()
+            .flat_map(|p| p.basis_map.iter().map(|&v| v as f32))
+            .flat_map(f32::to_le_bytes)
+            .collect();
+        sink.put(header.sections() - 1, bytes)?;
+    }
     Ok(header)
+}
+
+/// The principal components of each block of `side` pixels whose rows begin in `band`
+/// (rows from `row0`, the whole width, of an image `height` rows high), block by block
+/// in the file's order, each group's found from up to `BLOCK_PCA_PIXELS` of the block's
+/// pixels and turned like the file's (`whole`), as `pack` finds them.
+#[allow(clippy::too_many_arguments)]
+fn block_principals(
+    band: &RelightableImage,
+    row0: usize,
+    side: usize,
+    height: usize,
+    groups: &[Vec<usize>],
+    whole: &[projection::Principal],
+    divisor: Option<&[f32]>,
+    (layout, counts, gram): (Layout, &[usize], &[f64]),
+) -> Result<Vec<Vec<projection::Principal>>> {
+    let (width, k) = (band.width(), band.maps.k);
+    let across = width.div_ceil(side);
+    let down = height.div_ceil(side);
+    let first_row = row0.div_ceil(side);
+    let last_row = (row0 + band.height()).div_ceil(side).min(down);
+    (first_row * across..last_row * across)
+        .into_par_iter()
+        .map(|block| {
+            let (x0, y0, w, h) = super::tile_rect(width, height, side, block);
+            if y0 < row0 || y0 + h > row0 + band.height() {
+                return Err(Error::invalid("a block lies across two bands"));
+            }
+            let pixels: Vec<usize> = (y0 - row0..y0 - row0 + h)
+                .flat_map(|y| y * width + x0..y * width + x0 + w)
+                .collect();
+            let step = (pixels.len() / BLOCK_PCA_PIXELS).max(1);
+            groups
+                .iter()
+                .zip(whole)
+                .map(|(channels, file)| {
+                    let vectors: Vec<f64> = pixels
+                        .iter()
+                        .step_by(step)
+                        .flat_map(|&p| {
+                            channels.iter().flat_map(move |&f| {
+                                (0..k).map(move |i| {
+                                    let v = undivided(layout, &band.maps, i, f, p);
+                                    divided(v, divisor, p) as f64
+                                })
+                            })
+                        })
+                        .collect();
+                    let mut own = projection::principal(gram, &vectors, k, counts[channels[0]])?;
+                    own.orient_like(file);
+                    Ok(own)
+                })
+                .collect()
+        })
+        .collect()
 }
 
 /// Rows `rows` of `source`, checked to be what was asked for (a source that gives
@@ -374,7 +487,13 @@ impl GainCoder<'_> {
 struct Projector<'a> {
     layout: Layout,
     counts: &'a [usize],
-    principal: &'a projection::Principal,
+    /// The file's principal components per projection group, or each block's.
+    principals: &'a [Vec<projection::Principal>],
+    /// The blocks' side, where each has its own, and how many lie across the image.
+    block: Option<usize>,
+    across: usize,
+    /// Each function channel's projection group.
+    group_of: &'a [usize],
     gram: &'a [f64],
 }
 
@@ -383,13 +502,34 @@ impl Projector<'_> {
         planes_of(self.layout, self.counts)
     }
 
-    /// Every plane's values at the pixels `span` of `maps`, the functions divided by
-    /// `divisor` (one value a pixel of `maps`) where there is one.
+    /// The principal components of function channel `f` at pixel `p` of maps `width`
+    /// pixels wide whose first pixel is pixel `origin` (x, y) of the image.
+    fn principal_at(
+        &self,
+        width: usize,
+        (x0, y0): (usize, usize),
+        p: usize,
+        f: usize,
+    ) -> &projection::Principal {
+        let block = match self.block {
+            None => 0,
+            Some(side) => {
+                let (x, y) = (x0 + p % width, y0 + p / width);
+                (y / side) * self.across + x / side
+            }
+        };
+        &self.principals[block][self.group_of[f]]
+    }
+
+    /// Every plane's values at the pixels `span` of `maps` (whose first pixel is pixel
+    /// `origin` of the image), the functions divided by `divisor` (one value a pixel of
+    /// `maps`) where there is one.
     fn project(
         &self,
         maps: &CoefficientMaps,
         span: Range<usize>,
         divisor: Option<&[f32]>,
+        origin: (usize, usize),
     ) -> Vec<Vec<f32>> {
         const CHUNK: usize = 4096;
         let (pixels, k) = (span.len(), maps.k);
@@ -409,7 +549,8 @@ impl Projector<'_> {
                         for (i, ci) in c.iter_mut().enumerate() {
                             *ci = divided(undivided(self.layout, maps, i, f, p), divisor, p);
                         }
-                        self.principal.apply(&c, &mut y[..count]);
+                        self.principal_at(maps.width, origin, p, f)
+                            .apply(&c, &mut y[..count]);
                         for &v in &y[..count] {
                             outs[plane][local] = v;
                             plane += 1;
@@ -488,6 +629,7 @@ impl Coder<'_> {
                     &tile.maps,
                     0..tile.maps.pixels(),
                     tile_divisor.as_deref(),
+                    (x0, y0),
                 );
                 let mut sections: Vec<(usize, Vec<u8>)> = projected
                     .par_iter()

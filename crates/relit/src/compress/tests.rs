@@ -1175,8 +1175,9 @@ impl bands::SectionSink for Collected {
 /// Packing a band of rows at a time makes the file `pack` makes from the whole image,
 /// byte for byte: every layout, zstd and JPEG, all or fewer components, with and
 /// without mip levels, depth and the perceptual gain (over the basis' domain or the
-/// capture's lights), sizes that are no multiple of the tile (odd ones, and a level of
-/// one row or column).
+/// capture's lights), principal components a block (with and without the gain, blocks
+/// cut by the image's edges), sizes that are no multiple of the tile (odd ones, and a
+/// level of one row or column).
 #[test]
 fn a_file_packed_band_by_band_is_the_file_packed_whole() {
     let odd = image("sh:9", 77, 41);
@@ -1300,6 +1301,37 @@ fn a_file_packed_band_by_band_is_the_file_packed_whole() {
                 ..Settings::default()
             },
         ),
+        (
+            &big,
+            Settings {
+                layout: Layout::Ycc,
+                codec: TileCodec::parse("jpeg:85").unwrap(),
+                components: Some(3),
+                tile: 128,
+                pca_block: Some(64),
+                gain: true,
+                ..Settings::default()
+            },
+        ),
+        (
+            &odd,
+            Settings {
+                tile: 32,
+                pca_block: Some(16),
+                ..Settings::default()
+            },
+        ),
+        (
+            &odd,
+            Settings {
+                layout: Layout::Lrgb,
+                bits: 10,
+                components: Some(5),
+                tile: 32,
+                pca_block: Some(32),
+                ..Settings::default()
+            },
+        ),
     ];
     for (i, (img, settings)) in cases.into_iter().enumerate() {
         assert!(bands::packs_in_bands(&settings));
@@ -1323,8 +1355,16 @@ fn a_file_packed_band_by_band_is_the_file_packed_whole() {
             codebook: Some(16),
             ..Settings::default()
         },
+        // Blocks across two tile rows, and blocks with mip levels.
         Settings {
-            pca_block: Some(32),
+            tile: 32,
+            pca_block: Some(24),
+            ..Settings::default()
+        },
+        Settings {
+            tile: 32,
+            pca_block: Some(16),
+            mip_levels: true,
             ..Settings::default()
         },
     ] {
