@@ -9,14 +9,17 @@
 //! a pixel) and the gain plane's quantiser, and the second codes level 0's gain tiles
 //! as it goes and keeps in the gain's place what a reader will decode (what the later
 //! passes divide by); a finer level's gain tiles are coded with its tile rows (a tile's
-//! gain depends on its own pixels alone). Every value is found from the same pixels, in
+//! gain depends on its own pixels alone). With principal components a block, each
+//! band's blocks (which lie inside it) are found while its planes are measured and kept
+//! for the coding pass. Every value is found from the same pixels, in
 //! the same order and arithmetic, as [`super::pack`] finds it from the whole image, so
 //! the file is the same byte for byte.
 //!
 //! Peak memory: two to three bands of `tile × width` pixels of `3K` f32 coefficients
 //! (the band read, what its source decodes it from, and the finer levels' pending rows,
 //! which together hold less than one band), a tile's projection a thread, and the
-//! sections of one tile row; with a gain, its plane (one f32 a pixel of level 0).
+//! sections of one tile row; with a gain, its plane (one f32 a pixel of level 0); with
+//! blocks, each block's components (`K × K′` f64 twice a projection group).
 
 use super::{
     albedo_at, chunks_of_planes, coded_gain, encode_floats, gain, gain_quantizer, plane_entries,
