@@ -211,9 +211,17 @@ pub fn pack_in_bands(
         None => vec![whole.clone()],
         Some(_) => Vec::new(),
     };
-    let group_of: Vec<usize> = (0..counts.len())
-        .map(|f| super::group_of(&groups, f))
-        .collect();
+    let projection = Projection {
+        layout,
+        counts: &counts,
+        group_of: (0..counts.len())
+            .map(|f| super::group_of(&groups, f))
+            .collect(),
+        groups,
+        gram: &gram,
+        block: settings.pca_block,
+        across: settings.pca_block.map_or(0, |side| width.div_ceil(side)),
+    };
 
     // Each plane's statistics, then its quantiser.
     let planes = planes_of(layout, &counts);
@@ -222,27 +230,16 @@ pub fn pack_in_bands(
     for rows in &bands {
         let band = band_of(source, rows.clone())?;
         let band_divisor = divisor.as_deref().map(|d| &d[rows.start * width..]);
-        if let Some(side) = settings.pca_block {
-            principals.extend(block_principals(
+        if projection.block.is_some() {
+            principals.extend(projection.blocks_of(
                 &band,
                 rows.start,
-                side,
                 height,
-                &groups,
                 &whole,
                 band_divisor,
-                (layout, &counts, &gram),
             )?);
         }
-        let projector = Projector {
-            layout,
-            counts: &counts,
-            principals: &principals,
-            block: settings.pca_block,
-            across: settings.pca_block.map_or(0, |side| width.div_ceil(side)),
-            group_of: &group_of,
-            gram: &gram,
-        };
+        let projector = projection.with(&principals);
         // A few rows' projection at a time: the band is the only large thing held.
         let pixels = band.maps.pixels();
         let span = (STATS_SPAN / width.max(1)).max(1) * width;
@@ -321,15 +318,7 @@ pub fn pack_in_bands(
             halved_rows: 0,
         })
         .collect();
-    let projector = Projector {
-        layout,
-        counts: &counts,
-        principals: &principals,
-        block: settings.pca_block,
-        across: settings.pca_block.map_or(0, |side| width.div_ceil(side)),
-        group_of: &group_of,
-        gram: &gram,
-    };
+    let projector = projection.with(&principals);
     let coder = Coder {
         header: &header,
         projector: &projector,
@@ -362,62 +351,6 @@ pub fn pack_in_bands(
         sink.put(header.sections() - 1, bytes)?;
     }
     Ok(header)
-}
-
-/// The principal components of each block of `side` pixels whose rows begin in `band`
-/// (rows from `row0`, the whole width, of an image `height` rows high), block by block
-/// in the file's order, each group's found from up to `BLOCK_PCA_PIXELS` of the block's
-/// pixels and turned like the file's (`whole`), as `pack` finds them.
-#[allow(clippy::too_many_arguments)]
-fn block_principals(
-    band: &RelightableImage,
-    row0: usize,
-    side: usize,
-    height: usize,
-    groups: &[Vec<usize>],
-    whole: &[projection::Principal],
-    divisor: Option<&[f32]>,
-    (layout, counts, gram): (Layout, &[usize], &[f64]),
-) -> Result<Vec<Vec<projection::Principal>>> {
-    let (width, k) = (band.width(), band.maps.k);
-    let across = width.div_ceil(side);
-    let down = height.div_ceil(side);
-    let first_row = row0.div_ceil(side);
-    let last_row = (row0 + band.height()).div_ceil(side).min(down);
-    (first_row * across..last_row * across)
-        .into_par_iter()
-        .map(|block| {
-            let (x0, y0, w, h) = super::tile_rect(width, height, side, block);
-            if y0 < row0 || y0 + h > row0 + band.height() {
-                return Err(Error::invalid("a block lies across two bands"));
-            }
-            let pixels: Vec<usize> = (y0 - row0..y0 - row0 + h)
-                .flat_map(|y| y * width + x0..y * width + x0 + w)
-                .collect();
-            let step = (pixels.len() / BLOCK_PCA_PIXELS).max(1);
-            groups
-                .iter()
-                .zip(whole)
-                .map(|(channels, file)| {
-                    let vectors: Vec<f64> = pixels
-                        .iter()
-                        .step_by(step)
-                        .flat_map(|&p| {
-                            channels.iter().flat_map(move |&f| {
-                                (0..k).map(move |i| {
-                                    let v = undivided(layout, &band.maps, i, f, p);
-                                    divided(v, divisor, p) as f64
-                                })
-                            })
-                        })
-                        .collect();
-                    let mut own = projection::principal(gram, &vectors, k, counts[channels[0]])?;
-                    own.orient_like(file);
-                    Ok(own)
-                })
-                .collect()
-        })
-        .collect()
 }
 
 /// Rows `rows` of `source`, checked to be what was asked for (a source that gives
@@ -485,24 +418,100 @@ impl GainCoder<'_> {
     }
 }
 
+/// How the file's planes are made from the coefficients, but for the principal
+/// components themselves (the file's, or each block's as they are found).
+struct Projection<'a> {
+    layout: Layout,
+    counts: &'a [usize],
+    /// The projection groups (with blocks, ycc's chroma has its own), and each function
+    /// channel's.
+    groups: Vec<Vec<usize>>,
+    group_of: Vec<usize>,
+    gram: &'a [f64],
+    /// The blocks' side, where each has its own components, and how many lie across.
+    block: Option<usize>,
+    across: usize,
+}
+
+impl Projection<'_> {
+    /// Projecting with `principals`: the file's per projection group, or each block's.
+    fn with<'b>(&'b self, principals: &'b [Vec<projection::Principal>]) -> Projector<'b> {
+        Projector {
+            projection: self,
+            principals,
+        }
+    }
+
+    /// The principal components of each block whose rows begin in `band` (rows from
+    /// `row0`, the whole width, of an image `height` rows high), block by block in the
+    /// file's order: each group's from up to `BLOCK_PCA_PIXELS` of the block's pixels
+    /// (divided by `divisor` where there is one), turned like the file's (`whole`), as
+    /// `pack` finds them.
+    fn blocks_of(
+        &self,
+        band: &RelightableImage,
+        row0: usize,
+        height: usize,
+        whole: &[projection::Principal],
+        divisor: Option<&[f32]>,
+    ) -> Result<Vec<Vec<projection::Principal>>> {
+        let Some(side) = self.block else {
+            return Ok(Vec::new());
+        };
+        let (width, k) = (band.width(), band.maps.k);
+        let first_row = row0.div_ceil(side);
+        let last_row = (row0 + band.height())
+            .div_ceil(side)
+            .min(height.div_ceil(side));
+        (first_row * self.across..last_row * self.across)
+            .into_par_iter()
+            .map(|block| {
+                let (x0, y0, w, h) = super::tile_rect(width, height, side, block);
+                if y0 < row0 || y0 + h > row0 + band.height() {
+                    return Err(Error::invalid("a block lies across two bands"));
+                }
+                let pixels: Vec<usize> = (y0 - row0..y0 - row0 + h)
+                    .flat_map(|y| y * width + x0..y * width + x0 + w)
+                    .collect();
+                let step = (pixels.len() / BLOCK_PCA_PIXELS).max(1);
+                self.groups
+                    .iter()
+                    .zip(whole)
+                    .map(|(channels, file)| {
+                        let vectors: Vec<f64> = pixels
+                            .iter()
+                            .step_by(step)
+                            .flat_map(|&p| {
+                                channels.iter().flat_map(move |&f| {
+                                    (0..k).map(move |i| {
+                                        let v = undivided(self.layout, &band.maps, i, f, p);
+                                        divided(v, divisor, p) as f64
+                                    })
+                                })
+                            })
+                            .collect();
+                        let components = self.counts[channels[0]];
+                        let mut own = projection::principal(self.gram, &vectors, k, components)?;
+                        own.orient_like(file);
+                        Ok(own)
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+}
+
 /// Projects a band's coefficients onto the file's planes: each function channel's
 /// components, then `lrgb`'s albedo.
 struct Projector<'a> {
-    layout: Layout,
-    counts: &'a [usize],
+    projection: &'a Projection<'a>,
     /// The file's principal components per projection group, or each block's.
     principals: &'a [Vec<projection::Principal>],
-    /// The blocks' side, where each has its own, and how many lie across the image.
-    block: Option<usize>,
-    across: usize,
-    /// Each function channel's projection group.
-    group_of: &'a [usize],
-    gram: &'a [f64],
 }
 
 impl Projector<'_> {
     fn planes(&self) -> usize {
-        planes_of(self.layout, self.counts)
+        planes_of(self.projection.layout, self.projection.counts)
     }
 
     /// The principal components of function channel `f` at pixel `p` of maps `width`
@@ -514,14 +523,15 @@ impl Projector<'_> {
         p: usize,
         f: usize,
     ) -> &projection::Principal {
-        let block = match self.block {
+        let projection = self.projection;
+        let block = match projection.block {
             None => 0,
             Some(side) => {
                 let (x, y) = (x0 + p % width, y0 + p / width);
-                (y / side) * self.across + x / side
+                (y / side) * projection.across + x / side
             }
         };
-        &self.principals[block][self.group_of[f]]
+        &self.principals[block][projection.group_of[f]]
     }
 
     /// Every plane's values at the pixels `span` of `maps` (whose first pixel is pixel
@@ -536,7 +546,13 @@ impl Projector<'_> {
     ) -> Vec<Vec<f32>> {
         const CHUNK: usize = 4096;
         let (pixels, k) = (span.len(), maps.k);
-        let most = self.counts.iter().copied().max().unwrap_or(0);
+        let Projection {
+            layout,
+            counts,
+            gram,
+            ..
+        } = *self.projection;
+        let most = counts.iter().copied().max().unwrap_or(0);
         let mut planes: Vec<Vec<f32>> = (0..self.planes()).map(|_| vec![0.0; pixels]).collect();
         // Each chunk of pixels writes its part of every plane.
         chunks_of_planes(&mut planes, CHUNK)
@@ -548,9 +564,9 @@ impl Projector<'_> {
                 for local in 0..outs[0].len() {
                     let p = span.start + chunk * CHUNK + local;
                     let mut plane = 0;
-                    for (f, &count) in self.counts.iter().enumerate() {
+                    for (f, &count) in counts.iter().enumerate() {
                         for (i, ci) in c.iter_mut().enumerate() {
-                            *ci = divided(undivided(self.layout, maps, i, f, p), divisor, p);
+                            *ci = divided(undivided(layout, maps, i, f, p), divisor, p);
                         }
                         self.principal_at(maps.width, origin, p, f)
                             .apply(&c, &mut y[..count]);
@@ -559,8 +575,8 @@ impl Projector<'_> {
                             plane += 1;
                         }
                     }
-                    if self.layout == Layout::Lrgb {
-                        for v in albedo_at(maps, self.gram, p, &mut scratch) {
+                    if layout == Layout::Lrgb {
+                        for v in albedo_at(maps, gram, p, &mut scratch) {
                             outs[plane][local] = v;
                             plane += 1;
                         }
