@@ -73,10 +73,11 @@ pub trait SectionSink {
     fn put(&mut self, section: usize, bytes: Vec<u8>) -> Result<()>;
 }
 
-/// Whether files of `settings` can be packed a band at a time: not with a codebook,
-/// which is found from every pixel at once, nor with principal components a block unless
-/// the blocks lie inside the bands (the tile a multiple of the block; mip levels refuse
-/// blocks anyway).
+/// Whether files of `settings` can be packed a band at a time: not yet with a codebook
+/// (its training subsample, the albedo's weight over every pixel and the pixels' indices
+/// would each need their place in the passes), nor with principal components a block
+/// unless the blocks lie inside the bands (the tile a multiple of the block; mip levels
+/// refuse blocks anyway).
 pub fn packs_in_bands(settings: &Settings) -> bool {
     let blocks_fit = settings
         .pca_block
@@ -113,7 +114,7 @@ pub fn pack_in_bands(
 ) -> Result<Header> {
     if !packs_in_bands(settings) {
         return Err(Error::invalid(
-            "a codebook is found from the whole image, and blocks of principal components \
+            "a codebook is packed from the whole image, and blocks of principal components \
              must lie inside the tile rows (without mip levels): such a file is packed whole",
         ));
     }
