@@ -169,6 +169,17 @@ pub fn srgb_slope_tabulated(v: f64) -> f64 {
     srgb_slope_of_encoded(v, linear_to_srgb_tabulated(v as f32) as f64)
 }
 
+/// `values[i] = srgb_slope_tabulated(values[i])`, bit for bit, the encodings a batch at
+/// a time ([`linear_to_srgb_tabulated_batch`]); `scratch` holds them (any length, resized).
+pub fn srgb_slope_tabulated_batch(values: &mut [f64], scratch: &mut Vec<f64>) {
+    values.iter_mut().for_each(|v| *v = v.clamp(0.0, 1.0));
+    scratch.resize(values.len(), 0.0);
+    linear_to_srgb_tabulated_batch(values, scratch);
+    for (v, &encoded) in values.iter_mut().zip(scratch.iter()) {
+        *v = srgb_slope_of_encoded(*v, encoded);
+    }
+}
+
 /// [`srgb_slope_tabulated`] of `v` in `[0, 1]` (or NaN) given its tabulated encoding
 /// `encoded`, for callers that have encoded `v` already (the fit encodes its samples a
 /// batch at a time).
@@ -261,6 +272,31 @@ mod tests {
             assert!(
                 scalar.to_bits() == b.to_bits() || (scalar.is_nan() && b.is_nan()),
                 "{v}: batch {b}, scalar {scalar}"
+            );
+        }
+    }
+
+    #[test]
+    fn the_batch_slope_is_the_scalar_one_bit_for_bit() {
+        let mut values: Vec<f64> = (0..=20_000)
+            .map(|i| (i as f64 / 20_000.0).powi(3) * 1.2 - 0.01)
+            .chain([
+                0.0,
+                -0.0,
+                1.0,
+                0.003_130_8,
+                0.003_130_9,
+                -5.0,
+                7.0,
+                f64::NAN,
+            ])
+            .collect();
+        let want: Vec<f64> = values.iter().map(|&v| srgb_slope_tabulated(v)).collect();
+        srgb_slope_tabulated_batch(&mut values, &mut Vec::new());
+        for (&w, &b) in want.iter().zip(&values) {
+            assert!(
+                w.to_bits() == b.to_bits() || (w.is_nan() && b.is_nan()),
+                "batch {b}, scalar {w}"
             );
         }
     }

@@ -138,9 +138,8 @@ pub fn pack_in_bands(
     // Level 0's gain and the gain plane's quantiser, from every pixel's gain as `pack`
     // finds them. The gain is replaced by what a reader decodes as its tiles are coded
     // while the principal components' pixels are read.
-    let mut divisor: Option<Vec<f32>> = None;
-    let gain = match settings.gain {
-        false => None,
+    let (gain, mut divisor) = match settings.gain {
+        false => (None, None),
         true => {
             let directions = settings.directions.as_deref();
             let mut stats = PlaneStats::empty(settings.codec);
@@ -156,15 +155,18 @@ pub fn pack_in_bands(
                 progress.advance(1);
             }
             progress.end();
-            divisor = Some(values);
-            Some(GainCoder {
+            let coder = GainCoder {
                 basis: basis.as_ref(),
                 directions,
                 quantizer: gain_quantizer(&stats, settings.codec),
                 settings,
-            })
+            };
+            (Some(coder), Some(values))
         }
     };
+    // Level 0's gain tiles: the last plane's, after every other plane's.
+    let across = width.div_ceil(settings.tile);
+    let gain_sections = planes_of(layout, &counts) * across * height.div_ceil(settings.tile);
 
     // The principal components of each projection group, from every `step`-th pixel as
     // `pack` takes them.
@@ -176,15 +178,11 @@ pub fn pack_in_bands(
         let band = band_of(source, rows.clone())?;
         let first = rows.start * width;
         if let (Some(g), Some(plane)) = (&gain, &mut divisor) {
-            // The gain plane is the last: its sections come after every other plane's.
-            let tiles = width.div_ceil(settings.tile) * height.div_ceil(settings.tile);
-            let planes = planes_of(layout, &counts);
-            let across = width.div_ceil(settings.tile);
             let values = &mut plane[first..rows.end * width];
             let (sections, decoded) = g.code_values(values, width, rows.len())?;
             for (tx, bytes) in sections.into_iter().enumerate() {
                 let index = rows.start / settings.tile * across + tx;
-                sink.put(planes * tiles + index, bytes)?;
+                sink.put(gain_sections + index, bytes)?;
             }
             values.copy_from_slice(&decoded);
         }

@@ -105,8 +105,8 @@ pub fn perceptual(
     (0..maps.pixels())
         .into_par_iter()
         .map_init(
-            || (vec![0.0f64; 3 * lights], vec![0.0f64; 3 * lights]),
-            |(values, encoded), p| {
+            || (vec![0.0f64; 3 * lights], Vec::new()),
+            |(values, scratch), p| {
                 values.fill(0.0);
                 {
                     let (red, rest) = values.split_at_mut(lights);
@@ -120,13 +120,10 @@ pub fn perceptual(
                         }
                     }
                 }
-                // `srgb_slope_tabulated` of every value, the encodings a batch at a time.
-                values.iter_mut().for_each(|v| *v = v.clamp(0.0, 1.0));
-                crate::color::linear_to_srgb_tabulated_batch(values, encoded);
-                let slope = |x: usize| crate::color::srgb_slope_of_encoded(values[x], encoded[x]);
+                crate::color::srgb_slope_tabulated_batch(values, scratch);
                 let mut sum = 0.0;
                 for j in 0..lights {
-                    sum += [slope(j), slope(lights + j), slope(2 * lights + j)]
+                    sum += [values[j], values[lights + j], values[2 * lights + j]]
                         .iter()
                         .map(|s| s.powi(2))
                         .sum::<f64>();
