@@ -92,6 +92,22 @@ fn parts_fitted_apart_merge_into_the_single_fit() {
         std::fs::read(d.join("merged.rlz")).unwrap()
             == std::fs::read(d.join("converted.rlz")).unwrap()
     );
+    // A codebook too (vector quantisation trained on the pixels the whole packer takes).
+    let codebook = ["--layout", "ycc", "--components", "3", "--codebook", "24"];
+    let merge = [
+        "merge",
+        "part1.exr",
+        "part0.exr",
+        "part2.exr",
+        "-o",
+        "vq.rlz",
+    ];
+    relit_ok_with(d, &[&merge[..], &codebook].concat(), &in_bands);
+    let convert = ["convert", "merged.exr", "-o", "vq_whole.rlz"];
+    relit_ok(d, &[&convert[..], &codebook].concat());
+    assert!(
+        std::fs::read(d.join("vq.rlz")).unwrap() == std::fs::read(d.join("vq_whole.rlz")).unwrap()
+    );
     let fit_to = |out: &'static str| [&["fit", "cap/dirs.lp", "-o", out, "-q"][..], &fit].concat();
     relit_ok_with(d, &fit_to("single.rlz"), &in_bands);
     relit_ok(d, &fit_to("whole.rlz"));

@@ -527,13 +527,12 @@ mod tests {
     }
 
     /// A file packed a band at a time from an EXR file is the file packed from the
-    /// image read whole, byte for byte, with and without mip levels, depth and the
-    /// perceptual gain; settings that need every pixel at once (a codebook) are refused
-    /// before anything is written.
+    /// image read whole, byte for byte, with and without mip levels, depth, the
+    /// perceptual gain and a codebook; settings the band packer leaves to the whole one
+    /// (a codebook with mip levels) are refused before anything is written.
     #[test]
     fn a_file_packed_in_bands_from_an_exr_file_is_the_file_packed_whole() {
         let dir = tempfile::tempdir().unwrap();
-        let mut img = sample(70, 45);
         let exr = dir.path().join("maps.exr");
         for (i, settings) in [
             Settings {
@@ -557,11 +556,27 @@ mod tests {
                 mip_levels: true,
                 ..Settings::default()
             },
+            Settings {
+                components: Some(4),
+                tile: 16,
+                codebook: Some(40),
+                ..Settings::default()
+            },
+            Settings {
+                layout: Layout::Ycc,
+                codec: TileCodec::parse("webp:80").unwrap(),
+                components: Some(3),
+                tile: 32,
+                codebook: Some(20),
+                residual: Some(2),
+                ..Settings::default()
+            },
         ]
         .into_iter()
         .enumerate()
         {
-            if i >= 1 {
+            let mut img = sample(70, 45);
+            if i % 2 == 1 {
                 img.depth = None;
             }
             crate::codec::exr::write(&exr, &img, Precision::F32).unwrap();
@@ -577,6 +592,7 @@ mod tests {
         let refused = dir.path().join("refused.rlz");
         let codebook = Settings {
             codebook: Some(16),
+            mip_levels: true,
             ..Settings::default()
         };
         assert!(write_in_bands(&exr, &refused, &codebook, &crate::progress::Silent).is_err());

@@ -11,25 +11,31 @@
 //! passes divide by); a finer level's gain tiles are coded with its tile rows (a tile's
 //! gain depends on its own pixels alone). With principal components a block, each
 //! band's blocks (which lie inside it) are found while its planes are measured and kept
-//! for the coding pass. Every value is found from the same pixels, in
-//! the same order and arithmetic, as [`super::pack`] finds it from the whole image, so
-//! the file is the same byte for byte.
+//! for the coding pass. With a codebook, the statistics pass also gathers the vectors
+//! k-means trains on (every few pixels', as [`vq::train`] takes them), the residual's
+//! ranges and the sums that weigh `lrgb`'s albedo; the codebook is trained before the
+//! coding pass, which gives each pixel of a tile its nearest entry. Every value is found
+//! from the same pixels, in the same order and arithmetic, as [`super::pack`] finds it
+//! from the whole image, so the file is the same byte for byte.
 //!
 //! Peak memory: two to three bands of `tile × width` pixels of `3K` f32 coefficients
 //! (the band read, what its source decodes it from, and the finer levels' pending rows,
 //! which together hold less than one band), a tile's projection a thread, and the
 //! sections of one tile row; with a gain, its plane (one f32 a pixel of level 0); with
-//! blocks, each block's components (`K × K′` f64 twice a projection group).
+//! blocks, each block's components (`K × K′` f64 twice a projection group); with a
+//! codebook, its training vectors (at most 2¹⁹ or 64 an entry, of its values each).
 
 use super::{
-    albedo_at, chunks_of_planes, coded_gain, encode_floats, gain, gain_quantizer, plane_entries,
-    projection, projection_groups, stored_basis, undivided, Counts, Header, Layout, PlaneEntry,
-    PlaneStats, Quantizer, Settings, BLOCK_PCA_PIXELS, PCA_PIXELS,
+    albedo_at, chunks_of_planes, codebook_bytes, codebook_weights, coded_gain, encode_floats, gain,
+    gain_quantizer, plane_entries, projection, projection_groups, residual_entry, squared,
+    stored_basis, undivided, vq, Counts, Header, Layout, PlaneEntry, PlaneStats, Quantizer,
+    Settings, BLOCK_PCA_PIXELS, PCA_PIXELS,
 };
 use crate::basis::Basis;
 use crate::maps::{CoefficientMaps, Metadata, RelightableImage};
 use crate::progress::Progress;
 use crate::sphere::Vec3;
+use crate::storage::FiniteRange;
 use crate::{Error, Result};
 use rayon::prelude::*;
 use std::ops::Range;
@@ -73,16 +79,17 @@ pub trait SectionSink {
     fn put(&mut self, section: usize, bytes: Vec<u8>) -> Result<()>;
 }
 
-/// Whether files of `settings` can be packed a band at a time: not yet with a codebook
-/// (its training subsample, the albedo's weight over every pixel and the pixels' indices
-/// would each need their place in the passes), nor with principal components a block
-/// unless the blocks lie inside the bands (the tile a multiple of the block; mip levels
-/// refuse blocks anyway).
+/// Whether files of `settings` can be packed a band at a time: not with principal
+/// components a block unless the blocks lie inside the bands (the tile a multiple of the
+/// block), and not with what [`super::pack`] refuses (mip levels with blocks or a
+/// codebook; a codebook with blocks or the gain), which is left to it to say.
 pub fn packs_in_bands(settings: &Settings) -> bool {
     let blocks_fit = settings
         .pca_block
         .is_none_or(|side| side > 0 && settings.tile.is_multiple_of(side) && !settings.mip_levels);
-    settings.codebook.is_none() && blocks_fit
+    let codebook_fits = settings.codebook.is_none()
+        || (!settings.mip_levels && !settings.gain && settings.pca_block.is_none());
+    codebook_fits && blocks_fit
 }
 
 /// Maps (f32, all three channels) above which writers pack a band at a time by default:
@@ -114,8 +121,9 @@ pub fn pack_in_bands(
 ) -> Result<Header> {
     if !packs_in_bands(settings) {
         return Err(Error::invalid(
-            "a codebook is packed from the whole image, and blocks of principal components \
-             must lie inside the tile rows (without mip levels): such a file is packed whole",
+            "blocks of principal components must lie inside the tile rows (without mip \
+             levels), and a codebook takes neither mip levels, blocks nor the gain: such a \
+             file is packed whole",
         ));
     }
     let (width, height, k) = source.shape();
@@ -125,7 +133,12 @@ pub fn pack_in_bands(
         return Err(Error::invalid("the maps and their basis disagree on K"));
     }
     let counts = Counts::checked(settings, k)?;
-    let components = counts.components;
+    let (components, extra) = (counts.components, counts.extra);
+    if settings.codebook.is_some() && extra == 0 && !settings.codec.lossless() {
+        return Err(Error::invalid(
+            "a codebook's indices need the lossless codec (zstd), not an image codec",
+        ));
+    }
     let layout = settings.layout;
     let counts = counts.per_function(layout);
     let gram = projection::gram(basis.as_ref(), settings.directions.as_deref());
@@ -203,7 +216,10 @@ pub fn pack_in_bands(
     let whole: Vec<projection::Principal> = groups
         .iter()
         .zip(vectors)
-        .map(|(channels, vectors)| projection::principal(&gram, &vectors, k, counts[channels[0]]))
+        .map(|(channels, vectors)| {
+            // A codebook of the residual holds the next `extra` components of each.
+            projection::principal(&gram, &vectors, k, counts[channels[0]] + extra)
+        })
         .collect::<Result<_>>()?;
     // With principal components a block, each block's (found while its band is measured).
     let mut principals: Vec<Vec<projection::Principal>> = match settings.pca_block {
@@ -220,11 +236,42 @@ pub fn pack_in_bands(
         gram: &gram,
         block: settings.pca_block,
         across: settings.pca_block.map_or(0, |side| width.div_ceil(side)),
+        residual: (components, extra),
     };
 
-    // Each plane's statistics, then its quantiser.
+    // Each plane's statistics, then its quantiser; with a codebook, the vectors it is
+    // trained on (as [`vq::train`] takes them from every pixel's), the residual's
+    // ranges and the sums of squares that weigh `lrgb`'s albedo, as `pack` finds them.
     let planes = planes_of(layout, &counts);
     let mut stats = vec![PlaneStats::empty(settings.codec); planes];
+    let fcount = counts.len();
+    let mut book = settings.codebook.map(|entries| {
+        let values = match extra {
+            0 => 0..planes,
+            _ => planes..planes + fcount * extra,
+        };
+        let functions = match extra {
+            0 => counts.iter().sum(),
+            _ => values.len(),
+        };
+        BookStats {
+            entries,
+            stride: vq::training_stride(n, entries),
+            n,
+            training: Vec::new(),
+            ranges: vec![FiniteRange::EMPTY; fcount * extra],
+            squares: vec![
+                0.0;
+                if values.len() > functions {
+                    counts[0]
+                } else {
+                    0
+                }
+            ],
+            values,
+            functions,
+        }
+    });
     progress.begin("measuring the planes", bands.len() as u64);
     for rows in &bands {
         let band = band_of(source, rows.clone())?;
@@ -254,6 +301,9 @@ pub fn pack_in_bands(
                         stats.see(first + local, n, v);
                     }
                 });
+            if let Some(book) = &mut book {
+                book.see(&projected, planes, first);
+            }
         }
         progress.advance(1);
     }
@@ -261,6 +311,13 @@ pub fn pack_in_bands(
     let albedo = planes - counts.iter().sum::<usize>();
     let mut entries = plane_entries(settings, &counts, albedo, None, &|i| stats[i].clone())?;
     drop(stats);
+    let residual: Vec<PlaneEntry> = match &book {
+        Some(book) => (book.ranges.iter().enumerate())
+            .map(|(i, &range)| residual_entry(layout, components, extra, i, range))
+            .collect(),
+        None => Vec::new(),
+    };
+    let indexer = book.take().map(BookStats::train).transpose()?;
     // The gain plane, the last.
     if let Some(g) = &gain {
         entries.push(PlaneEntry {
@@ -281,7 +338,7 @@ pub fn pack_in_bands(
             basis: match settings.pca_block {
                 // Blocks' planes decode into the input basis, each by its own map.
                 Some(_) => meta.basis.clone(),
-                None => stored_basis(&meta.basis, &whole[0], components)?,
+                None => stored_basis(&meta.basis, &whole[0], components + extra)?,
             },
             ..meta.clone()
         },
@@ -291,8 +348,8 @@ pub fn pack_in_bands(
         layout,
         codec: settings.codec,
         planes: entries,
-        codebook: None,
-        residual: Vec::new(),
+        codebook: indexer.as_ref().map(|(book, _)| book.entries()),
+        residual,
         gain: gain.is_some(),
         pca_block: settings.pca_block,
         depth: source.has_depth(),
@@ -317,12 +374,16 @@ pub fn pack_in_bands(
             halved_rows: 0,
         })
         .collect();
+    if let (Some((book, _)), Some(section)) = (&indexer, header.codebook_section()) {
+        sink.put(section, codebook_bytes(&header, book)?)?;
+    }
     let projector = projection.with(&principals);
     let coder = Coder {
         header: &header,
         projector: &projector,
         gain: gain.as_ref(),
         level0_divisor: divisor.as_deref(),
+        indexer: indexer.as_ref().map(|(_, indexer)| indexer),
     };
     progress.begin("coding tiles", bands.len() as u64);
     for rows in &bands {
@@ -417,6 +478,96 @@ impl GainCoder<'_> {
     }
 }
 
+/// What a codebook is found from, gathered in pixel order while the planes are measured.
+struct BookStats {
+    /// Entries asked for.
+    entries: usize,
+    /// The projected planes the codebook holds (every plane's, or the residual's), and
+    /// how many of them are functions' (the rest, `lrgb`'s albedo, are weighed).
+    values: Range<usize>,
+    functions: usize,
+    /// Every `stride`-th pixel's values, unweighed, of the image's `n`.
+    stride: usize,
+    n: usize,
+    training: Vec<f32>,
+    /// The residual's planes' ranges.
+    ranges: Vec<FiniteRange>,
+    /// The sums of squares of the first function's planes, where the albedo is weighed.
+    squares: Vec<f64>,
+}
+
+impl BookStats {
+    /// `projected`'s pixels, the first of them pixel `first` of the image (`planes`: the
+    /// planes before the residual's).
+    fn see(&mut self, projected: &[Vec<f32>], planes: usize, first: usize) {
+        let pixels = projected.first().map_or(0, Vec::len);
+        for p in (first.next_multiple_of(self.stride)..first + pixels).step_by(self.stride) {
+            let values = &projected[self.values.clone()];
+            self.training
+                .extend(values.iter().map(|plane| plane[p - first]));
+        }
+        for (range, plane) in self.ranges.iter_mut().zip(&projected[planes..]) {
+            *range = plane.iter().fold(*range, |r, &v| r.with(v));
+        }
+        for (sum, plane) in self.squares.iter_mut().zip(projected) {
+            *sum = plane.iter().fold(*sum, |s, &v| s + squared(v));
+        }
+    }
+
+    /// The codebook, in the planes' units, and what assigns a pixel its entry.
+    fn train(self) -> Result<(vq::Codebook, Indexer)> {
+        let dims = self.values.len();
+        if dims == 0 {
+            return Err(Error::invalid("vector quantisation of no values"));
+        }
+        let weights = codebook_weights(dims, self.functions, self.squares.into_iter(), self.n);
+        let mut training = self.training;
+        for vector in training.chunks_exact_mut(dims) {
+            for (x, w) in vector.iter_mut().zip(&weights) {
+                *x *= w;
+            }
+        }
+        let mut book = vq::train_on(training, dims, self.entries)?;
+        let assigner = vq::Assigner::new(&book);
+        for entry in book.values.chunks_exact_mut(dims) {
+            for (x, w) in entry.iter_mut().zip(&weights) {
+                *x /= w;
+            }
+        }
+        let indexer = Indexer {
+            assigner,
+            values: self.values,
+            weights,
+        };
+        Ok((book, indexer))
+    }
+}
+
+/// Assigns each pixel its codebook entry from its projected planes.
+struct Indexer {
+    assigner: vq::Assigner,
+    values: Range<usize>,
+    weights: Vec<f32>,
+}
+
+impl Indexer {
+    /// The entry of every pixel of `projected`.
+    fn indices(&self, projected: &[Vec<f32>]) -> Vec<u16> {
+        let values = &projected[self.values.clone()];
+        let pixels = values.first().map_or(0, Vec::len);
+        let mut vectors = Vec::with_capacity(pixels * values.len());
+        for p in 0..pixels {
+            vectors.extend(
+                values
+                    .iter()
+                    .zip(&self.weights)
+                    .map(|(plane, &w)| plane[p] * w),
+            );
+        }
+        self.assigner.assign(&vectors)
+    }
+}
+
 /// How the file's planes are made from the coefficients, but for the principal
 /// components themselves (the file's, or each block's as they are found).
 struct Projection<'a> {
@@ -430,6 +581,9 @@ struct Projection<'a> {
     /// The blocks' side, where each has its own components, and how many lie across.
     block: Option<usize>,
     across: usize,
+    /// With a codebook of the residual, the components a function keeps as planes and
+    /// the residual's that follow them (0 without).
+    residual: (usize, usize),
 }
 
 impl Projection<'_> {
@@ -509,8 +663,16 @@ struct Projector<'a> {
 }
 
 impl Projector<'_> {
-    fn planes(&self) -> usize {
+    /// The planes of the file's tiles: the functions' components, then `lrgb`'s albedo.
+    fn coded_planes(&self) -> usize {
         planes_of(self.projection.layout, self.projection.counts)
+    }
+
+    /// Every plane [`Projector::project`] gives: the coded ones, then the residual's
+    /// components (each function channel's in turn).
+    fn planes(&self) -> usize {
+        let (_, extra) = self.projection.residual;
+        self.coded_planes() + self.projection.counts.len() * extra
     }
 
     /// The principal components of function channel `f` at pixel `p` of maps `width`
@@ -533,9 +695,9 @@ impl Projector<'_> {
         &self.principals[block][projection.group_of[f]]
     }
 
-    /// Every plane's values at the pixels `span` of `maps` (whose first pixel is pixel
-    /// `origin` of the image), the functions divided by `divisor` (one value a pixel of
-    /// `maps`) where there is one.
+    /// Every plane's values ([`Projector::planes`]) at the pixels `span` of `maps` (whose
+    /// first pixel is pixel `origin` of the image), the functions divided by `divisor`
+    /// (one value a pixel of `maps`) where there is one.
     fn project(
         &self,
         maps: &CoefficientMaps,
@@ -549,9 +711,14 @@ impl Projector<'_> {
             layout,
             counts,
             gram,
+            residual: (components, extra),
             ..
         } = *self.projection;
-        let most = counts.iter().copied().max().unwrap_or(0);
+        // With a residual, every function's components and the residual's, as `pack`
+        // applies them (a row's value does not depend on how many are applied).
+        let rows = |count: usize| if extra > 0 { components + extra } else { count };
+        let most = counts.iter().map(|&c| rows(c)).max().unwrap_or(0);
+        let residual = self.coded_planes();
         let mut planes: Vec<Vec<f32>> = (0..self.planes()).map(|_| vec![0.0; pixels]).collect();
         // Each chunk of pixels writes its part of every plane.
         chunks_of_planes(&mut planes, CHUNK)
@@ -568,10 +735,13 @@ impl Projector<'_> {
                             *ci = divided(undivided(layout, maps, i, f, p), divisor, p);
                         }
                         self.principal_at(maps.width, origin, p, f)
-                            .apply(&c, &mut y[..count]);
+                            .apply(&c, &mut y[..rows(count)]);
                         for &v in &y[..count] {
                             outs[plane][local] = v;
                             plane += 1;
+                        }
+                        for r in 0..extra {
+                            outs[residual + f * extra + r][local] = y[components + r];
                         }
                     }
                     if layout == Layout::Lrgb {
@@ -593,6 +763,8 @@ struct Coder<'a> {
     gain: Option<&'a GainCoder<'a>>,
     /// Level 0's decoded gain, its tiles coded already.
     level0_divisor: Option<&'a [f32]>,
+    /// With a codebook: each pixel's entry.
+    indexer: Option<&'a Indexer>,
 }
 
 impl Coder<'_> {
@@ -649,7 +821,12 @@ impl Coder<'_> {
                     tile_divisor.as_deref(),
                     (x0, y0),
                 );
-                let mut sections: Vec<(usize, Vec<u8>)> = projected
+                // A codebook's pixels without planes are only indices.
+                let coded = match header.indexed_pixels() {
+                    true => 0,
+                    false => self.projector.coded_planes(),
+                };
+                let mut sections: Vec<(usize, Vec<u8>)> = projected[..coded]
                     .par_iter()
                     .zip(&header.planes)
                     .enumerate()
@@ -666,8 +843,20 @@ impl Coder<'_> {
                         Ok((level.first_section + p * tiles + index, bytes))
                     })
                     .collect::<Result<_>>()?;
+                if let (Some(indexer), Some(book)) = (self.indexer, header.codebook_section()) {
+                    let codes = indexer.indices(&projected);
+                    let (width, codec) = (header.index_width(), header.index_codec());
+                    let bytes =
+                        super::planes::encode_tile(&codes, tw, tile.height(), width, codec)?;
+                    sections.push((book + 1 + index, bytes));
+                }
                 if let Some(depth) = &tile.depth {
-                    let s = level.first_section + planes * tiles + index;
+                    // Level 0's depth follows its planes' (or its codebook's) sections.
+                    let before = match l {
+                        0 => header.plane_sections(),
+                        _ => planes * tiles,
+                    };
+                    let s = level.first_section + before + index;
                     sections.push((s, encode_floats(depth)?));
                 }
                 Ok(sections)

@@ -876,15 +876,8 @@ fn pack_level(
     // small): the codebook's values.
     let residual: Vec<(PlaneEntry, &[f32])> = (0..fcount * extra)
         .map(|i| {
-            let (f, r) = (i / extra, i % extra);
             let plane = &projected[residual_start + i];
-            let range = range(plane);
-            let step = (range.hi - range.lo) / 65535.0;
-            let entry = PlaneEntry {
-                channel: functions[f].to_string(),
-                index: components + r,
-                quantizer: Quantizer::spanning(range.lo, range.hi, step, 1 << 16),
-            };
+            let entry = residual_entry(layout, components, extra, i, range(plane));
             (entry, plane.as_slice())
         })
         .collect();
@@ -959,21 +952,8 @@ fn pack_level(
         sections.extend(gain_sections);
     }
     if let Some((book, indices)) = &quantized {
-        let mut codes: Vec<u8> = Vec::with_capacity(2 * book.values.len());
-        for (j, entry) in header.codebook_values().iter().enumerate() {
-            for e in 0..book.entries() {
-                let code = entry.quantizer.code(book.entry(e)[j]);
-                codes.extend_from_slice(&code.to_le_bytes());
-            }
-        }
+        sections.push(codebook_bytes(&header, book)?);
         let codec = header.index_codec();
-        let TileCodec::Zstd { level } = codec else {
-            unreachable!("indices are coded losslessly")
-        };
-        sections.push(
-            zstd::bulk::compress(&codes, level)
-                .map_err(|e| Error::new(crate::ErrorKind::Io, format!("zstd: {e}")))?,
-        );
         let width = header.index_width();
         let more: Vec<Vec<u8>> = (0..tiles)
             .into_par_iter()
@@ -1280,24 +1260,10 @@ fn quantize_vectors(
 ) -> Result<(vq::Codebook, Vec<u16>)> {
     let dims = entries.len();
     let functions: usize = counts.iter().sum();
-    let energy = if dims > functions {
-        let sum: f64 = entries[..counts[0]]
-            .iter()
-            .map(|(_, plane)| plane.iter().map(|&v| (v as f64).powi(2)).sum::<f64>())
-            .sum();
-        (sum / n.max(1) as f64).max(1e-12)
-    } else {
-        1.0
-    };
-    let weights: Vec<f32> = (0..dims)
-        .map(|j| {
-            if j < functions {
-                1.0
-            } else {
-                energy.sqrt() as f32
-            }
-        })
-        .collect();
+    let squares = entries[..counts[0]]
+        .iter()
+        .map(|(_, plane)| plane.iter().fold(0.0, |s, &v| s + squared(v)));
+    let weights = codebook_weights(dims, functions, squares, n);
     let mut vectors = vec![0.0f32; n * dims];
     vectors.par_chunks_mut(dims).enumerate().for_each(|(p, v)| {
         for (j, x) in v.iter_mut().enumerate() {
@@ -1312,6 +1278,73 @@ fn quantize_vectors(
         }
     }
     Ok((book, indices))
+}
+
+/// The entry of the residual's plane `i` (component `components + i % extra` of function
+/// channel `i / extra`) whose values span `range`: that range in 16 bits (a codebook is
+/// small).
+fn residual_entry(
+    layout: Layout,
+    components: usize,
+    extra: usize,
+    i: usize,
+    range: crate::storage::FiniteRange,
+) -> PlaneEntry {
+    let step = (range.hi - range.lo) / 65535.0;
+    PlaneEntry {
+        channel: layout.channels().0[i / extra].to_string(),
+        index: components + i % extra,
+        quantizer: Quantizer::spanning(range.lo, range.hi, step, 1 << 16),
+    }
+}
+
+/// `v`², what the codebook's weights sum over a plane.
+fn squared(v: f32) -> f64 {
+    (v as f64).powi(2)
+}
+
+/// The weight of each of a codebook's `dims` values (`functions` function planes, then
+/// per-pixel albedo planes): a function plane 1 (the components are orthonormal in the
+/// relit image's metric), an albedo plane the root mean energy of the function it scales
+/// (`squares`, each of that function's planes' sum of [`squared`] values over the `n`
+/// pixels).
+fn codebook_weights(
+    dims: usize,
+    functions: usize,
+    squares: impl Iterator<Item = f64>,
+    n: usize,
+) -> Vec<f32> {
+    let energy = if dims > functions {
+        (squares.sum::<f64>() / n.max(1) as f64).max(1e-12)
+    } else {
+        1.0
+    };
+    (0..dims)
+        .map(|j| {
+            if j < functions {
+                1.0
+            } else {
+                energy.sqrt() as f32
+            }
+        })
+        .collect()
+}
+
+/// The codebook's section: every value's code (in [`Header::codebook_values`]' order,
+/// entry by entry), zstd.
+fn codebook_bytes(header: &Header, book: &vq::Codebook) -> Result<Vec<u8>> {
+    let mut codes: Vec<u8> = Vec::with_capacity(2 * book.values.len());
+    for (j, entry) in header.codebook_values().iter().enumerate() {
+        for e in 0..book.entries() {
+            let code = entry.quantizer.code(book.entry(e)[j]);
+            codes.extend_from_slice(&code.to_le_bytes());
+        }
+    }
+    let TileCodec::Zstd { level } = header.index_codec() else {
+        unreachable!("indices are coded losslessly")
+    };
+    zstd::bulk::compress(&codes, level)
+        .map_err(|e| Error::new(crate::ErrorKind::Io, format!("zstd: {e}")))
 }
 
 /// The quantisers of the function planes (channel by channel, component by component)
@@ -1529,9 +1562,10 @@ pub fn unpack(packed: &Packed) -> Result<RelightableImage> {
     })
 }
 
-/// The maps of `region` of a file of planes (no codebook) with `kp` functions: the
-/// tiles it touches, decoded (first, so that memory grows with what the file really
-/// holds) and copied into place.
+/// The maps of `region` of a file with `kp` functions: the tiles it touches, decoded
+/// (first, so that memory grows with what the file really holds) and copied into place;
+/// a codebook's values where the pixels' indices say (every plane's values where the
+/// pixels are only indices, or the residual's).
 fn region_maps(
     packed: &Packed,
     kp: usize,
@@ -1543,7 +1577,9 @@ fn region_maps(
     let touched: Vec<usize> = (0..tiles)
         .filter(|&t| tile_overlap(header, t, region).is_some())
         .collect();
-    let decoded: Vec<Vec<u16>> = (0..header.planes.len() * touched.len())
+    let indexed = header.indexed_pixels();
+    let coded_planes = if indexed { 0 } else { header.planes.len() };
+    let decoded: Vec<Vec<u16>> = (0..coded_planes * touched.len())
         .into_par_iter()
         .map(|i| {
             let (p, t) = (i / touched.len(), touched[i % touched.len()]);
@@ -1568,8 +1604,12 @@ fn region_maps(
         None => None,
     };
     Ok(assemble(header, kp, w, h, blocks.as_ref(), |p, out| {
-        let residual = p.checked_sub(header.planes.len());
-        let coding = match residual {
+        // The codebook's values this plane takes: all of them for indices alone.
+        let in_book = match indexed {
+            true => Some(p),
+            false => p.checked_sub(header.planes.len()),
+        };
+        let coding = match p.checked_sub(header.planes.len()) {
             Some(r) => header.residual[r].quantizer.coding,
             None => header.planes[p].quantizer.coding,
         };
@@ -1580,7 +1620,7 @@ fn region_maps(
                 let src = (oy + r - ty) * tw + (ox - tx);
                 let dst = (oy + r - y) * w + (ox - x);
                 let out = &mut out[dst..dst + ow];
-                match residual {
+                match in_book {
                     Some(j) => {
                         let values = &book[j * entries..(j + 1) * entries];
                         for (o, &e) in out.iter_mut().zip(&indices[i][src..src + ow]) {
@@ -1696,21 +1736,23 @@ impl BlockDecoder {
 }
 
 /// Whether [`unpack_region`] needs section `s` of a file for the region `(x, y, w, h)`:
-/// a plane's tile that the region touches (depth is not read). A codebook file's
-/// sections are all needed (its index tiles decode into the whole index plane).
+/// a plane's tile that the region touches, a codebook and the index tiles the region
+/// touches (depth is not read).
 pub fn section_needed(header: &Header, s: usize, region: (usize, usize, usize, usize)) -> bool {
-    if header.indexed_pixels() {
-        return true;
-    }
     if header.pca_block.is_some() && s + 1 == header.level_zero_sections() {
         return true;
     }
     let (across, down) = header.tiles();
     let tiles = across * down;
-    if s < header.planes.len() * tiles {
+    let plane_tiles = match header.indexed_pixels() {
+        true => 0,
+        false => header.planes.len() * tiles,
+    };
+    if s < plane_tiles {
         return tile_overlap(header, s % tiles, region).is_some();
     }
-    // A codebook of the residual, and the index tiles the region touches.
+    // A codebook (of every plane's values, or of the residual's), and the index tiles
+    // the region touches.
     match header.codebook_section() {
         Some(book) if s == book => true,
         Some(book) if s > book && s <= book + tiles => {
@@ -1758,25 +1800,8 @@ pub fn unpack_region(
 ) -> Result<RelightableImage> {
     let header = &packed.header;
     check_region(header, region)?;
-    let (x, y, w, h) = region;
-    let crop = |image: RelightableImage| {
-        let maps = &image.maps;
-        let mut out = CoefficientMaps::zeros(w, h, maps.k);
-        let n = maps.pixels();
-        for (plane, dst) in out.data.chunks_exact_mut(w * h).enumerate() {
-            for r in 0..h {
-                let src = plane * n + (y + r) * maps.width + x;
-                dst[r * w..(r + 1) * w].copy_from_slice(&maps.data[src..src + w]);
-            }
-        }
-        out
-    };
     let kp = checked(packed)?;
-    let maps = if header.indexed_pixels() {
-        crop(indexed_checked(packed, kp)?.expand())
-    } else {
-        region_maps(packed, kp, region)?
-    };
+    let maps = region_maps(packed, kp, region)?;
     let mut meta = header.meta.clone();
     meta.camera = None;
     Ok(RelightableImage {

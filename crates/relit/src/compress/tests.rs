@@ -548,7 +548,19 @@ fn a_region_reads_only_its_tiles_and_equals_that_crop_of_the_whole_file() {
                     "{region:?}"
                 );
             }
-            if codebook.is_none() && !all {
+            // A codebook's file reads its codebook and the index tiles the region
+            // touches, as a file of planes reads their tiles: never the depth, and
+            // never a tile the region leaves out.
+            let untouched: usize = (0..packed_image.sections.len())
+                .filter(|&s| !section_needed(&packed_image.header, s, region))
+                .map(|s| packed_image.sections[s].len())
+                .sum();
+            assert_eq!(
+                read,
+                (bytes.len() - untouched) as u64,
+                "{region:?}: the sections needed, no others"
+            );
+            if !all {
                 // One tile of fifteen, or six; the header and index (a few KiB on this
                 // small image) are read whole.
                 let bound = match region {
@@ -557,20 +569,14 @@ fn a_region_reads_only_its_tiles_and_equals_that_crop_of_the_whole_file() {
                 };
                 assert!(
                     read < bound as u64,
-                    "{region:?}: {read} of {} bytes read",
+                    "{codebook:?} {region:?}: {read} of {} bytes read",
                     bytes.len()
-                );
-            } else if codebook.is_some() {
-                assert_eq!(
-                    read,
-                    bytes.len() as u64,
-                    "{region:?}: every section is read"
                 );
             } else {
                 assert_eq!(
                     read,
                     (bytes.len() - depth_bytes) as u64,
-                    "{region:?}: every plane section is read, no depth"
+                    "{region:?}: every section is read but depth's"
                 );
             }
         }
@@ -1176,8 +1182,10 @@ impl bands::SectionSink for Collected {
 /// byte for byte: every layout, zstd and JPEG, all or fewer components, with and
 /// without mip levels, depth and the perceptual gain (over the basis' domain or the
 /// capture's lights), principal components a block (with and without the gain, blocks
-/// cut by the image's edges), sizes that are no multiple of the tile (odd ones, and a
-/// level of one row or column).
+/// cut by the image's edges), codebooks (of every pixel's planes, with `lrgb`'s weighed
+/// albedo, and of the residual beside JPEG and zstd planes; trained on every few pixels
+/// of a big image), sizes that are no multiple of the tile (odd ones, and a level of
+/// one row or column).
 #[test]
 fn a_file_packed_band_by_band_is_the_file_packed_whole() {
     let odd = image("sh:9", 77, 41);
@@ -1332,6 +1340,58 @@ fn a_file_packed_band_by_band_is_the_file_packed_whole() {
                 ..Settings::default()
             },
         ),
+        (
+            &odd,
+            Settings {
+                components: Some(4),
+                tile: 16,
+                codebook: Some(64),
+                ..Settings::default()
+            },
+        ),
+        (
+            &odd,
+            Settings {
+                layout: Layout::Lrgb,
+                components: Some(3),
+                tile: 32,
+                codebook: Some(300),
+                ..Settings::default()
+            },
+        ),
+        (
+            &big,
+            Settings {
+                layout: Layout::Ycc,
+                components: Some(2),
+                tile: 128,
+                codebook: Some(32),
+                ..Settings::default()
+            },
+        ),
+        (
+            &odd,
+            Settings {
+                layout: Layout::Ycc,
+                codec: TileCodec::parse("jpeg:85").unwrap(),
+                components: Some(3),
+                tile: 16,
+                codebook: Some(48),
+                residual: Some(2),
+                ..Settings::default()
+            },
+        ),
+        (
+            &big,
+            Settings {
+                layout: Layout::Lrgb,
+                components: Some(2),
+                tile: 256,
+                codebook: Some(16),
+                residual: Some(1),
+                ..Settings::default()
+            },
+        ),
     ];
     for (i, (img, settings)) in cases.into_iter().enumerate() {
         assert!(bands::packs_in_bands(&settings));
@@ -1349,10 +1409,12 @@ fn a_file_packed_band_by_band_is_the_file_packed_whole() {
             assert!(bytes == whole.sections[s], "case {i}: section {s}");
         }
     }
-    // What needs every pixel at once is refused, not packed differently.
+    // What is packed whole is refused, not packed differently.
     for settings in [
+        // A codebook with mip levels (which `pack` refuses too).
         Settings {
             codebook: Some(16),
+            mip_levels: true,
             ..Settings::default()
         },
         // Blocks across two tile rows, and blocks with mip levels.

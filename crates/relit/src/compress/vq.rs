@@ -182,18 +182,34 @@ pub fn train(vectors: &[f32], dims: usize, entries: usize) -> Result<Codebook> {
     if dims == 0 || vectors.is_empty() || !vectors.len().is_multiple_of(dims) {
         return Err(Error::invalid("vector quantisation of no vectors"));
     }
+    let n = vectors.len() / dims;
+    let training: Vec<f32> = (0..n)
+        .step_by(training_stride(n, entries))
+        .flat_map(|i| vectors[i * dims..(i + 1) * dims].iter().copied())
+        .collect();
+    train_on(training, dims, entries)
+}
+
+/// The stride of the vectors [`train`] trains on among `n` for a codebook of `entries`:
+/// every vector whose index is a multiple of it (so that a caller that cannot hold all
+/// `n` vectors gathers the same ones for [`train_on`]).
+pub fn training_stride(n: usize, entries: usize) -> usize {
+    let wanted = entries
+        .saturating_mul(TRAINING_PER_ENTRY)
+        .clamp(MIN_TRAINING, MAX_TRAINING);
+    (n / wanted).max(1)
+}
+
+/// [`train`] on the vectors it would take from all of them ([`training_stride`]).
+pub fn train_on(training: Vec<f32>, dims: usize, entries: usize) -> Result<Codebook> {
+    if dims == 0 || training.is_empty() || !training.len().is_multiple_of(dims) {
+        return Err(Error::invalid("vector quantisation of no vectors"));
+    }
     if !(2..=MAX_ENTRIES).contains(&entries) {
         return Err(Error::invalid(format!(
             "a codebook has 2 to {MAX_ENTRIES} entries, not {entries}"
         )));
     }
-    let n = vectors.len() / dims;
-    let wanted = (entries * TRAINING_PER_ENTRY).clamp(MIN_TRAINING, MAX_TRAINING);
-    let step = (n / wanted).max(1);
-    let training: Vec<f32> = (0..n)
-        .step_by(step)
-        .flat_map(|i| vectors[i * dims..(i + 1) * dims].iter().copied())
-        .collect();
     let m = training.len() / dims;
     let entries = entries.min(m);
     let axis = widest_axis(&training, dims);
@@ -290,22 +306,47 @@ fn seed_plus_plus(training: &[f32], dims: usize, entries: usize, rng: &mut Rng) 
     book
 }
 
+/// Finds the nearest entry of a codebook, by its index in the book.
+pub struct Assigner {
+    /// The entries sorted along the search's axis, and each one's index in the book.
+    sorted: Vec<f32>,
+    order: Vec<usize>,
+    dims: usize,
+    axis: usize,
+}
+
+impl Assigner {
+    pub fn new(book: &Codebook) -> Assigner {
+        let axis = widest_axis(&book.values, book.dims);
+        // The search needs the entries sorted along its axis; keep the book's own order
+        // for the indices by sorting a copy with a permutation.
+        let mut order: Vec<usize> = (0..book.entries()).collect();
+        order.sort_by(|&a, &b| book.entry(a)[axis].total_cmp(&book.entry(b)[axis]));
+        let sorted: Vec<f32> = order
+            .iter()
+            .flat_map(|&e| book.entry(e).iter().copied())
+            .collect();
+        Assigner {
+            sorted,
+            order,
+            dims: book.dims,
+            axis,
+        }
+    }
+
+    /// The nearest entry for every vector (`dims` values each, one after another).
+    pub fn assign(&self, vectors: &[f32]) -> Vec<u16> {
+        let search = Search::new(&self.sorted, self.dims, self.axis);
+        vectors
+            .par_chunks_exact(self.dims)
+            .map(|v| self.order[search.nearest(v).0] as u16)
+            .collect()
+    }
+}
+
 /// The nearest entry of `book` for every vector.
 pub fn assign(book: &Codebook, vectors: &[f32]) -> Vec<u16> {
-    let axis = widest_axis(&book.values, book.dims);
-    // The search needs the entries sorted along its axis; keep the book's own order
-    // for the indices by sorting a copy with a permutation.
-    let mut order: Vec<usize> = (0..book.entries()).collect();
-    order.sort_by(|&a, &b| book.entry(a)[axis].total_cmp(&book.entry(b)[axis]));
-    let sorted: Vec<f32> = order
-        .iter()
-        .flat_map(|&e| book.entry(e).iter().copied())
-        .collect();
-    let search = Search::new(&sorted, book.dims, axis);
-    vectors
-        .par_chunks_exact(book.dims)
-        .map(|v| order[search.nearest(v).0] as u16)
-        .collect()
+    Assigner::new(book).assign(vectors)
 }
 
 #[cfg(test)]
