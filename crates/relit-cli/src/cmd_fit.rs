@@ -289,8 +289,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 /// What `--budget` chose: the file, and each basis tried.
 fn print_budget(capture: &Capture, made: &relit::budget_fit::BudgetFit) {
     let choice = &made.choice;
+    let header = &choice.packed.header;
+    let pixels = header.width * header.height;
+    let sampled = match choice.judged_pixels < pixels {
+        true => format!(
+            ", judged on a sample of {} of its {pixels} pixels",
+            choice.judged_pixels
+        ),
+        false => String::new(),
+    };
     eprintln!(
-        "compression: {} ({:.1} bits/pixel, {:.2} dB on {} captured lights; {} candidates within the budget)",
+        "compression: {} ({:.1} bits/pixel, {:.2} dB on {} captured lights; {} candidates within the budget{sampled})",
         choice.settings.describe(),
         choice.bits_per_pixel,
         choice.score,

@@ -23,13 +23,14 @@
 //! which together hold less than one band), a tile's projection a thread, and the
 //! sections of one tile row; with a gain, its plane (one f32 a pixel of level 0); with
 //! blocks, each block's components (`K × K′` f64 twice a projection group); with a
-//! codebook, its training vectors (at most 2¹⁹ or 64 an entry, of its values each).
+//! codebook, its training vectors (64 an entry, 2¹⁶ to 2¹⁹, or up to twice that where
+//! the stride rounds down; of its values each).
 
 use super::{
     albedo_at, chunks_of_planes, codebook_bytes, codebook_weights, coded_gain, encode_floats, gain,
     gain_quantizer, plane_entries, projection, projection_groups, residual_entry, squared,
-    stored_basis, undivided, vq, Counts, Header, Layout, PlaneEntry, PlaneStats, Quantizer,
-    Settings, BLOCK_PCA_PIXELS, PCA_PIXELS,
+    stored_basis, undivided, undivided_all, vq, Counts, Header, Layout, PlaneEntry, PlaneStats,
+    Quantizer, Settings, BLOCK_PCA_PIXELS, PCA_PIXELS,
 };
 use crate::basis::Basis;
 use crate::maps::{CoefficientMaps, Metadata, RelightableImage};
@@ -725,17 +726,17 @@ impl Projector<'_> {
             .into_par_iter()
             .enumerate()
             .for_each(|(chunk, mut outs)| {
-                let (mut c, mut y) = (vec![0.0f32; k], vec![0.0f32; most]);
+                let (mut all, mut y) = (vec![0.0f32; counts.len() * k], vec![0.0f32; most]);
                 let mut scratch = (vec![0.0f64; k], vec![0.0f64; k]);
                 for local in 0..outs[0].len() {
                     let p = span.start + chunk * CHUNK + local;
+                    undivided_all(layout, maps, p, &mut all);
+                    all.iter_mut().for_each(|v| *v = divided(*v, divisor, p));
                     let mut plane = 0;
                     for (f, &count) in counts.iter().enumerate() {
-                        for (i, ci) in c.iter_mut().enumerate() {
-                            *ci = divided(undivided(layout, maps, i, f, p), divisor, p);
-                        }
+                        let c = &all[f * k..(f + 1) * k];
                         self.principal_at(maps.width, origin, p, f)
-                            .apply(&c, &mut y[..rows(count)]);
+                            .apply(c, &mut y[..rows(count)]);
                         for &v in &y[..count] {
                             outs[plane][local] = v;
                             plane += 1;

@@ -7,6 +7,13 @@
 //! the 8-bit sRGB PSNR against those photographs — the training images only: the basis
 //! and the maps are already chosen (by leave-one-out, in the fit), so what is compared
 //! here is only what each compression loses, and evaluation hold-outs are never seen.
+//!
+//! A large image is judged on a sample ([`Sample`]): windows spread over it, put side by
+//! side into one small image that every candidate is packed and scored on; the best
+//! candidates in turn are then packed from the whole image until one fits the budget.
+//! The grid holds 196 candidates at K = 25, each a pack, an unpack and eight frames:
+//! on a whole megapixel image that took many minutes, and would take hours on a
+//! panorama.
 
 use super::{pack_with_gain, unpack, JpegRange, Layout, Packed, Settings, TileCodec};
 use crate::capture::Capture;
@@ -131,10 +138,13 @@ pub struct Choice {
     pub packed: Packed,
     /// The file's bits per pixel.
     pub bits_per_pixel: f64,
-    /// Mean 8-bit sRGB PSNR at the scoring lights.
+    /// Mean 8-bit sRGB PSNR at the scoring lights (over the sample's pixels where the
+    /// image was judged on one).
     pub score: f64,
-    /// Candidates within the budget.
+    /// Candidates within the budget (on the sample, where there is one).
     pub within: usize,
+    /// The pixels the candidates were judged on: the image's, or its sample's.
+    pub judged_pixels: usize,
 }
 
 /// The best candidate of [`grid`] for `image` (fitted from `capture`) within
@@ -145,18 +155,72 @@ pub fn choose(
     bits_per_pixel: f64,
     progress: &dyn Progress,
 ) -> Result<Choice> {
-    choose_with(image, &Judges::of(capture)?, bits_per_pixel, progress)
+    let judges = Judges::of(capture)?;
+    let sampled = Sample::of(image.width(), image.height()).map(|s| judges.sampled(s));
+    choose_with(image, &judges, sampled.as_ref(), bits_per_pixel, progress)
 }
 
-/// [`choose`] with the scoring lights' photographs already loaded.
+/// [`choose`] with the scoring lights' photographs already loaded: on the whole image,
+/// or on its sample (`sampled`, the sample and its photographs, for a large one).
 fn choose_with(
     image: &RelightableImage,
     judges: &Judges,
+    sampled: Option<&(Sample, Judges)>,
     bits_per_pixel: f64,
     progress: &dyn Progress,
 ) -> Result<Choice> {
-    let side_by_side = (image.width() * image.height()) as f64 <= PARALLEL_PIXELS;
-    judge_grid(image, judges, bits_per_pixel, progress, side_by_side)
+    let Some((sample, sample_judges)) = sampled else {
+        let side_by_side = (image.width() * image.height()) as f64 <= PARALLEL_PIXELS;
+        let ranked = judge_grid(image, judges, bits_per_pixel, 1.0, progress, side_by_side)?;
+        return Ok(best_of(ranked));
+    };
+    let small = sample.image(image);
+    let ranked = judge_grid(
+        &small,
+        sample_judges,
+        bits_per_pixel,
+        SAMPLE_ALLOWANCE,
+        progress,
+        true,
+    )?;
+    // The sample's best in turn, packed whole, until one fits: a file's bits per pixel
+    // differ from its sample's, either way.
+    let pixels = (image.width() * image.height()) as f64;
+    let directions = judges.capture.directions();
+    let gain = std::cell::OnceCell::new();
+    for judged in &ranked {
+        let settings = &judged.choice.settings;
+        let gain = match settings.gain {
+            true => Some(gain.get_or_init(|| {
+                super::gain::perceptual(
+                    &image.maps,
+                    image
+                        .meta
+                        .basis
+                        .build()
+                        .expect("built for the sample")
+                        .as_ref(),
+                    Some(&directions),
+                )
+            })),
+            false => None,
+        };
+        let packed = pack_with_gain(image, settings, gain.map(Vec::as_slice))?;
+        let bytes = super::container::to_bytes(&packed)?.len();
+        let bpp = 8.0 * bytes as f64 / pixels;
+        if bpp <= bits_per_pixel {
+            return Ok(Choice {
+                packed,
+                bits_per_pixel: bpp,
+                within: ranked.len(),
+                ..judged.choice.clone()
+            });
+        }
+    }
+    Err(Error::invalid(format!(
+        "no compression fits in {bits_per_pixel} bits/pixel (on the whole image, every \
+         candidate within it on the sample is larger)"
+    )))
 }
 
 /// [`choose`], judging the candidates side by side or one at a time.
@@ -168,23 +232,36 @@ pub(crate) fn choose_judging(
     progress: &dyn Progress,
     side_by_side: bool,
 ) -> Result<Choice> {
-    judge_grid(
+    let ranked = judge_grid(
         image,
         &Judges::of(capture)?,
         bits_per_pixel,
+        1.0,
         progress,
         side_by_side,
-    )
+    )?;
+    Ok(best_of(ranked))
 }
 
-/// Every candidate of [`grid`] for `image` judged, the best within the budget kept.
+/// The first of candidates `ranked` best first, counting them.
+fn best_of(mut ranked: Vec<Judged>) -> Choice {
+    let within = ranked.len();
+    let mut best = ranked.swap_remove(0).choice;
+    best.within = within;
+    best
+}
+
+/// Every candidate of [`grid`] for `image` judged: those within the budget (times
+/// `allowance`), the best first (the higher score, the earlier in the grid on a tie); at
+/// least one.
 fn judge_grid(
     image: &RelightableImage,
     judges: &Judges,
     bits_per_pixel: f64,
+    allowance: f64,
     progress: &dyn Progress,
     side_by_side: bool,
-) -> Result<Choice> {
+) -> Result<Vec<Judged>> {
     let capture = judges.capture;
     if !(bits_per_pixel.is_finite() && bits_per_pixel > 0.0) {
         return Err(Error::invalid(
@@ -212,7 +289,7 @@ fn judge_grid(
         let bytes = super::container::to_bytes(&packed)?.len();
         let bpp = 8.0 * bytes as f64 / pixels;
         progress.advance(1);
-        if bpp > bits_per_pixel {
+        if bpp > bits_per_pixel * allowance {
             return Ok(None);
         }
         let score = judges.score(&unpack(&packed)?)?;
@@ -224,31 +301,149 @@ fn judge_grid(
                 bits_per_pixel: bpp,
                 score,
                 within: 1,
+                judged_pixels: pixels as usize,
             },
         }))
     };
-    let best = if side_by_side {
+    let judged: Vec<Option<Judged>> = if side_by_side {
         candidates
             .into_par_iter()
             .enumerate()
             .map(judge)
-            .try_reduce_with(|a, b| Ok(Judged::better(a, b)))
-            .transpose()?
-            .flatten()
+            .collect::<Result<_>>()?
     } else {
         candidates
             .into_iter()
             .enumerate()
             .map(judge)
-            .try_fold(None, |a, b| b.map(|b| Judged::better(a, b)))?
+            .collect::<Result<_>>()?
     };
     progress.end();
-    let best = best.ok_or_else(|| {
-        Error::invalid(format!(
+    let mut ranked: Vec<Judged> = judged.into_iter().flatten().collect();
+    if ranked.is_empty() {
+        return Err(Error::invalid(format!(
             "no compression fits in {bits_per_pixel} bits/pixel (the smallest candidate is larger)"
-        ))
-    })?;
-    Ok(best.choice)
+        )));
+    }
+    // A score that is not a number ranks last.
+    let key = |j: &Judged| match j.choice.score {
+        s if s.is_nan() => f64::NEG_INFINITY,
+        s => s,
+    };
+    ranked.sort_by(|a, b| key(b).total_cmp(&key(a)).then(a.index.cmp(&b.index)));
+    Ok(ranked)
+}
+
+/// How far over the budget a candidate may be on a sample and still be packed whole (in
+/// the order of its score) to see whether its file fits: a sample's bits per pixel
+/// are its windows', not the image's (item1 grown to 2048×512, ycc K′ 9 with blocks and
+/// JPEG q90: 7.9 bits per pixel for the image, more than 8 on its sample).
+const SAMPLE_ALLOWANCE: f64 = 1.25;
+
+/// Images of more pixels than this are judged on a sample of [`SAMPLE_WINDOWS`] windows.
+pub const SAMPLE_ABOVE_PIXELS: usize = 1 << 19;
+
+/// Windows of a sample, and their side: whole blocks of principal components of
+/// either side of [`PCA_BLOCKS`], lying on the image's blocks; together 262,144 pixels,
+/// about as many as the captures of the shared RTI set (item1: 213,793), whose grids
+/// take about a minute a basis.
+pub const SAMPLE_WINDOWS: usize = 4;
+const WINDOW: usize = 256;
+
+/// Windows spread over a large image, judged as one image of them side by side.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sample {
+    /// Each window's top-left pixel, in the sample's order (row by row of windows).
+    pub windows: Vec<(usize, usize)>,
+    /// The windows' size and how many lie across the sample.
+    pub side: (usize, usize),
+    pub across: usize,
+}
+
+impl Sample {
+    /// The sample of an image of `width × height` pixels, where it has more than
+    /// [`SAMPLE_ABOVE_PIXELS`]: windows on a lattice of about the image's proportions,
+    /// each at the centre of its cell, moved onto the lattice of [`WINDOW`] (so that
+    /// its blocks of principal components are the whole image's).
+    pub fn of(width: usize, height: usize) -> Option<Sample> {
+        if width * height <= SAMPLE_ABOVE_PIXELS {
+            return None;
+        }
+        let side = (WINDOW.min(width), WINDOW.min(height));
+        let aspect = width as f64 / height as f64;
+        // Whole rows of windows, as many as the image's proportions ask for.
+        let across =
+            ((SAMPLE_WINDOWS as f64 * aspect).sqrt().round() as usize).clamp(1, SAMPLE_WINDOWS);
+        let down = (SAMPLE_WINDOWS / across).clamp(1, height / side.1);
+        let across = SAMPLE_WINDOWS.div_ceil(down).min(width / side.0);
+        let place = |cell: usize, cells: usize, extent: usize, side: usize| {
+            let centre = (2 * cell + 1) * extent / (2 * cells);
+            let snapped = centre.saturating_sub(side / 2) / WINDOW * WINDOW;
+            snapped.min(extent - side)
+        };
+        let windows = (0..down)
+            .flat_map(|j| (0..across).map(move |i| (i, j)))
+            .map(|(i, j)| {
+                (
+                    place(i, across, width, side.0),
+                    place(j, down, height, side.1),
+                )
+            })
+            .collect();
+        Some(Sample {
+            windows,
+            side,
+            across,
+        })
+    }
+
+    /// The sample's size.
+    pub fn size(&self) -> (usize, usize) {
+        let down = self.windows.len().div_ceil(self.across);
+        (self.across * self.side.0, down * self.side.1)
+    }
+
+    /// Where pixel `(x, y)` of the sample comes from in the image.
+    fn source(&self, x: usize, y: usize) -> (usize, usize) {
+        let (w, h) = self.side;
+        let window = (y / h) * self.across + x / w;
+        let (x0, y0) = self.windows[window.min(self.windows.len() - 1)];
+        (x0 + x % w, y0 + y % h)
+    }
+
+    /// The sample of `image`'s maps (no camera or depth: directional lights judge it).
+    pub fn image(&self, image: &RelightableImage) -> RelightableImage {
+        let (sw, sh) = self.size();
+        let (width, k) = (image.width(), image.maps.k);
+        let mut maps = crate::maps::CoefficientMaps::zeros(sw, sh, k);
+        let n = image.maps.pixels();
+        for (plane, out) in maps.data.chunks_exact_mut(sw * sh).enumerate() {
+            let source = &image.maps.data[plane * n..(plane + 1) * n];
+            for (p, o) in out.iter_mut().enumerate() {
+                let (x, y) = self.source(p % sw, p / sw);
+                *o = source[y * width + x];
+            }
+        }
+        let mut meta = image.meta.clone();
+        meta.camera = None;
+        RelightableImage {
+            meta,
+            maps,
+            depth: None,
+        }
+    }
+
+    /// The sample of a photograph.
+    fn photo(&self, photo: &crate::image::ImageRgb) -> crate::image::ImageRgb {
+        let (sw, sh) = self.size();
+        let mut out = crate::image::ImageRgb::new(sw, sh);
+        for (p, o) in out.data.chunks_exact_mut(3).enumerate() {
+            let (x, y) = self.source(p % sw, p / sw);
+            let at = 3 * (y * photo.width + x);
+            o.copy_from_slice(&photo.data[at..at + 3]);
+        }
+        out
+    }
 }
 
 /// The captured lights candidates are scored at ([`SCORING_LIGHTS`] spread over the
@@ -278,6 +473,17 @@ impl<'a> Judges<'a> {
             lights,
             photos,
         })
+    }
+
+    /// The same lights, their photographs' sample.
+    fn sampled(&self, sample: Sample) -> (Sample, Judges<'a>) {
+        let photos = self.photos.iter().map(|p| sample.photo(p)).collect();
+        let judges = Judges {
+            capture: self.capture,
+            lights: self.lights.clone(),
+            photos,
+        };
+        (sample, judges)
     }
 
     /// The mean 8-bit sRGB PSNR of `image` relit at the lights against their photographs.
@@ -346,9 +552,15 @@ pub fn choose_among(
     let mut estimates = Vec::new();
     let mut refusal = None;
     for (index, offer) in offers.iter().enumerate() {
-        let lossless = judges.score(offer.image)?;
-        let basis = offer.image.meta.basis.build()?.name();
-        match choose_with(offer.image, &judges, bits_per_pixel, progress) {
+        let image = offer.image;
+        // The lossless maps scored on the pixels their files are.
+        let sampled = Sample::of(image.width(), image.height()).map(|s| judges.sampled(s));
+        let lossless = match &sampled {
+            Some((sample, sample_judges)) => sample_judges.score(&sample.image(image))?,
+            None => judges.score(image)?,
+        };
+        let basis = image.meta.basis.build()?.name();
+        match choose_with(image, &judges, sampled.as_ref(), bits_per_pixel, progress) {
             Ok(choice) => {
                 let estimate = expected_psnr(offer.validation, lossless, choice.score);
                 estimates.push(Estimate {
@@ -384,29 +596,10 @@ pub fn choose_among(
 /// Images of at most this many pixels have their candidates judged side by side.
 const PARALLEL_PIXELS: f64 = (1 << 22) as f64;
 
-/// A candidate within the budget and its place in the grid; its `within` counts the
-/// candidates within the budget it stands for once merged with others.
+/// A candidate within the budget and its place in the grid.
 struct Judged {
     index: usize,
     choice: Choice,
-}
-
-impl Judged {
-    /// The better of two results (the higher score, the earlier in the grid on a tie),
-    /// counting both: the same choice whatever order the candidates were judged in.
-    fn better(a: Option<Judged>, b: Option<Judged>) -> Option<Judged> {
-        match (a, b) {
-            (None, x) | (x, None) => x,
-            (Some(a), Some(b)) => {
-                let within = a.choice.within + b.choice.within;
-                let a_wins = a.choice.score > b.choice.score
-                    || (a.choice.score == b.choice.score && a.index < b.index);
-                let mut kept = if a_wins { a } else { b };
-                kept.choice.within = within;
-                Some(kept)
-            }
-        }
-    }
 }
 
 #[cfg(test)]

@@ -800,16 +800,19 @@ fn pack_level(
             .into_par_iter()
             .enumerate()
             .for_each(|(chunk, mut outs)| {
-                let mut c = vec![0.0f32; k];
+                let mut all = vec![0.0f32; fcount * k];
                 let mut y = vec![0.0f32; components + extra];
                 for local in 0..outs[0].len() {
                     let p = chunk * CHUNK + local;
+                    // `function_value` of every (i, f) at once.
+                    undivided_all(layout, maps, p, &mut all);
+                    if let Some(d) = &divisor {
+                        all.iter_mut().for_each(|v| *v /= d[p]);
+                    }
                     for (f, &count) in counts.iter().enumerate() {
-                        for (i, ci) in c.iter_mut().enumerate() {
-                            *ci = function_value(i, f, p);
-                        }
+                        let c = &all[f * k..(f + 1) * k];
                         let rows = if extra > 0 { components + extra } else { count };
-                        principal_at(p, f).apply(&c, &mut y[..rows]);
+                        principal_at(p, f).apply(c, &mut y[..rows]);
                         for j in 0..count {
                             outs[starts[f] + j][local] = y[j];
                         }
@@ -1010,6 +1013,30 @@ fn chunks_of_planes(planes: &mut [Vec<f32>], chunk: usize) -> Vec<Vec<&mut [f32]
                 .collect()
         })
         .collect()
+}
+
+/// Every function channel's coefficients of `layout` at pixel `p` of `maps`, before any
+/// gain divides them, into `out` (channel `f`'s `K` at `f·K`): [`undivided`] of each,
+/// with the colours of a coefficient read and turned once for all channels.
+fn undivided_all(layout: Layout, maps: &CoefficientMaps, p: usize, out: &mut [f32]) {
+    let k = maps.k;
+    let n = maps.pixels();
+    let data = &maps.data;
+    for i in 0..k {
+        let rgb = [
+            data[3 * i * n + p],
+            data[(3 * i + 1) * n + p],
+            data[(3 * i + 2) * n + p],
+        ];
+        match layout {
+            Layout::Rgb => (0..3).for_each(|f| out[f * k + i] = rgb[f]),
+            Layout::Ycc => {
+                let ycc = layout::ycc(rgb);
+                (0..3).for_each(|f| out[f * k + i] = ycc[f]);
+            }
+            Layout::Lrgb => out[i] = layout::luma(rgb),
+        }
+    }
 }
 
 /// Coefficient `i` of function channel `f` of `layout` at pixel `p` of `maps`, before
@@ -1509,15 +1536,21 @@ impl PlaneStats {
         }
     }
 
-    /// The `q` and `1 − q` quantiles of the finite values (by the sorted subsample).
+    /// The `q` and `1 − q` quantiles of the finite values (by the subsample: the values
+    /// at those places of it sorted, selected without sorting it all).
     fn percentiles(&self, q: f64) -> (f32, f32) {
         let mut v = self.sample.clone();
         if v.is_empty() {
             return (0.0, 0.0);
         }
-        v.sort_by(f32::total_cmp);
-        let at = |f: f64| v[((v.len() - 1) as f64 * f).round() as usize];
-        (at(q), at(1.0 - q))
+        let place = |f: f64| ((v.len() - 1) as f64 * f).round() as usize;
+        let (lo, hi) = (place(q), place(1.0 - q));
+        let (_, &mut low, above) = v.select_nth_unstable_by(lo, f32::total_cmp);
+        let high = match hi.checked_sub(lo + 1) {
+            Some(at) => *above.select_nth_unstable_by(at, f32::total_cmp).1,
+            None => low,
+        };
+        (low, high)
     }
 }
 

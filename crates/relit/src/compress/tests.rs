@@ -453,6 +453,103 @@ fn the_budget_keeps_the_best_candidate_that_fits_and_more_bits_never_score_less(
     assert!(err.to_string().contains("no compression fits"), "{err}");
 }
 
+/// A large image's sample: windows inside the image on the lattice of their side (or
+/// against its far edge), spread over it, none twice, each pixel of the sample the
+/// image's; small images have none.
+#[test]
+fn a_large_images_sample_is_windows_spread_over_it() {
+    use budget::{Sample, SAMPLE_ABOVE_PIXELS, SAMPLE_WINDOWS};
+    assert_eq!(Sample::of(700, 700), None);
+    assert!(SAMPLE_ABOVE_PIXELS >= 512 * 1024 && Sample::of(1024, 512).is_none());
+    for (w, h) in [
+        (1030, 520),
+        (8192, 2048),
+        (16384, 300),
+        (900, 900),
+        (5000, 200),
+    ] {
+        let sample = Sample::of(w, h).unwrap();
+        let (sw, sh) = sample.side;
+        assert_eq!((sw, sh), (256.min(w), 256.min(h)));
+        let n = sample.windows.len();
+        assert!(n == SAMPLE_WINDOWS.min(w / sw * (h / sh)), "{w}×{h}: {n}");
+        for (i, &(x, y)) in sample.windows.iter().enumerate() {
+            assert!(x + sw <= w && y + sh <= h, "{w}×{h}: {x},{y}");
+            assert!(x % 256 == 0 || x + sw == w, "{w}×{h}: x {x}");
+            assert!(y % 256 == 0 || y + sh == h, "{w}×{h}: y {y}");
+            assert!(!sample.windows[..i].contains(&(x, y)), "{w}×{h}: twice");
+        }
+        // Spread: the windows reach both halves of the image's longer side.
+        let (lo, hi) = match w >= h {
+            true => sample
+                .windows
+                .iter()
+                .map(|&(x, _)| x + sw / 2)
+                .fold((w, 0), |(a, b), v| (a.min(v), b.max(v))),
+            false => sample
+                .windows
+                .iter()
+                .map(|&(_, y)| y + sh / 2)
+                .fold((h, 0), |(a, b), v| (a.min(v), b.max(v))),
+        };
+        let long = w.max(h);
+        assert!(lo < long / 2 && hi > long / 2, "{w}×{h}: {lo}..{hi}");
+    }
+    let img = image("sh:4", 1030, 520);
+    let sample = Sample::of(1030, 520).unwrap();
+    let part = sample.image(&img);
+    let (pw, ph) = sample.size();
+    assert_eq!((part.width(), part.height()), (pw, ph));
+    assert!(part.meta.camera.is_none() && part.depth.is_none());
+    for (i, &(x0, y0)) in sample.windows.iter().enumerate() {
+        let (ox, oy) = ((i % sample.across) * 256, (i / sample.across) * 256);
+        for (x, y) in [(0, 0), (255, 0), (17, 200), (255, 255)] {
+            for plane in 0..3 * 4 {
+                assert_eq!(
+                    part.maps.data[plane * pw * ph + (oy + y) * pw + ox + x],
+                    img.maps.data[plane * 1030 * 520 + (y0 + y) * 1030 + x0 + x],
+                );
+            }
+        }
+    }
+}
+
+/// A large image chooses its file on its sample and writes it whole: the file is the
+/// image's, within the budget by its own bytes, scored on the sample's pixels.
+#[test]
+fn a_large_image_chooses_its_file_on_a_sample_and_keeps_the_budget() {
+    let plane = crate::synth::BumpyPlane {
+        width: 1100,
+        height: 560,
+    };
+    let capture = plane.capture(&crate::sphere::hemisphere_fibonacci(9));
+    let options = crate::fit::FitOptions {
+        basis: crate::fit::BasisRequest::parse("sh:4").unwrap(),
+        ..Default::default()
+    };
+    let fitted = crate::fit::fit(&capture, &options, &crate::progress::Silent).unwrap();
+    let sample = budget::Sample::of(1100, 560).unwrap();
+    let budget = 6.0;
+    let choice = budget::choose(&fitted.image, &capture, budget, &crate::progress::Silent).unwrap();
+    assert_eq!(
+        (choice.packed.header.width, choice.packed.header.height),
+        (1100, 560)
+    );
+    let bytes = packed::to_bytes(&choice.packed).unwrap().len();
+    assert_eq!(choice.bits_per_pixel, 8.0 * bytes as f64 / (1100.0 * 560.0));
+    assert!(choice.bits_per_pixel <= budget, "{choice:?}");
+    let (sw, sh) = sample.size();
+    assert_eq!(choice.judged_pixels, sw * sh);
+    assert!(
+        choice.within > 0 && choice.score.is_finite() && choice.score > 25.0,
+        "{}",
+        choice.score
+    );
+    // The file holds the whole image's maps, as packing the settings chosen makes it.
+    let direct = pack(&fitted.image, &choice.settings).unwrap();
+    assert!(packed::to_bytes(&direct).unwrap() == packed::to_bytes(&choice.packed).unwrap());
+}
+
 #[test]
 fn a_region_reads_only_its_tiles_and_equals_that_crop_of_the_whole_file() {
     let img = image("sh:9", 70, 45);
