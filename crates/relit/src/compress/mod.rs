@@ -700,11 +700,12 @@ fn pack_level(
     // planes (albedo) apart.
     let gram = projection::gram(basis.as_ref(), settings.directions.as_deref());
     let fcount = functions.len();
-    let undivided_value = |i: usize, f: usize, p: usize| undivided(layout, maps, i, f, p);
-    let function_value = |i: usize, f: usize, p: usize| -> f32 {
-        match &divisor {
-            Some(d) => undivided_value(i, f, p) / d[p],
-            None => undivided_value(i, f, p),
+    // A pixel's coefficients of every function channel (`undivided`), divided by its
+    // gain where there is one.
+    let function_values = |p: usize, all: &mut [f32]| {
+        undivided_all(layout, maps, p, all);
+        if let Some(d) = &divisor {
+            all.iter_mut().for_each(|v| *v /= d[p]);
         }
     };
     let counts = Counts {
@@ -721,13 +722,20 @@ fn pack_level(
     let principal_of = |pixels: &[usize], group: usize, most: usize| {
         let channels = &groups[group];
         let step = (pixels.len() / most).max(1);
-        let vectors: Vec<f64> = pixels
-            .par_iter()
-            .step_by(step)
-            .flat_map_iter(|&p| {
-                channels
-                    .iter()
-                    .flat_map(move |&f| (0..k).map(move |i| function_value(i, f, p) as f64))
+        let chosen: Vec<usize> = pixels.iter().step_by(step).copied().collect();
+        // The group's channels' coefficients, pixel by pixel in order.
+        let vectors: Vec<f64> = chosen
+            .par_chunks(1024)
+            .flat_map_iter(|chunk| {
+                let mut all = vec![0.0f32; fcount * k];
+                let mut out = Vec::with_capacity(chunk.len() * channels.len() * k);
+                for &p in chunk {
+                    function_values(p, &mut all);
+                    for &f in channels {
+                        out.extend(all[f * k..(f + 1) * k].iter().map(|&v| v as f64));
+                    }
+                }
+                out
             })
             .collect();
         // A codebook of the residual holds the next `extra` components of each.
@@ -804,11 +812,7 @@ fn pack_level(
                 let mut y = vec![0.0f32; components + extra];
                 for local in 0..outs[0].len() {
                     let p = chunk * CHUNK + local;
-                    // `function_value` of every (i, f) at once.
-                    undivided_all(layout, maps, p, &mut all);
-                    if let Some(d) = &divisor {
-                        all.iter_mut().for_each(|v| *v /= d[p]);
-                    }
+                    function_values(p, &mut all);
                     for (f, &count) in counts.iter().enumerate() {
                         let c = &all[f * k..(f + 1) * k];
                         let rows = if extra > 0 { components + extra } else { count };
