@@ -255,20 +255,15 @@ pub fn pack_in_bands(
             0 => counts.iter().sum(),
             _ => values.len(),
         };
+        // `lrgb`'s albedo among the values weighs by the first function's energy.
+        let weighed = values.len() > functions;
         BookStats {
             entries,
             stride: vq::training_stride(n, entries),
             n,
             training: Vec::new(),
             ranges: vec![FiniteRange::EMPTY; fcount * extra],
-            squares: vec![
-                0.0;
-                if values.len() > functions {
-                    counts[0]
-                } else {
-                    0
-                }
-            ],
+            squares: vec![0.0; if weighed { counts[0] } else { 0 }],
             values,
             functions,
         }
@@ -318,7 +313,7 @@ pub fn pack_in_bands(
             .collect(),
         None => Vec::new(),
     };
-    let indexer = book.take().map(BookStats::train).transpose()?;
+    let indexer = book.map(BookStats::train).transpose()?;
     // The gain plane, the last.
     if let Some(g) = &gain {
         entries.push(PlaneEntry {

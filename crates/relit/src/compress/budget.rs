@@ -186,37 +186,36 @@ fn choose_with(
     // The sample's best in turn, packed whole, until one fits: a file's bits per pixel
     // differ from its sample's, either way.
     let pixels = (image.width() * image.height()) as f64;
+    let within = ranked
+        .iter()
+        .filter(|j| j.choice.bits_per_pixel <= bits_per_pixel)
+        .count();
     let directions = judges.capture.directions();
-    let gain = std::cell::OnceCell::new();
+    let basis = image.meta.basis.build()?;
+    let mut gain: Option<Vec<f32>> = None;
+    progress.begin("packing the best candidates whole", ranked.len() as u64);
     for judged in &ranked {
         let settings = &judged.choice.settings;
-        let gain = match settings.gain {
-            true => Some(gain.get_or_init(|| {
-                super::gain::perceptual(
-                    &image.maps,
-                    image
-                        .meta
-                        .basis
-                        .build()
-                        .expect("built for the sample")
-                        .as_ref(),
-                    Some(&directions),
-                )
-            })),
-            false => None,
-        };
-        let packed = pack_with_gain(image, settings, gain.map(Vec::as_slice))?;
+        if settings.gain && gain.is_none() {
+            let whole = super::gain::perceptual(&image.maps, basis.as_ref(), Some(&directions));
+            gain = Some(whole);
+        }
+        let gain = gain.as_deref().filter(|_| settings.gain);
+        let packed = pack_with_gain(image, settings, gain)?;
         let bytes = super::container::to_bytes(&packed)?.len();
         let bpp = 8.0 * bytes as f64 / pixels;
+        progress.advance(1);
         if bpp <= bits_per_pixel {
+            progress.end();
             return Ok(Choice {
                 packed,
                 bits_per_pixel: bpp,
-                within: ranked.len(),
+                within,
                 ..judged.choice.clone()
             });
         }
     }
+    progress.end();
     Err(Error::invalid(format!(
         "no compression fits in {bits_per_pixel} bits/pixel (on the whole image, every \
          candidate within it on the sample is larger)"
