@@ -1572,3 +1572,62 @@ fn a_band_source_that_gives_another_shape_is_refused() {
     let message = refused.unwrap_err().to_string();
     assert!(message.contains("another shape"), "{message}");
 }
+
+/// Every function channel's coefficients formed at once are each one's alone, bit for
+/// bit, in every layout.
+#[test]
+fn a_pixels_functions_at_once_are_each_ones_alone() {
+    let img = image("sh:9", 13, 7);
+    for layout in [Layout::Rgb, Layout::Ycc, Layout::Lrgb] {
+        let functions = layout.channels().0.len();
+        let mut all = vec![f32::NAN; functions * 9];
+        for p in [0, 5, 90] {
+            undivided_all(layout, &img.maps, p, &mut all);
+            for f in 0..functions {
+                for i in 0..9 {
+                    let alone = undivided(layout, &img.maps, i, f, p);
+                    assert_eq!(all[f * 9 + i].to_bits(), alone.to_bits(), "{layout:?}");
+                }
+            }
+        }
+    }
+}
+
+/// A plane's quantiles, selected, are those of its sorted subsample: with repeated
+/// values, signed zeros, one value and none.
+#[test]
+fn a_planes_quantiles_are_those_of_its_sorted_subsample() {
+    let sorted_quantiles = |values: &[f32], q: f64| {
+        let mut v = values.to_vec();
+        v.sort_by(f32::total_cmp);
+        let at = |f: f64| v[((v.len() - 1) as f64 * f).round() as usize];
+        (at(q), at(1.0 - q))
+    };
+    let jpeg = TileCodec::parse("jpeg:90").unwrap();
+    let mut rng = 12345u64;
+    let mut next = || {
+        rng = rng
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((rng >> 40) % 1000) as f32 / 100.0 - 5.0
+    };
+    let noisy: Vec<f32> = (0..30_001).map(|_| next()).collect();
+    for values in [
+        noisy,
+        vec![0.0, -0.0, 0.0, -0.0, 1.0],
+        vec![3.0; 17],
+        vec![2.5],
+        vec![-1.0, 1.0],
+    ] {
+        let stats = PlaneStats::of(&values, jpeg);
+        for q in [1e-4, 0.01, 0.25, 0.5] {
+            let (lo, hi) = stats.percentiles(q);
+            let (want_lo, want_hi) = sorted_quantiles(&values, q);
+            assert_eq!(
+                (lo.to_bits(), hi.to_bits()),
+                (want_lo.to_bits(), want_hi.to_bits())
+            );
+        }
+    }
+    assert_eq!(PlaneStats::of(&[], jpeg).percentiles(1e-4), (0.0, 0.0));
+}
