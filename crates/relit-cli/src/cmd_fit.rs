@@ -163,6 +163,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             &compress,
             (capture.width, capture.height, options.max_coefficients),
         );
+    // What `--budget` chose, for `--json`.
+    let mut compression = None;
     let (meta, report) = if let (relit::codec::FileForm::Exr, Some(tile)) = (form, args.mip_tiles) {
         let level0 = crate::shared::temporary_beside(&args.output, ".relit-fit-", ".exr")?;
         let made = relit::codec::exr::fit_to_exr(&capture, &options, &bars, &level0, args.storage)
@@ -194,6 +196,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         relit::codec::packed::write_packed(&args.output, &made.choice.packed)
             .with_context(|| format!("writing {}", args.output.display()))?;
+        compression = Some(budget_json(&made));
         (made.fit.image.meta, made.fit.report)
     } else {
         let output = relit::fit::fit(&capture, &options, &bars)?;
@@ -213,6 +216,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         value["bytes_per_pixel"] = serde_json::json!(bytes as f64 / (r.width * r.height) as f64);
         if let Some(shard) = shard {
             value["shard"] = serde_json::to_value(shard)?;
+        }
+        if let Some(compression) = compression {
+            value["compression"] = compression;
         }
         println!("{}", serde_json::to_string_pretty(&value)?);
     } else {
@@ -284,6 +290,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// What `--budget` chose, for `--json`: the settings, the file's bits per pixel, the
+/// score at the capture's lights, the candidates within the budget, the pixels they were
+/// judged on, and each basis tried.
+fn budget_json(made: &relit::budget_fit::BudgetFit) -> serde_json::Value {
+    let choice = &made.choice;
+    let header = &choice.packed.header;
+    serde_json::json!({
+        "settings": choice.settings.describe(),
+        "bits_per_pixel": choice.bits_per_pixel,
+        "score_srgb8": choice.score,
+        "within": choice.within,
+        "judged_pixels": choice.judged_pixels,
+        "pixels": header.width * header.height,
+        "bases": made.estimates,
+    })
 }
 
 /// What `--budget` chose: the file, and each basis tried.

@@ -177,6 +177,25 @@ fn auto_chooses_among_the_rti_families_when_told() {
     assert_eq!(said.matches(": expected ").count(), 2, "{said}");
     assert_eq!(said.matches("(kept)").count(), 1, "{said}");
     assert!(relit(d, &["info", "budget.rlz"]).contains("storage       compressed"));
+    // `--json` says what the budget chose: the file's own bits per pixel, within it.
+    let out = fit_among(&["-o", "budget2.rlz", "--budget", "400", "--json", "-q"]);
+    assert!(out.status.success());
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let chosen = &json["compression"];
+    let bits = chosen["bits_per_pixel"].as_f64().unwrap();
+    let bytes = std::fs::metadata(d.join("budget2.rlz")).unwrap().len();
+    let pixels = chosen["pixels"].as_f64().unwrap();
+    assert!(
+        (bits - 8.0 * bytes as f64 / pixels).abs() < 1e-9 && bits <= 400.0,
+        "{chosen}"
+    );
+    assert_eq!(
+        chosen["judged_pixels"], chosen["pixels"],
+        "a small image judged whole"
+    );
+    assert!(chosen["within"].as_u64().unwrap() >= 1, "{chosen}");
+    assert_eq!(chosen["bases"].as_array().unwrap().len(), 2, "{chosen}");
+    assert!(chosen["settings"].as_str().is_some_and(|s| !s.is_empty()));
     let out = common::relit(
         d,
         &[
