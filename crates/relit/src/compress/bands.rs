@@ -201,13 +201,16 @@ pub fn pack_in_bands(
             values.copy_from_slice(&decoded);
         }
         let band_divisor = divisor.as_deref().map(|d| &d[first..]);
+        let mut all = vec![0.0f32; counts.len() * k];
         for p in (first.next_multiple_of(step)..rows.end * width).step_by(step) {
+            undivided_all(layout, &band.maps, p - first, &mut all);
             for (channels, vectors) in groups.iter().zip(&mut vectors) {
                 for &f in channels {
-                    vectors.extend((0..k).map(|i| {
-                        let v = undivided(layout, &band.maps, i, f, p - first);
-                        divided(v, band_divisor, p - first) as f64
-                    }));
+                    vectors.extend(
+                        all[f * k..(f + 1) * k]
+                            .iter()
+                            .map(|&v| divided(v, band_divisor, p - first) as f64),
+                    );
                 }
             }
         }
@@ -497,8 +500,8 @@ impl BookStats {
     /// planes before the residual's).
     fn see(&mut self, projected: &[Vec<f32>], planes: usize, first: usize) {
         let pixels = projected.first().map_or(0, Vec::len);
+        let values = &projected[self.values.clone()];
         for p in (first.next_multiple_of(self.stride)..first + pixels).step_by(self.stride) {
-            let values = &projected[self.values.clone()];
             self.training
                 .extend(values.iter().map(|plane| plane[p - first]));
         }
