@@ -116,6 +116,23 @@ pub struct FitArgs {
     /// of radiance images (EXR, HDR), the sRGB error on screen for photographs.
     #[arg(long, value_enum, default_value_t = CriterionArg::Auto)]
     pub criterion: CriterionArg,
+    /// Pixels the fit reads first, to choose the basis, objective and λ on (a study's
+    /// knob: `scripts/choice_stability.py`).
+    #[arg(long, hide = true, default_value_t = relit::fit::FitOptions::default().subsample as u32,
+          value_parser = clap::value_parser!(u32).range(16..=1 << 20))]
+    pub subsample: u32,
+    /// Pixels of that subsample `--basis auto` validates its finalists on.
+    #[arg(long, hide = true, default_value_t = relit::fit::Halving::default().pixels as u32,
+          value_parser = clap::value_parser!(u32).range(16..=1 << 20))]
+    pub selection_pixels: u32,
+    /// Pixels every candidate is screened on before the finalists are chosen.
+    #[arg(long, hide = true, default_value_t = relit::fit::Halving::default().screening_pixels as u32,
+          value_parser = clap::value_parser!(u32).range(8..=1 << 20))]
+    pub screening_pixels: u32,
+    /// (Candidate, variant) pairs the screening keeps for the full validation.
+    #[arg(long, hide = true, default_value_t = relit::fit::Halving::default().finalists as u32,
+          value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub finalists: u32,
 }
 
 impl FitArgs {
@@ -175,6 +192,12 @@ impl FitArgs {
                 CriterionArg::Auto => None,
                 CriterionArg::Display => Some(Criterion::Display),
                 CriterionArg::Linear => Some(Criterion::Linear),
+            },
+            subsample: self.subsample as usize,
+            halving: relit::fit::Halving {
+                screening_pixels: self.screening_pixels as usize,
+                finalists: self.finalists as usize,
+                pixels: self.selection_pixels as usize,
             },
             ..FitOptions::default()
         })

@@ -238,6 +238,8 @@ pub struct FitOptions {
     pub piece_bytes: usize,
     /// Pixels in the subsample used to choose λ and estimate the training residual.
     pub subsample: usize,
+    /// How many of the subsample's pixels `auto`'s validation screens and judges on.
+    pub halving: Halving,
     /// What `auto`'s validation error is measured in; `None`: from the capture
     /// ([`Criterion::for_capture`]: linear for radiance images, display otherwise).
     pub criterion: Option<Criterion>,
@@ -354,6 +356,7 @@ impl Default for FitOptions {
             reweights: 1,
             piece_bytes: 3 << 20,
             subsample: 1024,
+            halving: Halving::default(),
             criterion: None,
             shard: None,
             plan: None,
@@ -706,19 +709,33 @@ impl<'a> SpillReader<'a> {
     }
 }
 
-/// Pixels of the subsample the basis choice validates its finalists on: enough for
-/// stable principal components and errors, few enough that every candidate costs little.
-const SELECTION_PIXELS: usize = 512;
+/// How much of the subsample `auto`'s validation spends, by successive halving: every
+/// candidate under every variant (space and objective) is first screened on
+/// `screening_pixels` pixels and half the folds, and the best `finalists` (candidate,
+/// variant) pairs are then validated in full on `pixels` pixels.
+///
+/// The default comes from the choice's stability against the pixels it spends
+/// (`scripts/choice_stability.py`, docs/bases.md "How many pixels the choice needs"):
+/// on the 40 fits of the RealRTI peer protocol, a screening on 64 pixels changes no
+/// outcome against 128 or 256 (on 32 it drops a winner), and finalists judged on all
+/// 1024 pixels choose as judging every candidate in full does in 39 fits, on 512 in
+/// 33–35; three to six finalists agree alike, and four cost no more than three.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Halving {
+    pub screening_pixels: usize,
+    pub finalists: usize,
+    pub pixels: usize,
+}
 
-/// Pixels every candidate is first screened on, and how many of the best go on to the
-/// full validation on [`SELECTION_PIXELS`] (successive halving). Measured on the eight
-/// RealRTI items (23 candidates each): screened on 64 or on 128 pixels, the candidate
-/// that the full validation chooses ranked first on every item, with the same λ. On
-/// item1 tiled to 4096×1024 (`relit bench --write-capture`) it ranked fifth, 0.003 dB
-/// ahead of the next in full: six finalists keep such near-ties to the full validation
-/// (four let rbf:16 win there), for about 0.15 s more on a 60-light capture.
-const SCREENING_PIXELS: usize = 128;
-const FINALISTS: usize = 6;
+impl Default for Halving {
+    fn default() -> Self {
+        Halving {
+            screening_pixels: 64,
+            finalists: 4,
+            pixels: 1024,
+        }
+    }
+}
 
 /// A built basis, the objective and λ its validation chose (where it was validated),
 /// and the candidates' scores.
@@ -765,8 +782,10 @@ fn choose_basis(
         count: sub_count,
         n,
     };
-    let keep = SELECTION_PIXELS.min(sub_count).max(1);
-    let screen_keep = SCREENING_PIXELS.min(keep);
+    let halving = options.halving;
+    let keep = halving.pixels.min(sub_count).max(1);
+    let screen_keep = halving.screening_pixels.min(keep).max(1);
+    let finalists_kept = halving.finalists.max(1);
     let in_space = |values: &[f32], space: MapSpace| {
         let mut v = values.to_vec();
         if space != given {
@@ -915,7 +934,7 @@ fn choose_basis(
         .flat_map(|i| (0..variants.len()).map(move |v| (i, v, select::WHOLE_LADDER)))
         .collect();
     let mut scores = Vec::new();
-    if choices.len() > FINALISTS && screen_keep < keep {
+    if choices.len() > finalists_kept && screen_keep < keep {
         let max_k = choices.iter().map(|c| c.k).max().unwrap_or(0);
         let folds = select::screening_folds(n, max_k);
         // A nested family's sizes together (one basis and one factorisation per fold
@@ -948,13 +967,13 @@ fn choose_basis(
 
         finalists = screening
             .iter()
-            .take(FINALISTS)
+            .take(finalists_kept)
             .map(|(i, v, score)| (*i, *v, select::ladder_around(lambda_index(score))))
             .collect();
         // The set-aside candidates, each by its best variant in the screening.
         let mut seen = vec![false; choices.len()];
         finalists.iter().for_each(|f| seen[f.0] = true);
-        for (i, _, score) in screening.into_iter().skip(FINALISTS) {
+        for (i, _, score) in screening.into_iter().skip(finalists_kept) {
             if !std::mem::replace(&mut seen[i], true) {
                 scores.push(score);
             }

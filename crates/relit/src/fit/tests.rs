@@ -573,6 +573,57 @@ fn auto_chooses_among_the_candidates_it_is_given_and_scores_every_light() {
     assert!(fit(&capture, &too_big, &Silent).is_err());
 }
 
+#[test]
+fn the_choice_screens_every_candidate_and_validates_only_its_finalists_in_full() {
+    let plane = crate::synth::BumpyPlane {
+        width: 24,
+        height: 20,
+    };
+    let dirs = hemisphere_fibonacci(40);
+    let capture = plane.capture(&dirs);
+    let candidates: Vec<BasisChoice> = ["sh:4", "sh:9", "hsh:9", "ptm:6", "sg:9", "rbf:9"]
+        .iter()
+        .map(|s| BasisChoice::parse(s).unwrap())
+        .collect();
+    let with = |halving: Halving| {
+        let options = FitOptions {
+            candidates: candidates.clone(),
+            halving,
+            ..FitOptions::default()
+        };
+        fit(&capture, &options, &Silent).unwrap().report
+    };
+    let halving = Halving {
+        screening_pixels: 32,
+        finalists: 2,
+        pixels: 256,
+    };
+    let report = with(halving);
+    assert_eq!(report.candidates.len(), candidates.len());
+    let full: Vec<&str> = report
+        .candidates
+        .iter()
+        .filter(|c| c.pixels == 256)
+        .map(|c| c.basis.as_str())
+        .collect();
+    // Two (candidate, variant) pairs reach the final round: one or two candidates.
+    assert!((1..=2).contains(&full.len()), "{full:?}");
+    assert!(report
+        .candidates
+        .iter()
+        .all(|c| c.pixels == 256 || c.pixels == 32));
+    assert_eq!(
+        report.candidates[0].pixels, 256,
+        "the chosen one is a finalist"
+    );
+    // Without a screening every candidate is validated in full.
+    let report = with(Halving {
+        screening_pixels: 256,
+        ..halving
+    });
+    assert!(report.candidates.iter().all(|c| c.pixels == 256));
+}
+
 /// The perceptual fit's passes, written out plainly for one pixel at a time: the first
 /// solve weighted by the mean over the channels of their observation weights
 /// (`shared_first`), or by each channel's own; then one pass per channel reweighted by
