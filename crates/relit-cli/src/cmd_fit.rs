@@ -184,20 +184,26 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         relit::codec::exr::fit_to_exr(&capture, &options, &bars, &args.output, args.storage)
             .with_context(|| format!("writing {}", args.output.display()))?
     } else if let (relit::codec::FileForm::Compressed, Some(budget)) = (form, args.budget) {
-        let made = relit::budget_fit::fit_within_budget(
+        // A large image's maps are not held: each basis tried waits in a temporary file
+        // and the file chosen is packed from it a band at a time.
+        let stream = crate::shared::pack_in_bands(
+            &relit::compress::Settings::default(),
+            (capture.width, capture.height, options.max_coefficients),
+        );
+        let made = relit::budget_fit::fit_to_file_within_budget(
             &capture,
             &options,
             budget,
             args.budget_bases.into(),
+            &args.output,
+            stream,
             &bars,
         )?;
         if !args.json && !args.quiet {
             print_budget(&capture, &made);
         }
-        relit::codec::packed::write_packed(&args.output, &made.choice.packed)
-            .with_context(|| format!("writing {}", args.output.display()))?;
-        compression = Some(budget_json(&made));
-        (made.fit.image.meta, made.fit.report)
+        compression = Some(budget_json(&capture, &made));
+        (made.meta, made.report)
     } else {
         let output = relit::fit::fit(&capture, &options, &bars)?;
         write_whole(&args, &capture, &output)
@@ -295,25 +301,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 /// What `--budget` chose, for `--json`: the settings, the file's bits per pixel, the
 /// score at the capture's lights, the candidates within the budget, the pixels they were
 /// judged on, and each basis tried.
-fn budget_json(made: &relit::budget_fit::BudgetFit) -> serde_json::Value {
-    let choice = &made.choice;
-    let header = &choice.packed.header;
+fn budget_json(capture: &Capture, made: &relit::budget_fit::BudgetFile) -> serde_json::Value {
+    let choice = &made.verdict;
     serde_json::json!({
         "settings": choice.settings.describe(),
         "bits_per_pixel": choice.bits_per_pixel,
         "score_srgb8": choice.score,
         "within": choice.within,
         "judged_pixels": choice.judged_pixels,
-        "pixels": header.width * header.height,
+        "pixels": capture.width * capture.height,
         "bases": made.estimates,
     })
 }
 
 /// What `--budget` chose: the file, and each basis tried.
-fn print_budget(capture: &Capture, made: &relit::budget_fit::BudgetFit) {
-    let choice = &made.choice;
-    let header = &choice.packed.header;
-    let pixels = header.width * header.height;
+fn print_budget(capture: &Capture, made: &relit::budget_fit::BudgetFile) {
+    let choice = &made.verdict;
+    let pixels = capture.width * capture.height;
     let sampled = match choice.judged_pixels < pixels {
         true => format!(
             ", judged on a sample of {} of its {pixels} pixels",
@@ -338,7 +342,7 @@ fn print_budget(capture: &Capture, made: &relit::budget_fit::BudgetFit) {
                 e.lossless,
                 e.compressed,
                 estimate,
-                if e.basis == made.fit.report.basis { " (kept)" } else { "" }
+                if e.basis == made.report.basis { " (kept)" } else { "" }
             ),
             None => eprintln!("  {}: no file within the budget", e.basis),
         }

@@ -10,10 +10,12 @@
 //! each basis' files lose. The evaluation hold-outs are never seen.
 
 use crate::capture::Capture;
-use crate::compress::budget::{self, Choice, Estimate, Offer};
-use crate::fit::{self, BasisRequest, FitOptions, FitOutput};
+use crate::compress::budget::{self, Choice, Estimate, Offer, Sample, SampledOffer, Verdict};
+use crate::fit::{self, BasisRequest, FitOptions, FitOutput, FitReport};
+use crate::maps::Metadata;
 use crate::progress::Progress;
-use crate::Result;
+use crate::{Error, ErrorKind, Result};
+use std::path::Path;
 
 /// What [`fit_within_budget`] made.
 pub struct BudgetFit {
@@ -37,11 +39,7 @@ pub fn fit_within_budget(
     progress: &dyn Progress,
 ) -> Result<BudgetFit> {
     let first = fit::fit(capture, options, progress)?;
-    let others = if matches!(options.basis, BasisRequest::Auto) && options.plan.is_none() {
-        runners_up(&first, bases.saturating_sub(1))
-    } else {
-        Vec::new()
-    };
+    let others = others_to_try(&first.report, options, bases);
     if others.is_empty() {
         let choice = budget::choose(&first.image, capture, bits_per_pixel, progress)?;
         return Ok(BudgetFit {
@@ -51,27 +49,15 @@ pub fn fit_within_budget(
         });
     }
     let scores = first.report.candidates.clone();
-    let validation = |basis: &str| {
-        scores
-            .iter()
-            .find(|c| c.basis == basis)
-            .map_or(f64::NEG_INFINITY, |c| c.psnr)
-    };
     let mut fits = vec![first];
     for basis in &others {
-        // `auto` among this basis alone: the same validation, objective and λ choice as
-        // the first fit made for it.
-        let alone = FitOptions {
-            candidates: vec![crate::basis::BasisChoice::parse(basis)?],
-            ..options.clone()
-        };
-        fits.push(fit::fit(capture, &alone, progress)?);
+        fits.push(fit::fit(capture, &alone(options, basis)?, progress)?);
     }
     let offers: Vec<Offer> = fits
         .iter()
         .map(|f| Offer {
             image: &f.image,
-            validation: validation(&f.report.basis),
+            validation: validation_of(&scores, &f.report.basis),
         })
         .collect();
     let (index, choice, estimates) =
@@ -84,14 +70,161 @@ pub fn fit_within_budget(
     })
 }
 
-/// The `count` finalists of `auto`'s choice in `fitted` (the candidates judged in full)
+/// What [`fit_to_file_within_budget`] wrote.
+pub struct BudgetFile {
+    /// The kept fit's metadata and report.
+    pub meta: Metadata,
+    pub report: FitReport,
+    /// Its file.
+    pub verdict: Verdict,
+    /// Every basis tried ([`BudgetFit::estimates`]).
+    pub estimates: Vec<Estimate>,
+}
+
+/// Fit `capture` and write to `output` its file within `bits_per_pixel`, chosen as
+/// [`fit_within_budget`] chooses it. With `stream`, an image large enough to be judged
+/// on a sample ([`Sample::of`]) is never held whole: each basis is fitted to a
+/// temporary f32 OpenEXR file beside `output` ([`crate::codec::exr::fit_to_exr`]), its
+/// sample read back from that file's windows, the scoring photographs' samples read a
+/// few rows at a time, and the files of the best candidates packed from it a band of
+/// rows at a time until one fits ([`crate::codec::packed::pack_in_bands`]): the same
+/// choice and the same file, byte for byte, in memory bounded by the sample and a band.
+pub fn fit_to_file_within_budget(
+    capture: &Capture,
+    options: &FitOptions,
+    bits_per_pixel: f64,
+    bases: usize,
+    output: &Path,
+    stream: bool,
+    progress: &dyn Progress,
+) -> Result<BudgetFile> {
+    let sample = Sample::of(capture.width, capture.height).filter(|_| stream);
+    let Some(sample) = sample else {
+        let made = fit_within_budget(capture, options, bits_per_pixel, bases, progress)?;
+        crate::codec::packed::write_packed(output, &made.choice.packed)?;
+        return Ok(BudgetFile {
+            meta: made.fit.image.meta,
+            report: made.fit.report,
+            verdict: made.choice.verdict(),
+            estimates: made.estimates,
+        });
+    };
+    let dir = match output.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    let fit_to_temporary =
+        |options: &FitOptions| -> Result<(tempfile::TempPath, Metadata, FitReport)> {
+            let path = tempfile::Builder::new()
+                .prefix(".relit-budget-")
+                .suffix(".exr")
+                .tempfile_in(dir)
+                .map_err(|e| {
+                    Error::new(
+                        ErrorKind::Io,
+                        format!("cannot create a temporary file in {}", dir.display()),
+                    )
+                    .with_source(e)
+                })?
+                .into_temp_path();
+            let (meta, report) = crate::codec::exr::fit_to_exr(
+                capture,
+                options,
+                progress,
+                &path,
+                crate::storage::Precision::F32,
+            )?;
+            Ok((path, meta, report))
+        };
+    let mut fits = vec![fit_to_temporary(options)?];
+    let others = others_to_try(&fits[0].2, options, bases);
+    let scores = fits[0].2.candidates.clone();
+    for basis in &others {
+        fits.push(fit_to_temporary(&alone(options, basis)?)?);
+    }
+    let offers = fits
+        .iter()
+        .map(|(path, _, report)| {
+            let (w, h) = sample.side;
+            let windows = sample
+                .windows
+                .iter()
+                .map(|&(x, y)| Ok(crate::codec::exr::read_region(path, 0, (x, y, w, h))?.image))
+                .collect::<Result<Vec<_>>>()?;
+            Ok(SampledOffer {
+                sample: sample.image_of_windows(&windows)?,
+                validation: validation_of(&scores, &report.basis),
+            })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let mut kept: Vec<Option<crate::codec::packed::PackedInBands>> =
+        (0..fits.len()).map(|_| None).collect();
+    let (index, verdict, estimates) = budget::choose_among_sampled(
+        &offers,
+        capture,
+        &sample,
+        bits_per_pixel,
+        &mut |offer, settings| {
+            let packed = crate::codec::packed::pack_in_bands(&fits[offer].0, settings, progress)?;
+            let bytes = packed.bytes();
+            kept[offer] = Some(packed);
+            Ok(bytes)
+        },
+        progress,
+    )?;
+    kept[index]
+        .as_ref()
+        .expect("the chosen file was packed")
+        .write(output)?;
+    let (_, meta, report) = fits.swap_remove(index);
+    Ok(BudgetFile {
+        meta,
+        report,
+        verdict,
+        // One basis tried: nothing to compare (as `fit_within_budget` reports it).
+        estimates: if others.is_empty() {
+            Vec::new()
+        } else {
+            estimates
+        },
+    })
+}
+
+/// The bases besides `auto`'s choice in `report` that a budget over `bases` bases
+/// tries: none for a fixed basis or a plan.
+fn others_to_try(report: &FitReport, options: &FitOptions, bases: usize) -> Vec<String> {
+    if matches!(options.basis, BasisRequest::Auto) && options.plan.is_none() {
+        runners_up(report, bases.saturating_sub(1))
+    } else {
+        Vec::new()
+    }
+}
+
+/// `options` with `auto` among `basis` alone: the same validation, objective and λ
+/// choice as the first fit made for it.
+fn alone(options: &FitOptions, basis: &str) -> Result<FitOptions> {
+    Ok(FitOptions {
+        candidates: vec![crate::basis::BasisChoice::parse(basis)?],
+        ..options.clone()
+    })
+}
+
+/// `basis`' validation score among `scores` (−∞ where it was not judged).
+fn validation_of(scores: &[crate::fit::CandidateScore], basis: &str) -> f64 {
+    scores
+        .iter()
+        .find(|c| c.basis == basis)
+        .map_or(f64::NEG_INFINITY, |c| c.psnr)
+}
+
+/// The `count` finalists of `auto`'s choice in `report` (the candidates judged in full)
 /// after the basis it chose, best validation score first.
-fn runners_up(fitted: &FitOutput, count: usize) -> Vec<String> {
-    let candidates = &fitted.report.candidates;
+fn runners_up(report: &FitReport, count: usize) -> Vec<String> {
+    let candidates = &report.candidates;
     let full = candidates.iter().map(|c| c.pixels).max().unwrap_or(0);
     let mut finalists: Vec<_> = candidates
         .iter()
-        .filter(|c| c.pixels == full && c.basis != fitted.report.basis && c.psnr.is_finite())
+        .filter(|c| c.pixels == full && c.basis != report.basis && c.psnr.is_finite())
         .collect();
     finalists.sort_by(|a, b| b.psnr.total_cmp(&a.psnr));
     finalists
@@ -106,6 +239,62 @@ mod tests {
     use super::*;
     use crate::basis::BasisChoice;
     use crate::progress::Silent;
+
+    #[test]
+    fn a_large_budgeted_file_streamed_is_the_file_made_from_the_maps_held_whole() {
+        // Above the sample's threshold: judged on a sample either way; streamed, the maps
+        // wait in temporary files and the file is packed from one a band at a time.
+        let capture = crate::synth::BumpyPlane {
+            width: 1100,
+            height: 560,
+        }
+        .capture(&crate::sphere::hemisphere_fibonacci(16));
+        let options = FitOptions {
+            candidates: ["sh:4", "hsh:4"]
+                .iter()
+                .map(|b| BasisChoice::parse(b).unwrap())
+                .collect(),
+            ..FitOptions::default()
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let (held, streamed) = (dir.path().join("held.rlz"), dir.path().join("streamed.rlz"));
+        let budget = 6.0;
+        let whole = fit_to_file_within_budget(&capture, &options, budget, 2, &held, false, &Silent)
+            .unwrap();
+        let bands =
+            fit_to_file_within_budget(&capture, &options, budget, 2, &streamed, true, &Silent)
+                .unwrap();
+        assert_eq!(whole.report.basis, bands.report.basis);
+        let (a, b) = (&whole.verdict, &bands.verdict);
+        assert_eq!(a.settings.describe(), b.settings.describe());
+        assert_eq!(
+            (a.bits_per_pixel, a.score, a.within, a.judged_pixels),
+            (b.bits_per_pixel, b.score, b.within, b.judged_pixels)
+        );
+        assert!(a.bits_per_pixel <= budget && a.judged_pixels < 1100 * 560);
+        assert_eq!(whole.estimates.len(), 2, "both bases tried");
+        for (a, b) in whole.estimates.iter().zip(&bands.estimates) {
+            assert_eq!(
+                (&a.basis, a.validation, a.lossless, a.compressed, a.estimate),
+                (&b.basis, b.validation, b.lossless, b.compressed, b.estimate)
+            );
+        }
+        // The same file but for the fit's wall time in its metadata.
+        let read = |path| {
+            let mut packed = crate::codec::packed::read_packed(path).unwrap();
+            packed.header.meta.fit.as_mut().unwrap().seconds = 0.0;
+            packed
+        };
+        let (a, b) = (read(&held), read(&streamed));
+        assert_eq!(a.header, b.header);
+        assert!(a.sections == b.sections, "the same sections");
+        assert_eq!(
+            std::fs::metadata(&held).unwrap().len(),
+            std::fs::metadata(&streamed).unwrap().len()
+        );
+        // The temporary files are gone.
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
+    }
 
     #[test]
     fn the_budget_over_bases_keeps_the_best_expected_file_of_autos_finalists() {

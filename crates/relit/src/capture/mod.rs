@@ -427,6 +427,35 @@ impl Capture {
         Ok(img)
     }
 
+    /// The pixels `pixels` of image `index` as [`Capture::load_raw`] gives them (3 values
+    /// each, in the order asked), a JPEG photograph decoded a few rows at a time down to
+    /// the last row wanted: a sample of a large image without holding the image.
+    pub fn raw_pixels(&self, index: usize, pixels: &[usize]) -> Result<Vec<f32>> {
+        let wrong_size = |size: String| self.wrong_size(index, size);
+        match &self.lights[index].image {
+            ImageSource::File { path, encoding } => {
+                let (fw, fh, _, picked) = image::load_linear_parts(path, *encoding, 0..0, pixels)?;
+                if (fw, fh) != (self.width, self.height) {
+                    return Err(wrong_size(format!("{fw}×{fh}")));
+                }
+                Ok(picked)
+            }
+            ImageSource::Memory(_) | ImageSource::Generated(_) => {
+                let img = self.load_raw(index)?;
+                if let Some(&p) = pixels.iter().find(|&&p| p >= img.width * img.height) {
+                    return Err(Error::invalid(format!(
+                        "pixel {p} lies outside {}",
+                        self.image_name(index)
+                    )));
+                }
+                Ok(pixels
+                    .iter()
+                    .flat_map(|&p| img.data[3 * p..3 * p + 3].iter().copied())
+                    .collect())
+            }
+        }
+    }
+
     /// The capture restricted to the images at `keep` (in that order).
     pub fn subset(&self, keep: &[usize]) -> Capture {
         let mut sub = self.clone();

@@ -363,32 +363,78 @@ fn write_bands_of(
     settings: &compress::Settings,
     progress: &dyn crate::progress::Progress,
 ) -> Result<compress::Header> {
+    let packed = pack_bands_of(source, settings, progress)?;
+    packed.write(path)?;
+    Ok(packed.header)
+}
+
+/// A file packed a band of rows at a time, its sections waiting in a temporary file:
+/// its size is known before it is written.
+pub struct PackedInBands {
+    pub header: compress::Header,
+    head: Vec<u8>,
+    sections: Vec<(u64, u64, u32)>,
+    spilled: SpilledSections,
+}
+
+impl PackedInBands {
+    /// The file's bytes.
+    pub fn bytes(&self) -> u64 {
+        self.head.len() as u64 + self.sections.iter().map(|s| s.1).sum::<u64>()
+    }
+
+    /// Write the file to `path` (atomically: nothing is left there on failure).
+    pub fn write(&self, path: &Path) -> Result<()> {
+        let mut file = &self.spilled.file;
+        write_atomically(path, |out| {
+            let failed = |e: std::io::Error| Error::io(path, "write", e);
+            out.write_all(&self.head).map_err(failed)?;
+            let mut buffer = Vec::new();
+            for &(at, len, _) in &self.sections {
+                use std::io::Seek;
+                buffer.resize(len as usize, 0);
+                file.seek(std::io::SeekFrom::Start(at))
+                    .and_then(|_| file.read_exact(&mut buffer))
+                    .map_err(|e| {
+                        Error::new(ErrorKind::Io, "cannot read back a packed section")
+                            .with_source(e)
+                    })?;
+                out.write_all(&buffer).map_err(failed)?;
+            }
+            Ok(())
+        })
+    }
+}
+
+/// Compress the EXR file `input` with `settings` a band of rows at a time, as
+/// [`write_in_bands`] does, keeping the file to be written (or not) once its size is
+/// known.
+pub fn pack_in_bands(
+    input: &Path,
+    settings: &compress::Settings,
+    progress: &dyn crate::progress::Progress,
+) -> Result<PackedInBands> {
+    pack_bands_of(&ExrBands::open(input)?, settings, progress)
+}
+
+fn pack_bands_of(
+    source: &dyn compress::bands::BandSource,
+    settings: &compress::Settings,
+    progress: &dyn crate::progress::Progress,
+) -> Result<PackedInBands> {
     let mut spilled = SpilledSections::new()?;
     let header = compress::bands::pack_in_bands(source, settings, &mut spilled, progress)?;
     let sections = spilled.in_order(header.sections())?;
     let lengths: Vec<(u64, u32)> = sections.iter().map(|&(_, len, crc)| (len, crc)).collect();
     let head = compress::container::head(&header, &lengths)?;
-    let mut file = spilled.file;
-    write_atomically(path, |out| {
-        let failed = |e: std::io::Error| Error::io(path, "write", e);
-        out.write_all(&head).map_err(failed)?;
-        let mut buffer = Vec::new();
-        for &(at, len, _) in &sections {
-            use std::io::Seek;
-            buffer.resize(len as usize, 0);
-            file.seek(std::io::SeekFrom::Start(at))
-                .and_then(|_| file.read_exact(&mut buffer))
-                .map_err(|e| {
-                    Error::new(ErrorKind::Io, "cannot read back a packed section").with_source(e)
-                })?;
-            out.write_all(&buffer).map_err(failed)?;
-        }
-        Ok(())
-    })?;
-    Ok(header)
+    Ok(PackedInBands {
+        header,
+        head,
+        sections,
+        spilled,
+    })
 }
 
-/// An EXR file's level 0, read a band at a time.
 struct ExrBands<'a> {
     path: &'a Path,
     shape: crate::codec::exr::FileShape,

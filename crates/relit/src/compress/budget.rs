@@ -183,19 +183,12 @@ fn choose_with(
         progress,
         true,
     )?;
-    // The sample's best in turn, packed whole, until one fits: a file's bits per pixel
-    // differ from its sample's, either way.
-    let pixels = (image.width() * image.height()) as f64;
-    let within = ranked
-        .iter()
-        .filter(|j| j.choice.bits_per_pixel <= bits_per_pixel)
-        .count();
     let directions = judges.capture.directions();
     let basis = image.meta.basis.build()?;
     let mut gain: Option<Vec<f32>> = None;
-    progress.begin("packing the best candidates whole", ranked.len() as u64);
-    for judged in &ranked {
-        let settings = &judged.choice.settings;
+    let mut kept = None;
+    let pixels = image.width() * image.height();
+    let (at, bpp) = first_whole_that_fits(&ranked, pixels, bits_per_pixel, progress, |settings| {
         if settings.gain && gain.is_none() {
             let whole = super::gain::perceptual(&image.maps, basis.as_ref(), Some(&directions));
             gain = Some(whole);
@@ -203,16 +196,43 @@ fn choose_with(
         let gain = gain.as_deref().filter(|_| settings.gain);
         let packed = pack_with_gain(image, settings, gain)?;
         let bytes = super::container::to_bytes(&packed)?.len();
-        let bpp = 8.0 * bytes as f64 / pixels;
+        kept = Some(packed);
+        Ok(bytes as u64)
+    })?;
+    Ok(Choice {
+        packed: kept.expect("the fitting candidate was packed"),
+        bits_per_pixel: bpp,
+        within: within_budget(&ranked, bits_per_pixel),
+        ..ranked[at].choice.clone()
+    })
+}
+
+/// Candidates of `ranked` (judged on a sample) within the budget there.
+fn within_budget(ranked: &[Judged], bits_per_pixel: f64) -> usize {
+    ranked
+        .iter()
+        .filter(|j| j.choice.bits_per_pixel <= bits_per_pixel)
+        .count()
+}
+
+/// The best of `ranked` (judged on a sample) whose whole file of `pixels` pixels, as
+/// `pack` makes it (returning its bytes), fits in the budget — a file's bits per pixel
+/// differ from its sample's, either way: its index in `ranked` and its bits per pixel.
+/// `pack` is called for each candidate in turn until one fits.
+fn first_whole_that_fits(
+    ranked: &[Judged],
+    pixels: usize,
+    bits_per_pixel: f64,
+    progress: &dyn Progress,
+    mut pack: impl FnMut(&Settings) -> Result<u64>,
+) -> Result<(usize, f64)> {
+    progress.begin("packing the best candidates whole", ranked.len() as u64);
+    for (at, judged) in ranked.iter().enumerate() {
+        let bpp = 8.0 * pack(&judged.choice.settings)? as f64 / pixels as f64;
         progress.advance(1);
         if bpp <= bits_per_pixel {
             progress.end();
-            return Ok(Choice {
-                packed,
-                bits_per_pixel: bpp,
-                within,
-                ..judged.choice.clone()
-            });
+            return Ok((at, bpp));
         }
     }
     progress.end();
@@ -402,28 +422,80 @@ impl Sample {
         (self.across * self.side.0, down * self.side.1)
     }
 
+    /// Where pixel `(x, y)` of the sample comes from: a window and a pixel of it.
+    fn window_pixel(&self, x: usize, y: usize) -> (usize, (usize, usize)) {
+        let (w, h) = self.side;
+        let window = ((y / h) * self.across + x / w).min(self.windows.len() - 1);
+        (window, (x % w, y % h))
+    }
+
     /// Where pixel `(x, y)` of the sample comes from in the image.
     fn source(&self, x: usize, y: usize) -> (usize, usize) {
-        let (w, h) = self.side;
-        let window = (y / h) * self.across + x / w;
-        let (x0, y0) = self.windows[window.min(self.windows.len() - 1)];
-        (x0 + x % w, y0 + y % h)
+        let (window, (lx, ly)) = self.window_pixel(x, y);
+        let (x0, y0) = self.windows[window];
+        (x0 + lx, y0 + ly)
     }
 
     /// The sample of `image`'s maps (no camera or depth: directional lights judge it).
     pub fn image(&self, image: &RelightableImage) -> RelightableImage {
-        let (sw, sh) = self.size();
-        let (width, k) = (image.width(), image.maps.k);
-        let mut maps = crate::maps::CoefficientMaps::zeros(sw, sh, k);
+        let width = image.width();
         let n = image.maps.pixels();
-        for (plane, out) in maps.data.chunks_exact_mut(sw * sh).enumerate() {
-            let source = &image.maps.data[plane * n..(plane + 1) * n];
-            for (p, o) in out.iter_mut().enumerate() {
+        self.assemble(image, |plane, (window, (lx, ly))| {
+            let (x0, y0) = self.windows[window];
+            image.maps.data[plane * n + (y0 + ly) * width + x0 + lx]
+        })
+    }
+
+    /// The sample made of its windows' maps read on their own (`windows[i]`: window `i`,
+    /// [`Sample::side`] in size, e.g. a region of a file): [`Sample::image`] of the
+    /// image they were read from, without holding that image.
+    pub fn image_of_windows(&self, windows: &[RelightableImage]) -> Result<RelightableImage> {
+        let (w, h) = self.side;
+        let first = windows
+            .first()
+            .ok_or_else(|| Error::invalid("a sample needs its windows"))?;
+        if windows.len() != self.windows.len()
+            || windows
+                .iter()
+                .any(|r| (r.width(), r.height(), r.maps.k) != (w, h, first.maps.k))
+        {
+            return Err(Error::invalid(format!(
+                "a sample needs its {} windows of {w}×{h} pixels with one basis",
+                self.windows.len()
+            )));
+        }
+        Ok(self.assemble(first, |plane, (window, (lx, ly))| {
+            windows[window].maps.data[plane * w * h + ly * w + lx]
+        }))
+    }
+
+    /// Each pixel of the sample as its index in an image `width` pixels wide, in the
+    /// sample's order (row by row).
+    pub fn pixels_in(&self, width: usize) -> Vec<usize> {
+        let (sw, sh) = self.size();
+        (0..sw * sh)
+            .map(|p| {
                 let (x, y) = self.source(p % sw, p / sw);
-                *o = source[y * width + x];
+                y * width + x
+            })
+            .collect()
+    }
+
+    /// The sample with `like`'s basis and metadata (no camera or depth), each value
+    /// `value(plane, (window, pixel of the window))` of the pixel it comes from.
+    fn assemble(
+        &self,
+        like: &RelightableImage,
+        value: impl Fn(usize, (usize, (usize, usize))) -> f32,
+    ) -> RelightableImage {
+        let (sw, sh) = self.size();
+        let mut maps = crate::maps::CoefficientMaps::zeros(sw, sh, like.maps.k);
+        for (plane, out) in maps.data.chunks_exact_mut(sw * sh).enumerate() {
+            for (p, o) in out.iter_mut().enumerate() {
+                *o = value(plane, self.window_pixel(p % sw, p / sw));
             }
         }
-        let mut meta = image.meta.clone();
+        let mut meta = like.meta.clone();
         meta.camera = None;
         RelightableImage {
             meta,
@@ -454,15 +526,43 @@ struct Judges<'a> {
 }
 
 impl<'a> Judges<'a> {
-    fn of(capture: &'a Capture) -> Result<Judges<'a>> {
-        let n = capture.len();
-        let lights: Vec<usize> = if n <= SCORING_LIGHTS {
+    /// The scoring lights of a capture of `n` lights.
+    fn lights_of(n: usize) -> Vec<usize> {
+        if n <= SCORING_LIGHTS {
             (0..n).collect()
         } else {
             (0..SCORING_LIGHTS)
                 .map(|i| (i as f64 * (n - 1) as f64 / (SCORING_LIGHTS - 1) as f64).round() as usize)
                 .collect()
-        };
+        }
+    }
+
+    /// The scoring lights and their photographs' `sample`, each photograph read a few
+    /// rows at a time ([`Capture::raw_pixels`]): what [`Judges::sampled`] gives,
+    /// without holding a whole photograph.
+    fn of_sample(capture: &'a Capture, sample: &Sample) -> Result<Judges<'a>> {
+        let lights = Self::lights_of(capture.len());
+        let (width, height) = sample.size();
+        let pixels = sample.pixels_in(capture.width);
+        let photos = lights
+            .iter()
+            .map(|&i| {
+                Ok(crate::image::ImageRgb {
+                    width,
+                    height,
+                    data: capture.raw_pixels(i, &pixels)?,
+                })
+            })
+            .collect::<Result<_>>()?;
+        Ok(Judges {
+            capture,
+            lights,
+            photos,
+        })
+    }
+
+    fn of(capture: &'a Capture) -> Result<Judges<'a>> {
+        let lights = Self::lights_of(capture.len());
         let photos = lights
             .iter()
             .map(|&i| capture.load_raw(i))
@@ -547,9 +647,7 @@ pub fn choose_among(
     progress: &dyn Progress,
 ) -> Result<(usize, Choice, Vec<Estimate>)> {
     let judges = Judges::of(capture)?;
-    let mut best: Option<(usize, Choice, f64)> = None;
-    let mut estimates = Vec::new();
-    let mut refusal = None;
+    let mut tally = Tally::default();
     for (index, offer) in offers.iter().enumerate() {
         let image = offer.image;
         // The lossless maps scored on the pixels their files are.
@@ -559,36 +657,159 @@ pub fn choose_among(
             None => judges.score(image)?,
         };
         let basis = image.meta.basis.build()?.name();
-        match choose_with(image, &judges, sampled.as_ref(), bits_per_pixel, progress) {
-            Ok(choice) => {
-                let estimate = expected_psnr(offer.validation, lossless, choice.score);
-                estimates.push(Estimate {
+        let chosen =
+            choose_with(image, &judges, sampled.as_ref(), bits_per_pixel, progress).map(|choice| {
+                let score = choice.score;
+                (choice, score)
+            });
+        tally.record(index, basis, offer.validation, lossless, chosen);
+    }
+    tally.finish()
+}
+
+/// A fitted basis too large to hold, offered to [`choose_among_sampled`]: its maps'
+/// sample ([`Sample::image_of_windows`]) and its validation score.
+pub struct SampledOffer {
+    pub sample: RelightableImage,
+    pub validation: f64,
+}
+
+/// What a budget chose for a file it did not hold ([`choose_among_sampled`]): the
+/// [`Choice`] but its packed file.
+#[derive(Clone, Debug)]
+pub struct Verdict {
+    pub settings: Settings,
+    pub bits_per_pixel: f64,
+    pub score: f64,
+    pub within: usize,
+    pub judged_pixels: usize,
+}
+
+impl Choice {
+    /// What was chosen, without the file.
+    pub fn verdict(&self) -> Verdict {
+        Verdict {
+            settings: self.settings.clone(),
+            bits_per_pixel: self.bits_per_pixel,
+            score: self.score,
+            within: self.within,
+            judged_pixels: self.judged_pixels,
+        }
+    }
+}
+
+/// [`choose_among`] for fits too large to hold (of `capture`'s size, which has a
+/// `sample`): each offer judged on its sample alone, then the whole file of its best
+/// candidates made in turn by `pack_whole(offer, settings)`, which returns the file's
+/// bytes (and keeps the file, so that the caller writes the one chosen), until one
+/// fits. The same choice as [`choose_among`] of the fits held whole, where
+/// `pack_whole` makes the bytes [`super::pack`] makes.
+pub fn choose_among_sampled(
+    offers: &[SampledOffer],
+    capture: &Capture,
+    sample: &Sample,
+    bits_per_pixel: f64,
+    pack_whole: &mut dyn FnMut(usize, &Settings) -> Result<u64>,
+    progress: &dyn Progress,
+) -> Result<(usize, Verdict, Vec<Estimate>)> {
+    let judges = Judges::of_sample(capture, sample)?;
+    let pixels = capture.width * capture.height;
+    let mut tally = Tally::default();
+    for (index, offer) in offers.iter().enumerate() {
+        let lossless = judges.score(&offer.sample)?;
+        let basis = offer.sample.meta.basis.build()?.name();
+        let chosen = judge_grid(
+            &offer.sample,
+            &judges,
+            bits_per_pixel,
+            SAMPLE_ALLOWANCE,
+            progress,
+            true,
+        )
+        .and_then(|ranked| {
+            let (at, bpp) =
+                first_whole_that_fits(&ranked, pixels, bits_per_pixel, progress, |settings| {
+                    pack_whole(index, settings)
+                })?;
+            let verdict = Verdict {
+                bits_per_pixel: bpp,
+                within: within_budget(&ranked, bits_per_pixel),
+                ..ranked[at].choice.verdict()
+            };
+            let score = verdict.score;
+            Ok((verdict, score))
+        });
+        tally.record(index, basis, offer.validation, lossless, chosen);
+    }
+    tally.finish()
+}
+
+/// The offers of [`choose_among`] as they are judged: each one's estimate, and the best.
+struct Tally<T> {
+    best: Option<(usize, T, f64)>,
+    estimates: Vec<Estimate>,
+    refusal: Option<Error>,
+}
+
+impl<T> Default for Tally<T> {
+    fn default() -> Self {
+        Tally {
+            best: None,
+            estimates: Vec::new(),
+            refusal: None,
+        }
+    }
+}
+
+impl<T> Tally<T> {
+    /// Offer `index` of `basis`, its validation and lossless scores, and its file and
+    /// that file's score, or why none fits.
+    fn record(
+        &mut self,
+        index: usize,
+        basis: String,
+        validation: f64,
+        lossless: f64,
+        chosen: Result<(T, f64)>,
+    ) {
+        match chosen {
+            Ok((file, compressed)) => {
+                let estimate = expected_psnr(validation, lossless, compressed);
+                self.estimates.push(Estimate {
                     basis,
-                    validation: offer.validation,
+                    validation,
                     lossless,
-                    compressed: choice.score,
+                    compressed,
                     estimate: Some(estimate),
                 });
-                if best.as_ref().is_none_or(|(_, _, kept)| estimate > *kept) {
-                    best = Some((index, choice, estimate));
+                if self
+                    .best
+                    .as_ref()
+                    .is_none_or(|(_, _, kept)| estimate > *kept)
+                {
+                    self.best = Some((index, file, estimate));
                 }
             }
             Err(e) => {
-                estimates.push(Estimate {
+                self.estimates.push(Estimate {
                     basis,
-                    validation: offer.validation,
+                    validation,
                     lossless,
                     compressed: f64::NAN,
                     estimate: None,
                 });
-                refusal = Some(e);
+                self.refusal = Some(e);
             }
         }
     }
-    match (best, refusal) {
-        (Some((index, choice, _)), _) => Ok((index, choice, estimates)),
-        (None, Some(e)) => Err(e),
-        (None, None) => Err(Error::invalid("no fit was offered to the budget")),
+
+    /// The best offer's index and file, and every estimate.
+    fn finish(self) -> Result<(usize, T, Vec<Estimate>)> {
+        match (self.best, self.refusal) {
+            (Some((index, file, _)), _) => Ok((index, file, self.estimates)),
+            (None, Some(e)) => Err(e),
+            (None, None) => Err(Error::invalid("no fit was offered to the budget")),
+        }
     }
 }
 
