@@ -88,7 +88,8 @@ pub struct BudgetFile {
 /// sample read back from that file's windows, the scoring photographs' samples read a
 /// few rows at a time, and the files of the best candidates packed from it a band of
 /// rows at a time until one fits ([`crate::codec::packed::pack_in_bands`]): the same
-/// choice and the same file, byte for byte, in memory bounded by the sample and a band.
+/// choice and the same file as holding the maps (but for the fit's own seconds in its
+/// metadata), in memory bounded by the sample and a band.
 pub fn fit_to_file_within_budget(
     capture: &Capture,
     options: &FitOptions,
@@ -174,7 +175,7 @@ pub fn fit_to_file_within_budget(
     )?;
     kept[index]
         .as_ref()
-        .expect("the chosen file was packed")
+        .ok_or_else(|| Error::invalid("the budget chose a file it had not packed"))?
         .write(output)?;
     let (_, meta, report) = fits.swap_remove(index);
     Ok(BudgetFile {

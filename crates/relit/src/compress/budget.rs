@@ -200,7 +200,7 @@ fn choose_with(
         Ok(bytes as u64)
     })?;
     Ok(Choice {
-        packed: kept.expect("the fitting candidate was packed"),
+        packed: kept.ok_or_else(|| Error::invalid("the budget chose a file it had not packed"))?,
         bits_per_pixel: bpp,
         within: within_budget(&ranked, bits_per_pixel),
         ..ranked[at].choice.clone()
