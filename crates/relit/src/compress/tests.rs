@@ -456,6 +456,27 @@ fn the_budget_keeps_the_best_candidate_that_fits_and_more_bits_never_score_less(
 /// A large image's sample: windows inside the image on the lattice of their side (or
 /// against its far edge), spread over it, none twice, each pixel of the sample the
 /// image's; small images have none.
+/// `fit --budget` packs a large image's file a band at a time from its fit's temporary
+/// file ([`crate::budget_fit::fit_to_file_within_budget`]): every candidate of the grid
+/// must be one the band packer takes.
+#[test]
+fn every_budget_candidate_packs_in_bands() {
+    for k in [4, 6, 9, 16, 25, 36, 49, 64] {
+        let grid = budget::grid(k);
+        // Blocks of principal components and codebooks among them, which the band
+        // packer takes only within limits.
+        assert!(grid.iter().any(|s| s.pca_block.is_some()));
+        assert!(grid.iter().any(|s| s.codebook.is_some()));
+        for settings in grid {
+            assert!(
+                bands::packs_in_bands(&settings),
+                "k {k}: {}",
+                settings.describe()
+            );
+        }
+    }
+}
+
 #[test]
 fn a_large_images_sample_is_windows_spread_over_it() {
     use budget::{Sample, SAMPLE_ABOVE_PIXELS, SAMPLE_WINDOWS};
