@@ -456,9 +456,8 @@ fn the_budget_keeps_the_best_candidate_that_fits_and_more_bits_never_score_less(
 /// A large image's sample: windows inside the image on the lattice of their side (or
 /// against its far edge), spread over it, none twice, each pixel of the sample the
 /// image's; small images have none.
-/// `fit --budget` packs a large image's file a band at a time from its fit's temporary
-/// file ([`crate::budget_fit::fit_to_file_within_budget`]): every candidate of the grid
-/// must be one the band packer takes.
+// `fit --budget` packs a large image's file a band at a time from its fit's temporary
+// file: every candidate of the grid must be one the band packer takes.
 #[test]
 fn every_budget_candidate_packs_in_bands() {
     for k in [4, 6, 9, 16, 25, 36, 49, 64] {
