@@ -175,44 +175,70 @@ fn choose_with(
         return Ok(best_of(ranked));
     };
     let small = sample.image(image);
-    let ranked = judge_grid(
+    let directions = judges.capture.directions();
+    let basis = image.meta.basis.build()?;
+    let mut gain: Option<Vec<f32>> = None;
+    let mut kept = None;
+    let pixels = image.width() * image.height();
+    let verdict = choose_on_sample(
         &small,
+        sample_judges,
+        pixels,
+        bits_per_pixel,
+        progress,
+        |settings| {
+            if settings.gain && gain.is_none() {
+                let whole = super::gain::perceptual(&image.maps, basis.as_ref(), Some(&directions));
+                gain = Some(whole);
+            }
+            let gain = gain.as_deref().filter(|_| settings.gain);
+            let packed = pack_with_gain(image, settings, gain)?;
+            let bytes = super::container::to_bytes(&packed)?.len();
+            kept = Some(packed);
+            Ok(bytes as u64)
+        },
+    )?;
+    let packed = kept.ok_or_else(|| Error::invalid("the budget chose a file it had not packed"))?;
+    Ok(Choice {
+        settings: verdict.settings,
+        packed,
+        bits_per_pixel: verdict.bits_per_pixel,
+        score: verdict.score,
+        within: verdict.within,
+        judged_pixels: verdict.judged_pixels,
+    })
+}
+
+/// Every candidate judged on the sample `small` (with the photographs' sample
+/// `sample_judges`), then the best whose whole file of `pixels` pixels, as `pack` makes
+/// it, fits: its sample's verdict with the whole file's bits per pixel, and the
+/// candidates within the budget on the sample.
+fn choose_on_sample(
+    small: &RelightableImage,
+    sample_judges: &Judges,
+    pixels: usize,
+    bits_per_pixel: f64,
+    progress: &dyn Progress,
+    pack: impl FnMut(&Settings) -> Result<u64>,
+) -> Result<Verdict> {
+    let ranked = judge_grid(
+        small,
         sample_judges,
         bits_per_pixel,
         SAMPLE_ALLOWANCE,
         progress,
         true,
     )?;
-    let directions = judges.capture.directions();
-    let basis = image.meta.basis.build()?;
-    let mut gain: Option<Vec<f32>> = None;
-    let mut kept = None;
-    let pixels = image.width() * image.height();
-    let (at, bpp) = first_whole_that_fits(&ranked, pixels, bits_per_pixel, progress, |settings| {
-        if settings.gain && gain.is_none() {
-            let whole = super::gain::perceptual(&image.maps, basis.as_ref(), Some(&directions));
-            gain = Some(whole);
-        }
-        let gain = gain.as_deref().filter(|_| settings.gain);
-        let packed = pack_with_gain(image, settings, gain)?;
-        let bytes = super::container::to_bytes(&packed)?.len();
-        kept = Some(packed);
-        Ok(bytes as u64)
-    })?;
-    Ok(Choice {
-        packed: kept.ok_or_else(|| Error::invalid("the budget chose a file it had not packed"))?,
-        bits_per_pixel: bpp,
-        within: within_budget(&ranked, bits_per_pixel),
-        ..ranked[at].choice.clone()
-    })
-}
-
-/// Candidates of `ranked` (judged on a sample) within the budget there.
-fn within_budget(ranked: &[Judged], bits_per_pixel: f64) -> usize {
-    ranked
+    let (at, bpp) = first_whole_that_fits(&ranked, pixels, bits_per_pixel, progress, pack)?;
+    let within = ranked
         .iter()
         .filter(|j| j.choice.bits_per_pixel <= bits_per_pixel)
-        .count()
+        .count();
+    Ok(Verdict {
+        bits_per_pixel: bpp,
+        within,
+        ..ranked[at].choice.verdict()
+    })
 }
 
 /// The best of `ranked` (judged on a sample) whose whole file of `pixels` pixels, as
@@ -718,26 +744,17 @@ pub fn choose_among_sampled(
     for (index, offer) in offers.iter().enumerate() {
         let lossless = judges.score(&offer.sample)?;
         let basis = offer.sample.meta.basis.build()?.name();
-        let chosen = judge_grid(
+        let chosen = choose_on_sample(
             &offer.sample,
             &judges,
+            pixels,
             bits_per_pixel,
-            SAMPLE_ALLOWANCE,
             progress,
-            true,
+            |settings| pack_whole(index, settings),
         )
-        .and_then(|ranked| {
-            let (at, bpp) =
-                first_whole_that_fits(&ranked, pixels, bits_per_pixel, progress, |settings| {
-                    pack_whole(index, settings)
-                })?;
-            let verdict = Verdict {
-                bits_per_pixel: bpp,
-                within: within_budget(&ranked, bits_per_pixel),
-                ..ranked[at].choice.verdict()
-            };
+        .map(|verdict| {
             let score = verdict.score;
-            Ok((verdict, score))
+            (verdict, score)
         });
         tally.record(index, basis, offer.validation, lossless, chosen);
     }
