@@ -181,12 +181,24 @@ impl CodeTables {
                     let x = (c * groups + g) * n + j;
                     let (obs, encoded, slopes) =
                         (&mut s.obs[x], &mut s.encoded[x], &mut s.slopes[x]);
-                    for l in 0..LANES {
-                        let v = match pixels.get(3 * l + c) {
-                            Some(&code) => table[256 * c + code as usize],
-                            None => zero,
-                        };
-                        (obs[l], encoded[l], slopes[l]) = (v.value, v.encoded, v.slope);
+                    let channel: &[CodeValue; 256] =
+                        table[256 * c..][..256].try_into().expect("256 codes");
+                    // A whole group (every group but a chunk's last) reads without a
+                    // check per lane.
+                    let value = |l: usize| match pixels.get(3 * l + c) {
+                        Some(&code) => channel[code as usize],
+                        None => zero,
+                    };
+                    if let Ok(whole) = <&[u8; 3 * LANES]>::try_from(pixels) {
+                        for l in 0..LANES {
+                            let v = channel[whole[3 * l + c] as usize];
+                            (obs[l], encoded[l], slopes[l]) = (v.value, v.encoded, v.slope);
+                        }
+                    } else {
+                        for l in 0..LANES {
+                            let v = value(l);
+                            (obs[l], encoded[l], slopes[l]) = (v.value, v.encoded, v.slope);
+                        }
                     }
                 }
             }
@@ -464,20 +476,21 @@ fn weighted_solve(tables: &Tables, len: usize, channels: std::ops::Range<usize>,
         // weighted sums plus the penalty and the definiteness term, added in
         // `Design::regularize`'s order so that a lane is the scalar system bit for bit.
         // Unused lanes get the identity.
+        let scaled: Lanes = std::array::from_fn(|l| total[l] * lambda);
         for ((&x, sums), &penalty) in lower.iter().zip(&s.sums).zip(packed_penalty) {
             let m = &mut s.lane_m[x];
-            for l in 0..used {
-                m[l] = sums[l] as f64 + total[l] * lambda * penalty;
+            for l in 0..LANES {
+                m[l] = sums[l] as f64 + scaled[l] * penalty;
+            }
+        }
+        for i in 0..k {
+            for (m, &t_l) in s.lane_m[i * k + i].iter_mut().zip(&total) {
+                *m += t_l * DEFINITENESS;
             }
         }
         if used < LANES {
             for (&x, &(r, c)) in lower.iter().zip(pairs) {
                 s.lane_m[x][used..].fill(if r == c { 1.0 } else { 0.0 });
-            }
-        }
-        for i in 0..k {
-            for (m, &t_l) in s.lane_m[i * k + i].iter_mut().zip(&total).take(used) {
-                *m += t_l * DEFINITENESS;
             }
         }
         let ok = linalg::cholesky_lanes(&mut s.lane_m, k);

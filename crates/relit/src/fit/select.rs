@@ -582,20 +582,25 @@ fn factor_lanes(
     k: usize,
     used: usize,
 ) -> [usize; LANES] {
-    // The lower triangle only: all that the factorisation and the solve read.
+    // The lower triangle only: all that the factorisation and the solve read. The
+    // products are those of `total·λ·P + total·DEFINITENESS`, in that order.
+    let scaled: Lanes = std::array::from_fn(|l| total[l] * lambda);
+    let definiteness: Lanes = std::array::from_fn(|l| total[l] * super::DEFINITENESS);
     for r in 0..k {
         for c in 0..=r {
             let x = r * k + c;
-            let (dst, src) = (&mut f[x], &m[x]);
+            let (dst, src, p) = (&mut f[x], &m[x], penalty[x]);
             for l in 0..LANES {
-                dst[l] = src[l] + total[l] * lambda * penalty[x];
+                dst[l] = src[l] + scaled[l] * p;
             }
             if r == c {
                 for l in 0..LANES {
-                    dst[l] += total[l] * super::DEFINITENESS;
+                    dst[l] += definiteness[l];
                 }
             }
-            dst[used..].fill(if r == c { 1.0 } else { 0.0 });
+            if used < LANES {
+                dst[used..].fill(if r == c { 1.0 } else { 0.0 });
+            }
         }
     }
     linalg::cholesky_lanes_pivots(f, k)
@@ -707,6 +712,12 @@ fn fold_errors(
                 products.chain(std::iter::repeat_n(0.0, t_cols - pairs.len()))
             })
             .collect()
+    } else {
+        Vec::new()
+    };
+    let k_cols = linalg::tiled(k);
+    let a_train_tiled = if shared.is_none() {
+        padded_columns(&a_train, k)
     } else {
         Vec::new()
     };
@@ -838,11 +849,11 @@ fn fold_errors(
             let mut f2 = vec![[0.0; LANES]; k * k];
             let mut coef = vec![[0.0; LANES]; k];
             let mut coef2 = vec![[0.0; LANES]; k];
-            let mut rhs0 = vec![[0.0; LANES]; k];
+            let mut rhs0 = vec![[0.0; LANES]; k_cols];
+            let mut weighted = vec![[0.0; LANES]; nt];
             for g in (0..len).step_by(LANES) {
                 let used = LANES.min(len - g);
                 let mut total = [0.0; LANES];
-                rhs0.iter_mut().for_each(|r| *r = [0.0; LANES]);
                 series_lanes(&mut weight_lanes, g, used, |x| weights[x]);
                 series_lanes(&mut value_lanes, g, used, |x| {
                     train_values[first * nt + x] as f64
@@ -855,15 +866,13 @@ fn fold_errors(
                 for (&(r, col), sum) in pairs.iter().zip(&sums) {
                     m[col * k + r] = *sum;
                 }
-                // The right-hand sides, every lane at once (each lane's sums in the
-                // order of its own lights; unused lanes add zeros).
-                for (j, (&w, &v)) in weight_lanes.iter().zip(&value_lanes).enumerate() {
-                    for (r, &a) in a_train[j * k..(j + 1) * k].iter().enumerate() {
-                        for l in 0..LANES {
-                            rhs0[r][l] += w[l] * a * v[l];
-                        }
-                    }
+                // The right-hand sides, every lane at once: the weighted observations
+                // times the training rows (each lane's sums in the order of its own
+                // lights; unused lanes add zeros).
+                for ((wv, w), v) in weighted.iter_mut().zip(&weight_lanes).zip(&value_lanes) {
+                    *wv = std::array::from_fn(|l| w[l] * v[l]);
                 }
+                linalg::lane_products_f64(&weighted, &a_train_tiled, k_cols, &mut rhs0);
                 // λ two at a time: their solves run side by side
                 // (`linalg::cholesky_solve_lanes_pair`), each as it would alone; each
                 // size with its leading block of the factors.
