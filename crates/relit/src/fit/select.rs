@@ -186,8 +186,11 @@ fn family_sizes(family: &dyn Family, max_coefficients: usize) -> Vec<BasisChoice
         .collect()
 }
 
-/// Series (pixel channels) whose normal matrices one matrix product builds.
+/// Series (pixel channels) a task of the linear objective's validation predicts.
 const SERIES_BLOCK: usize = 64;
+
+/// Pixels a task of the perceptual objective's validation solves (two lane groups).
+const PIXEL_BLOCK: usize = 2 * LANES;
 
 /// Folds for `n` lights: [`FOLDS`], fewer when there are few lights (each fold keeps
 /// four or more) and half as many for dense captures, whose folds hold plenty of lights
@@ -721,12 +724,19 @@ fn fold_errors(
     } else {
         Vec::new()
     };
-    (0..series.div_ceil(SERIES_BLOCK))
+    // The perceptual objective's blocks hold whole pixels (their channels share a
+    // normal matrix).
+    let block_series = if shared.is_some() {
+        SERIES_BLOCK
+    } else {
+        3 * PIXEL_BLOCK
+    };
+    (0..series.div_ceil(block_series))
         .into_par_iter()
         .map(|block| {
             let mut acc = vec![vec![[0.0f64; SLOTS]; lights]; sizes.len()];
-            let first = block * SERIES_BLOCK;
-            let len = SERIES_BLOCK.min(series - first);
+            let first = block * block_series;
+            let len = block_series.min(series - first);
             // The held-out observations and how a screen shows them, per series of the
             // block and held-out light, the same at every λ.
             let held_obs: Vec<(f64, f64)> = (first..first + len)
@@ -823,8 +833,17 @@ fn fold_errors(
                 }
                 return acc;
             }
-            // Each sample's perceptual weight, computed once for the normal matrix and
-            // the sums (from the block's encodings, a batch at a time).
+            // The perceptual objective, a pixel per lane: a pixel's three channels share
+            // one normal matrix, weighted by the mean of their observations' perceptual
+            // weights (as the fit's first pass weighs them), so that one factorisation
+            // per λ serves all three. Judging each channel by its own weights cost three
+            // factorisations a pixel and chose the same on the eight RealRTI items'
+            // hold-out fits (26.23 against 26.40 dB on item5, the rest equal:
+            // scripts/realrti_table.py, 2026-12-07).
+            debug_assert!(first.is_multiple_of(3) && len.is_multiple_of(3));
+            let pixels = len / 3;
+            // Each observation's perceptual weight (a batch of the block's encodings at
+            // a time), then each pixel's mean over its channels.
             let weights: Vec<f64> = {
                 let values: Vec<f64> = train_values[first * nt..(first + len) * nt]
                     .iter()
@@ -832,15 +851,23 @@ fn fold_errors(
                     .collect();
                 let mut encoded = vec![0.0; values.len()];
                 color::linear_to_srgb_tabulated_batch(&values, &mut encoded);
-                values
+                let each: Vec<f64> = values
                     .iter()
                     .zip(&encoded)
                     .zip(q_train.iter().cycle())
                     .map(|((&v, &e), &q)| q * perceptual_weight_encoded(v, e))
+                    .collect();
+                each.chunks_exact(3 * nt)
+                    .flat_map(|p| {
+                        let (r, rest) = p.split_at(nt);
+                        let (g, b) = rest.split_at(nt);
+                        r.iter()
+                            .zip(g)
+                            .zip(b)
+                            .map(|((r, g), b)| (r + g + b) / 3.0)
+                    })
                     .collect()
             };
-            // Series a lane group at a time: each lane's systems are the scalar
-            // systems, factored and solved side by side (`linalg::cholesky_lanes`).
             let mut weight_lanes = vec![[0.0; LANES]; nt];
             let mut value_lanes = vec![[0.0; LANES]; nt];
             let mut sums = vec![[0.0; LANES]; t_cols];
@@ -849,15 +876,14 @@ fn fold_errors(
             let mut f2 = vec![[0.0; LANES]; k * k];
             let mut coef = vec![[0.0; LANES]; k];
             let mut coef2 = vec![[0.0; LANES]; k];
-            let mut rhs0 = vec![[0.0; LANES]; k_cols];
+            let mut rhs = vec![vec![[0.0; LANES]; k_cols]; 3];
             let mut weighted = vec![[0.0; LANES]; nt];
-            for g in (0..len).step_by(LANES) {
-                let used = LANES.min(len - g);
+            let mut ok = vec![false; 3 * LANES];
+            let mut pair_preds = [vec![0.0; 3 * LANES * lights], vec![0.0; 3 * LANES * lights]];
+            for g in (0..pixels).step_by(LANES) {
+                let used = LANES.min(pixels - g);
                 let mut total = [0.0; LANES];
                 series_lanes(&mut weight_lanes, g, used, |x| weights[x]);
-                series_lanes(&mut value_lanes, g, used, |x| {
-                    train_values[first * nt + x] as f64
-                });
                 for (l, total) in total.iter_mut().enumerate().take(used) {
                     let b = g + l;
                     *total = weights[b * nt..(b + 1) * nt].iter().sum();
@@ -866,13 +892,27 @@ fn fold_errors(
                 for (&(r, col), sum) in pairs.iter().zip(&sums) {
                     m[col * k + r] = *sum;
                 }
-                // The right-hand sides, every lane at once: the weighted observations
-                // times the training rows (each lane's sums in the order of its own
-                // lights; unused lanes add zeros).
-                for ((wv, w), v) in weighted.iter_mut().zip(&weight_lanes).zip(&value_lanes) {
-                    *wv = std::array::from_fn(|l| w[l] * v[l]);
+                // Each channel's right-hand sides, every lane at once: the weighted
+                // observations times the training rows (each lane's sums in the order of
+                // its own lights; unused lanes add zeros).
+                for (c, rhs) in rhs.iter_mut().enumerate() {
+                    for (j, lanes) in value_lanes.iter_mut().enumerate() {
+                        for (l, v) in lanes.iter_mut().enumerate() {
+                            *v = if l < used {
+                                train_values[(first + 3 * (g + l) + c) * nt + j] as f64
+                            } else {
+                                0.0
+                            };
+                        }
+                    }
+                    for ((wv, w), v) in weighted.iter_mut().zip(&weight_lanes).zip(&value_lanes)
+                    {
+                        *wv = std::array::from_fn(|l| w[l] * v[l]);
+                    }
+                    linalg::lane_products_f64(&weighted, &a_train_tiled, k_cols, rhs);
                 }
-                linalg::lane_products_f64(&weighted, &a_train_tiled, k_cols, &mut rhs0);
+                // The block's series of these pixels, in order.
+                let rows = 3 * g..3 * (g + used);
                 // λ two at a time: their solves run side by side
                 // (`linalg::cholesky_solve_lanes_pair`), each as it would alone; each
                 // size with its leading block of the factors.
@@ -897,26 +937,34 @@ fn fold_errors(
                         if !own.contains(&pair) {
                             continue;
                         }
-                        let (coef, coef2) = (&mut coef[..size], &mut coef2[..size]);
-                        coef.copy_from_slice(&rhs0[..size]);
-                        coef2.copy_from_slice(&rhs0[..size]);
-                        linalg::cholesky_solve_lanes_pair(&f, &f2, size, k, coef, coef2);
-                        for (slot, &li) in lis.iter().enumerate() {
-                            let coef = if slot == 0 { &*coef } else { &*coef2 };
-                            // Every lane's predictions at the held-out lights.
-                            for h in 0..lights {
-                                let mut pred = [0.0; LANES];
-                                for (&a, c) in a_held[h * k..h * k + size].iter().zip(coef) {
-                                    for l in 0..LANES {
-                                        pred[l] += a * c[l];
+                        // Per λ of the pair, the predictions of `rows` at the held-out
+                        // lights (series `3·pixel + channel`).
+                        for (c, rhs) in rhs.iter().enumerate() {
+                            let (coef, coef2) = (&mut coef[..size], &mut coef2[..size]);
+                            coef.copy_from_slice(&rhs[..size]);
+                            coef2.copy_from_slice(&rhs[..size]);
+                            linalg::cholesky_solve_lanes_pair(&f, &f2, size, k, coef, coef2);
+                            for (slot, coef) in [&*coef, &*coef2].into_iter().enumerate() {
+                                let out = &mut pair_preds[slot];
+                                for h in 0..lights {
+                                    let mut pred = [0.0; LANES];
+                                    for (&a, c) in a_held[h * k..h * k + size].iter().zip(coef) {
+                                        for l in 0..LANES {
+                                            pred[l] += a * c[l];
+                                        }
+                                    }
+                                    for (l, &p) in pred.iter().enumerate().take(used) {
+                                        out[(3 * l + c) * lights + h] = p;
                                     }
                                 }
-                                for (l, &p) in pred.iter().enumerate().take(used) {
-                                    preds[l * lights + h] = p;
-                                }
                             }
-                            let ok = pivots[slot].map(|p| p >= size);
-                            tally(acc, li, own.start, g..g + used, &mut preds, &mut shown, &ok);
+                        }
+                        for (slot, &li) in lis.iter().enumerate() {
+                            for (l, &p) in pivots[slot].iter().enumerate().take(used) {
+                                ok[3 * l..3 * l + 3].fill(p >= size);
+                            }
+                            let preds = &mut pair_preds[slot];
+                            tally(acc, li, own.start, rows.clone(), preds, &mut shown, &ok);
                         }
                     }
                 }
