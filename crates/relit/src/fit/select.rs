@@ -72,8 +72,10 @@ impl Criterion {
 const FOLDS: usize = 10;
 
 /// Multiply-adds one candidate's perceptual validation may spend per fold on normal
-/// matrices (each series has its own, `n·k²`): a dense capture validates on fewer
-/// pixels rather than for minutes (a 60-light RTI capture keeps all of them).
+/// matrices, counted as when each of a pixel's three channels had its own (`n·k²`
+/// each): a dense capture validates on fewer pixels rather than for minutes (a
+/// 60-light RTI capture keeps all of them). A pixel's channels now share one normal
+/// matrix, so the validation spends a third of this on the same pixels.
 const PERCEPTUAL_BUDGET: f64 = 3e8;
 
 /// Pixels of the subsample a perceptual validation of `k` coefficients on `n` lights
