@@ -863,10 +863,7 @@ fn fold_errors(
                     .flat_map(|p| {
                         let (r, rest) = p.split_at(nt);
                         let (g, b) = rest.split_at(nt);
-                        r.iter()
-                            .zip(g)
-                            .zip(b)
-                            .map(|((r, g), b)| (r + g + b) / 3.0)
+                        r.iter().zip(g).zip(b).map(|((r, g), b)| (r + g + b) / 3.0)
                     })
                     .collect()
             };
@@ -907,8 +904,7 @@ fn fold_errors(
                             };
                         }
                     }
-                    for ((wv, w), v) in weighted.iter_mut().zip(&weight_lanes).zip(&value_lanes)
-                    {
+                    for ((wv, w), v) in weighted.iter_mut().zip(&weight_lanes).zip(&value_lanes) {
                         *wv = std::array::from_fn(|l| w[l] * v[l]);
                     }
                     linalg::lane_products_f64(&weighted, &a_train_tiled, k_cols, rhs);
@@ -1090,6 +1086,119 @@ mod tests {
             );
             for li in best.saturating_sub(1)..(best + 2).min(LADDER) {
                 assert!(ladder.contains(&li), "λ {best}: {ladder:?} lacks {li}");
+            }
+        }
+    }
+
+    /// The perceptual objective's errors in one fold, against a scalar computation of what
+    /// they are meant to be: per pixel, the lights weighted by the mean over its channels
+    /// of each observation's perceptual weight (times the quadrature), one regularised
+    /// system `Σ w aaᵀ + total·(λP + DEFINITENESS·I)` solved for each channel, every
+    /// channel predicted at the held-out lights and its squared display error summed.
+    #[test]
+    fn a_perceptual_fold_solves_each_pixel_once_under_its_channels_mean_weights() {
+        let dirs = crate::sphere::hemisphere_fibonacci(30);
+        let n = dirs.len();
+        // Coloured pixels (channels with different weights), some dark, one over white,
+        // and a count that leaves the last lane group part empty.
+        let count = 29;
+        let values: Vec<f32> = (0..count)
+            .flat_map(|p| {
+                let dirs = &dirs;
+                (0..n).flat_map(move |j| {
+                    let d = dirs[j];
+                    (0..3).map(move |c| {
+                        let albedo = [0.9, 0.25, 0.04][(p + c) % 3] * (1.0 + 0.05 * p as f64);
+                        let shine = d.dot(Vec3::new(0.3, 0.1, 0.95).normalized().unwrap());
+                        (albedo * d.z.max(0.0) + 0.4 * shine.max(0.0).powi(20)) as f32
+                    })
+                })
+            })
+            .collect();
+        let q: Vec<f64> = (0..n).map(|j| 0.5 + (j % 4) as f64 / 4.0).collect();
+        let sub = Subsample {
+            values: &values,
+            count,
+            n,
+        };
+        let choice = BasisChoice::parse("sh:9").unwrap();
+        let (folds, fold) = (5, 2);
+        let ladder = 2..4;
+        let (held, errors) = fold_result(
+            &choice,
+            &[9],
+            MapSpace::Linear,
+            &[(Objective::Perceptual, vec![ladder.clone()])],
+            Regularizer::Roughness,
+            &dirs,
+            &q,
+            &sub,
+            folds,
+            fold,
+            &Penalties::default(),
+        )
+        .unwrap();
+        let got = &errors[0][0];
+        let train: Vec<usize> = (0..n).filter(|j| j % folds != fold).collect();
+        let train_dirs: Vec<Vec3> = train.iter().map(|&j| dirs[j]).collect();
+        let basis = choice.build(&train_dirs, None).unwrap();
+        let k = basis.len();
+        let penalty = Regularizer::Roughness.matrix(basis.as_ref());
+        let encode = |v: f64| color::linear_to_srgb_tabulated(v as f32) as f64;
+        for li in ladder {
+            let lambda = VALIDATION_LADDER[li];
+            let mut want = vec![0.0; held.len()];
+            for p in 0..count {
+                let v = |j: usize, c: usize| values[(p * n + j) * 3 + c] as f64;
+                let w: Vec<f64> = train
+                    .iter()
+                    .map(|&j| {
+                        let each =
+                            |c: usize| q[j] * perceptual_weight_encoded(v(j, c), encode(v(j, c)));
+                        (each(0) + each(1) + each(2)) / 3.0
+                    })
+                    .collect();
+                let total: f64 = w.iter().sum();
+                let mut m = vec![0.0; k * k];
+                for (t, &j) in train.iter().enumerate() {
+                    let a = basis.values(dirs[j]);
+                    for r in 0..k {
+                        for c in 0..k {
+                            m[r * k + c] += w[t] * a[r] * a[c];
+                        }
+                    }
+                }
+                for (x, pen) in m.iter_mut().zip(&penalty) {
+                    *x += total * lambda * pen;
+                }
+                (0..k).for_each(|i| m[i * k + i] += total * super::super::DEFINITENESS);
+                assert!(linalg::cholesky(&mut m, k));
+                for c in 0..3 {
+                    let mut coef = vec![0.0; k];
+                    for (t, &j) in train.iter().enumerate() {
+                        for (x, a) in coef.iter_mut().zip(basis.values(dirs[j])) {
+                            *x += w[t] * v(j, c) * a;
+                        }
+                    }
+                    linalg::cholesky_solve(&m, k, &mut coef);
+                    for (h, &j) in held.iter().enumerate() {
+                        let pred: f64 = basis
+                            .values(dirs[j])
+                            .iter()
+                            .zip(&coef)
+                            .map(|(a, c)| a * c)
+                            .sum();
+                        let d = srgb_on_screen(pred) - srgb_on_screen(v(j, c));
+                        want[h] += d * d;
+                    }
+                }
+            }
+            for (h, want) in want.iter().enumerate() {
+                let err = got[h][li];
+                assert!(
+                    (err - want).abs() <= 1e-9 * want.max(1e-12),
+                    "λ {lambda}, held-out light {h}: {err} against {want}"
+                );
             }
         }
     }
