@@ -184,21 +184,16 @@ impl CodeTables {
                     let channel: &[CodeValue; 256] =
                         table[256 * c..][..256].try_into().expect("256 codes");
                     // A whole group (every group but a chunk's last) reads without a
-                    // check per lane.
-                    let value = |l: usize| match pixels.get(3 * l + c) {
-                        Some(&code) => channel[code as usize],
-                        None => zero,
-                    };
-                    if let Ok(whole) = <&[u8; 3 * LANES]>::try_from(pixels) {
-                        for l in 0..LANES {
-                            let v = channel[whole[3 * l + c] as usize];
-                            (obs[l], encoded[l], slopes[l]) = (v.value, v.encoded, v.slope);
-                        }
-                    } else {
-                        for l in 0..LANES {
-                            let v = value(l);
-                            (obs[l], encoded[l], slopes[l]) = (v.value, v.encoded, v.slope);
-                        }
+                    // check per lane; the last one's lanes past its pixels are zero.
+                    let whole = <&[u8; 3 * LANES]>::try_from(pixels).ok();
+                    for l in 0..LANES {
+                        let v = match whole {
+                            Some(whole) => channel[whole[3 * l + c] as usize],
+                            None => pixels
+                                .get(3 * l + c)
+                                .map_or(zero, |&code| channel[code as usize]),
+                        };
+                        (obs[l], encoded[l], slopes[l]) = (v.value, v.encoded, v.slope);
                     }
                 }
             }

@@ -1099,7 +1099,7 @@ mod tests {
     fn a_perceptual_fold_solves_each_pixel_once_under_its_channels_mean_weights() {
         let dirs = crate::sphere::hemisphere_fibonacci(30);
         let n = dirs.len();
-        // Coloured pixels (channels with different weights), some dark, one over white,
+        // Coloured pixels (channels with different weights), some dark, some over white,
         // and a count that leaves the last lane group part empty.
         let count = 29;
         let values: Vec<f32> = (0..count)
