@@ -72,16 +72,15 @@ impl Criterion {
 const FOLDS: usize = 10;
 
 /// Multiply-adds one candidate's perceptual validation may spend per fold on normal
-/// matrices, counted as when each of a pixel's three channels had its own (`n·k²`
-/// each): a dense capture validates on fewer pixels rather than for minutes (a
-/// 60-light RTI capture keeps all of them). A pixel's channels now share one normal
-/// matrix, so the validation spends a third of this on the same pixels.
+/// matrices (each pixel has its own, `n·k²`, which its three channels share): a dense
+/// capture validates on fewer pixels rather than for minutes (a 60-light RTI capture
+/// keeps all of them).
 const PERCEPTUAL_BUDGET: f64 = 3e8;
 
 /// Pixels of the subsample a perceptual validation of `k` coefficients on `n` lights
 /// uses, out of `count`.
 fn perceptual_pixels(count: usize, n: usize, k: usize) -> usize {
-    let per_pixel = 3.0 * n as f64 * (k * k) as f64;
+    let per_pixel = n as f64 * (k * k) as f64;
     ((PERCEPTUAL_BUDGET / per_pixel) as usize)
         .max(32)
         .min(count)
