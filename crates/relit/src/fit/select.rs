@@ -752,7 +752,7 @@ fn fold_errors(
                     })
                 })
                 .collect();
-            let (mut preds, mut shown) = (vec![0.0; len * lights], vec![0.0; len * lights]);
+            let mut shown = vec![0.0; len * lights];
             // Tally the predictions of series `rows` (of the block) at λ `li` of a ladder
             // that starts at `first_li`, each as a screen shows it; series whose system
             // was not positive definite score an infinite error.
@@ -810,6 +810,7 @@ fn fold_errors(
                     })
                     .collect();
                 let cols = linalg::tiled(lights);
+                let mut preds = vec![0.0; len * lights];
                 let mut out = vec![[0.0; LANES]; cols];
                 for li in span.clone() {
                     for ((acc, operator), own) in acc.iter_mut().zip(&operators[li]).zip(ladders) {
@@ -867,7 +868,6 @@ fn fold_errors(
                     .collect()
             };
             let mut weight_lanes = vec![[0.0; LANES]; nt];
-            let mut value_lanes = vec![[0.0; LANES]; nt];
             let mut sums = vec![[0.0; LANES]; t_cols];
             let mut m = vec![[0.0; LANES]; k * k];
             let mut f = vec![[0.0; LANES]; k * k];
@@ -894,17 +894,14 @@ fn fold_errors(
                 // observations times the training rows (each lane's sums in the order of
                 // its own lights; unused lanes add zeros).
                 for (c, rhs) in rhs.iter_mut().enumerate() {
-                    for (j, lanes) in value_lanes.iter_mut().enumerate() {
-                        for (l, v) in lanes.iter_mut().enumerate() {
-                            *v = if l < used {
-                                train_values[(first + 3 * (g + l) + c) * nt + j] as f64
+                    for (j, (wv, w)) in weighted.iter_mut().zip(&weight_lanes).enumerate() {
+                        *wv = std::array::from_fn(|l| {
+                            if l < used {
+                                w[l] * train_values[(first + 3 * (g + l) + c) * nt + j] as f64
                             } else {
                                 0.0
-                            };
-                        }
-                    }
-                    for ((wv, w), v) in weighted.iter_mut().zip(&weight_lanes).zip(&value_lanes) {
-                        *wv = std::array::from_fn(|l| w[l] * v[l]);
+                            }
+                        });
                     }
                     linalg::lane_products_f64(&weighted, &a_train_tiled, k_cols, rhs);
                 }
