@@ -473,10 +473,7 @@ fn weighted_solve(tables: &Tables, len: usize, channels: std::ops::Range<usize>,
         // Unused lanes get the identity.
         let scaled: Lanes = std::array::from_fn(|l| total[l] * lambda);
         for ((&x, sums), &penalty) in lower.iter().zip(&s.sums).zip(packed_penalty) {
-            let m = &mut s.lane_m[x];
-            for l in 0..LANES {
-                m[l] = sums[l] as f64 + scaled[l] * penalty;
-            }
+            s.lane_m[x] = linalg::widened_plus_scaled(sums, &scaled, penalty);
         }
         for i in 0..k {
             for (m, &t_l) in s.lane_m[i * k + i].iter_mut().zip(&total) {
@@ -498,9 +495,7 @@ fn weighted_solve(tables: &Tables, len: usize, channels: std::ops::Range<usize>,
             for slot in 0..1 + both as usize {
                 let obs = &s.obs[((ch + slot) * groups + g) * n..][..n];
                 for ((wo, w), o) in s.weighted_obs.iter_mut().zip(weights).zip(obs) {
-                    for l in 0..LANES {
-                        wo[l] = w[l] * o[l] as f32;
-                    }
+                    *wo = linalg::times_narrowed(w, o);
                 }
                 linalg::lane_products(&s.weighted_obs, a32, k_cols, &mut s.rhs[slot]);
                 let coef = if slot == 0 {

@@ -593,10 +593,8 @@ fn factor_lanes(
     for r in 0..k {
         for c in 0..=r {
             let x = r * k + c;
-            let (dst, src, p) = (&mut f[x], &m[x], penalty[x]);
-            for l in 0..LANES {
-                dst[l] = src[l] + scaled[l] * p;
-            }
+            let dst = &mut f[x];
+            *dst = linalg::plus_scaled(&m[x], &scaled, penalty[x]);
             if r == c {
                 for l in 0..LANES {
                     dst[l] += definiteness[l];
