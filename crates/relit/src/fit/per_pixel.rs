@@ -683,8 +683,8 @@ mod tests {
             })
             .collect();
         let mut shared = vec![[0f32; LANES]; n];
-        for channel in &own {
-            add_normalized_third(&mut shared, channel);
+        for c in 0..3 {
+            add_normalized_third(&mut shared, &own[c]);
         }
         for l in 0..LANES {
             let weights: Vec<Vec<f64>> = (0..3)
