@@ -1203,30 +1203,6 @@ fn secant_weight(pred: f64, obs: f64) -> f64 {
     secant_weight_encoded(pred, obs, srgb_extended(pred), srgb_extended(obs))
 }
 
-/// The weights a reweighting pass of the perceptual fit gives all three channels of a
-/// pixel: each channel's secant weights (`weights[channel][light]`) divided by their
-/// mean over the lights, then averaged over the channels (a channel whose weights are
-/// all zero adds nothing). A channel's weighted solve does not depend on its weights'
-/// scale (the penalty grows with their sum), so each is brought to a mean of one first:
-/// otherwise the darkest channel, whose sRGB slopes are the steepest, would set the
-/// shape for all three. One normal matrix and one factorisation then serve the pixel's
-/// three channels, where each channel's own weights took three; on the eight shared RTI
-/// items the held-out PSNR moved by −0.09 … +0.03 dB (docs/bases.md, 2026-12-07).
-fn normalized_mean(weights: &[Vec<f64>]) -> Vec<f64> {
-    let n = weights.first().map_or(0, Vec::len);
-    let mut shared = vec![0.0; n];
-    for own in weights {
-        let sum: f64 = own.iter().sum();
-        if sum > 0.0 {
-            let scale = n as f64 / (weights.len() as f64 * sum);
-            for (s, &w) in shared.iter_mut().zip(own) {
-                *s += w * scale;
-            }
-        }
-    }
-    shared
-}
-
 /// Ends of a secant closer than this take the tangent: f32 rounding dominates the secant.
 const TANGENT_BELOW: f64 = 1e-5;
 
@@ -2340,106 +2316,93 @@ fn loo_scores(
         }
         w.iter().sum::<f64>()
     };
-    let reweights = match objective {
-        LooObjective::Linear => 0,
-        LooObjective::Perceptual { reweights } => reweights,
-    };
-    let totals: Vec<[f64; 8]> = (0..count)
+    let totals: Vec<[f64; 8]> = (0..count * 3)
         .into_par_iter()
         .fold(
             || vec![[0.0f64; 8]; ladder.len()],
-            |mut acc, s| {
-                let obs: Vec<Vec<f64>> = (0..3)
-                    .map(|c| (0..n).map(|j| sub[(s * n + j) * 3 + c] as f64).collect())
-                    .collect();
+            |mut acc, item| {
+                let (s, c) = (item / 3, item % 3);
+                let obs: Vec<f64> = (0..n).map(|j| sub[(s * n + j) * 3 + c] as f64).collect();
                 // The first weights as the fit's first pass has them (`solve_chunk`):
-                // each sample's own, or the mean over the pixel's channels when they
+                // the sample's own, or the mean over the pixel's channels when they
                 // will be reweighted.
-                let first: Vec<Vec<f64>> = (0..3)
-                    .map(|c| {
-                        (0..n)
-                            .map(|j| match reweights {
-                                0 => design.q[j] * perceptual_weight(obs[c][j]),
-                                _ => {
-                                    let mean =
-                                        (0..3).map(|c| perceptual_weight(obs[c][j])).sum::<f64>()
-                                            / 3.0;
-                                    design.q[j] * mean
-                                }
-                            })
-                            .collect()
+                let first: Vec<f64> = obs
+                    .iter()
+                    .enumerate()
+                    .map(|(j, &v)| match objective {
+                        LooObjective::Linear => design.q[j],
+                        LooObjective::Perceptual { reweights: 0 } => {
+                            design.q[j] * perceptual_weight(v)
+                        }
+                        LooObjective::Perceptual { .. } => {
+                            let pixel = &sub[(s * n + j) * 3..(s * n + j) * 3 + 3];
+                            let mean = pixel
+                                .iter()
+                                .map(|&v| perceptual_weight(v as f64))
+                                .sum::<f64>()
+                                / 3.0;
+                            design.q[j] * mean
+                        }
                     })
                     .collect();
-                let mut m0 = vec![vec![0.0; k * k]; 3];
-                let mut b0 = vec![vec![0.0; k]; 3];
-                let total0: Vec<f64> = (0..3)
-                    .map(|c| normal_equations(&first[c], &obs[c], &mut m0[c], &mut b0[c]))
-                    .collect();
+                let mut m0 = vec![0.0; k * k];
+                let mut b0 = vec![0.0; k];
+                let total0 = normal_equations(&first, &obs, &mut m0, &mut b0);
                 let mut z = vec![0.0; k];
                 let (mut w, mut mw, mut bw) = (first.clone(), m0.clone(), b0.clone());
-                let mut secants = vec![vec![0.0; n]; 3];
                 for (li, &lambda) in ladder.iter().enumerate() {
-                    // The fit's own weights at this λ: the first pass's, then each pass's
-                    // shared by the channels, as `solve_chunk` forms them.
-                    w.clone_from(&first);
-                    mw.clone_from(&m0);
-                    bw.clone_from(&b0);
-                    let mut total = total0.clone();
+                    // The fit's own weights at this λ: the observation's, then reweighted.
+                    w.copy_from_slice(&first);
+                    mw.copy_from_slice(&m0);
+                    bw.copy_from_slice(&b0);
+                    let mut total = total0;
+                    let reweights = match objective {
+                        LooObjective::Linear => 0,
+                        LooObjective::Perceptual { reweights } => reweights,
+                    };
                     let mut singular = false;
                     for _ in 0..reweights {
-                        for c in 0..3 {
-                            let mut m = mw[c].clone();
-                            design.regularize(&mut m, lambda, total[c]);
-                            if !linalg::cholesky(&mut m, k) {
-                                singular = true;
-                                break;
-                            }
-                            let mut coef = bw[c].clone();
-                            linalg::cholesky_solve(&m, k, &mut coef);
-                            for j in 0..n {
-                                let pred: f64 =
-                                    design.row(j).iter().zip(&coef).map(|(a, b)| a * b).sum();
-                                secants[c][j] = design.q[j] * secant_weight(pred, obs[c][j]);
-                            }
-                        }
-                        if singular {
+                        let mut m = mw.clone();
+                        design.regularize(&mut m, lambda, total);
+                        if !linalg::cholesky(&mut m, k) {
+                            singular = true;
                             break;
                         }
-                        let shared = normalized_mean(&secants);
-                        for c in 0..3 {
-                            w[c].copy_from_slice(&shared);
-                            total[c] = normal_equations(&w[c], &obs[c], &mut mw[c], &mut bw[c]);
-                        }
-                    }
-                    for c in 0..3 {
-                        let mut m = mw[c].clone();
-                        design.regularize(&mut m, lambda, total[c]);
-                        if singular || !linalg::cholesky(&mut m, k) {
-                            acc[li][0] += f64::INFINITY;
-                            acc[li][2] += f64::INFINITY;
-                            continue;
-                        }
-                        let mut coef = bw[c].clone();
+                        let mut coef = bw.clone();
                         linalg::cholesky_solve(&m, k, &mut coef);
-                        let (w, obs) = (&w[c], &obs[c]);
                         for j in 0..n {
-                            let row = design.row(j);
-                            z.copy_from_slice(row);
-                            linalg::forward_solve(&m, k, &mut z);
-                            let leverage = w[j] * z.iter().map(|v| v * v).sum::<f64>();
-                            let pred: f64 = row.iter().zip(&coef).map(|(a, b)| a * b).sum();
-                            let e = (obs[j] - pred) / (1.0 - leverage).max(1e-6);
-                            let shown = srgb_shown(obs[j]) - srgb_shown(obs[j] - e);
-                            acc[li][0] += w[j] * e * e;
-                            acc[li][1] += w[j];
-                            let seen = design.q[j] * relevance[j];
-                            acc[li][2] += seen * shown * shown;
-                            acc[li][3] += seen;
-                            acc[li][4] += seen * srgb_on_screen(obs[j] - e);
-                            acc[li][5] += seen * srgb_on_screen(obs[j]);
-                            acc[li][6] += seen * (obs[j] - e);
-                            acc[li][7] += seen * obs[j];
+                            let pred: f64 =
+                                design.row(j).iter().zip(&coef).map(|(a, b)| a * b).sum();
+                            w[j] = design.q[j] * secant_weight(pred, obs[j]);
                         }
+                        total = normal_equations(&w, &obs, &mut mw, &mut bw);
+                    }
+                    let mut m = mw.clone();
+                    design.regularize(&mut m, lambda, total);
+                    if singular || !linalg::cholesky(&mut m, k) {
+                        acc[li][0] += f64::INFINITY;
+                        acc[li][2] += f64::INFINITY;
+                        continue;
+                    }
+                    let mut coef = bw.clone();
+                    linalg::cholesky_solve(&m, k, &mut coef);
+                    for j in 0..n {
+                        let row = design.row(j);
+                        z.copy_from_slice(row);
+                        linalg::forward_solve(&m, k, &mut z);
+                        let leverage = w[j] * z.iter().map(|v| v * v).sum::<f64>();
+                        let pred: f64 = row.iter().zip(&coef).map(|(a, b)| a * b).sum();
+                        let e = (obs[j] - pred) / (1.0 - leverage).max(1e-6);
+                        let shown = srgb_shown(obs[j]) - srgb_shown(obs[j] - e);
+                        acc[li][0] += w[j] * e * e;
+                        acc[li][1] += w[j];
+                        let seen = design.q[j] * relevance[j];
+                        acc[li][2] += seen * shown * shown;
+                        acc[li][3] += seen;
+                        acc[li][4] += seen * srgb_on_screen(obs[j] - e);
+                        acc[li][5] += seen * srgb_on_screen(obs[j]);
+                        acc[li][6] += seen * (obs[j] - e);
+                        acc[li][7] += seen * obs[j];
                     }
                 }
                 acc

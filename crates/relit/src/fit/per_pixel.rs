@@ -32,8 +32,6 @@ struct Scratch {
     slopes: Vec<Lanes>,
     /// Each sample's weight: per group, per light, the lanes (one channel's block).
     weights: Vec<LanesF32>,
-    /// One channel's secant weights, laid out as `weights`.
-    channel_weights: Vec<LanesF32>,
     /// A lane group's weighted observations, light by light.
     weighted_obs: Vec<LanesF32>,
     /// A lane group's normal matrix sums (the packed pairs, padded to a tile).
@@ -64,7 +62,6 @@ impl Scratch {
             encoded: vec![[0.0; LANES]; 3 * groups * n],
             slopes: vec![[0.0; LANES]; 3 * groups * n],
             weights: vec![[0.0; LANES]; groups * n],
-            channel_weights: vec![[0.0; LANES]; groups * n],
             weighted_obs: vec![[0.0; LANES]; n],
             sums: vec![[0.0; LANES]; linalg::tiled(t)],
             rhs: [
@@ -330,15 +327,12 @@ struct Tables<'a> {
 /// Iteratively reweighted solve of `len` pixels' observations in `scratch.obs` into
 /// `scratch.coef` (both laid out in lane groups: [`Scratch`]).
 ///
-/// Every pass solves the pixel's three channels under weights they share, so one
-/// normal matrix and one factorisation a pass serve all three. The first prediction,
-/// which only sets the reweighted passes' weights, is weighted by the mean over the
-/// channels of their observation weights (the held-out PSNR on the eight shared RTI
-/// items moved by at most 0.01 dB against each channel's own, scripts/realrti_table.py,
-/// 2026-12-05); each reweighted pass by the mean of the channels' secant weights, each
-/// channel's brought to a mean of one first ([`super::normalized_mean`]: −0.09 … +0.03
-/// dB against each channel's own, for about a fifth less time on large perceptual fits,
-/// 2026-12-07).
+/// Each channel's last solve is weighted by its own samples. The first prediction, which
+/// only sets the reweighted passes' weights, comes from one solve per pixel whose
+/// weights are the mean over the channels of their observation weights: the three
+/// channels then share one normal matrix and one factorisation (a third of the work of
+/// that pass), and the held-out PSNR on the eight shared RTI items moved by at most
+/// 0.01 dB (scripts/realrti_table.py, 2026-12-05).
 ///
 /// `looked_up`: `scratch.encoded` and `scratch.slopes` already hold each observation's
 /// encoding and perceptual weight ([`CodeTables::look_up`]); otherwise they are
@@ -378,9 +372,8 @@ fn solve_chunk(tables: &Tables, reweights: usize, len: usize, s: &mut Scratch, l
     });
     weighted_solve(tables, len, 0..3, s);
     let n_cols = tables.a_t.len() / k;
-    for _ in 0..reweights {
-        s.weights[..block].fill([0.0; LANES]);
-        for c in 0..3 {
+    for c in 0..3 {
+        for _ in 0..reweights {
             for g in 0..groups {
                 let coef = &s.coef[(c * groups + g) * k..(c * groups + g + 1) * k];
                 linalg::lane_products_f64(coef, tables.a_t, n_cols, &mut s.pred_tile);
@@ -393,42 +386,12 @@ fn solve_chunk(tables: &Tables, reweights: usize, len: usize, s: &mut Scratch, l
             let obs = &s.obs[c * block..(c + 1) * block];
             let obs_encoded = &s.encoded[c * block..(c + 1) * block];
             weigh_secants(
-                &mut s.channel_weights[..block],
+                &mut s.weights[..block],
                 q,
                 [&s.pred[..block], obs],
                 [&s.pred_encoded[..block], obs_encoded],
             );
-            for (shared, own) in s.weights[..block]
-                .chunks_exact_mut(n)
-                .zip(s.channel_weights[..block].chunks_exact(n))
-            {
-                add_normalized_third(shared, own);
-            }
-        }
-        weighted_solve(tables, len, 0..3, s);
-    }
-}
-
-/// `shared += own / (3 · mean(own))` lane by lane, the mean over the lights (a lane
-/// whose weights are all zero adds nothing): one channel's share of a reweighted pass's
-/// weights, as [`super::normalized_mean`] forms them for one pixel.
-fn add_normalized_third(shared: &mut [LanesF32], own: &[LanesF32]) {
-    let mut sum = [0f64; LANES];
-    for w in own {
-        for l in 0..LANES {
-            sum[l] += w[l] as f64;
-        }
-    }
-    let scale: LanesF32 = std::array::from_fn(|l| {
-        if sum[l] > 0.0 {
-            (own.len() as f64 / (3.0 * sum[l])) as f32
-        } else {
-            0.0
-        }
-    });
-    for (acc, w) in shared.iter_mut().zip(own) {
-        for l in 0..LANES {
-            acc[l] += w[l] * scale[l];
+            weighted_solve(tables, len, c..c + 1, s);
         }
     }
 }
@@ -660,55 +623,6 @@ mod tests {
                 }
             }
         }
-    }
-
-    #[test]
-    fn normalised_thirds_add_up_to_each_lanes_normalized_mean() {
-        // Three channels' weights over five lights in eight lanes: spread over decades,
-        // one lane's blue all zero (it adds nothing), one lane all zero.
-        let n = 5;
-        let own: Vec<Vec<LanesF32>> = (0..3)
-            .map(|c| {
-                (0..n)
-                    .map(|j| {
-                        std::array::from_fn(|l| match (l, c) {
-                            (7, _) | (6, 2) => 0.0,
-                            _ => {
-                                (0.3 + (j * 7 + l * 3 + c * 5) as f32 % 11.0)
-                                    * 10f32.powi(c as i32 - l as i32 % 3)
-                            }
-                        })
-                    })
-                    .collect()
-            })
-            .collect();
-        let mut shared = vec![[0f32; LANES]; n];
-        for c in 0..3 {
-            add_normalized_third(&mut shared, &own[c]);
-        }
-        for l in 0..LANES {
-            let weights: Vec<Vec<f64>> = (0..3)
-                .map(|c| own[c].iter().map(|w| w[l] as f64).collect())
-                .collect();
-            let want = super::super::normalized_mean(&weights);
-            for j in 0..n {
-                let got = shared[j][l] as f64;
-                assert!(
-                    (got - want[j]).abs() <= 1e-6 * want[j].max(1.0),
-                    "lane {l}, light {j}: {got} against {}",
-                    want[j]
-                );
-            }
-            if l < 7 {
-                let mean: f64 = (0..n).map(|j| shared[j][l] as f64).sum::<f64>() / n as f64;
-                let channels = if l == 6 { 2.0 } else { 3.0 };
-                assert!(
-                    (mean - channels / 3.0).abs() < 1e-6,
-                    "lane {l}: mean {mean}"
-                );
-            }
-        }
-        assert!(shared.iter().all(|w| w[7] == 0.0));
     }
 
     #[test]

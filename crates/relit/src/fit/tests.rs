@@ -626,15 +626,13 @@ fn the_choice_screens_every_candidate_and_validates_only_its_finalists_in_full()
 
 /// The perceptual fit's passes, written out plainly for one pixel at a time: the first
 /// solve weighted by the mean over the channels of their observation weights
-/// (`shared_first`), or by each channel's own; then one pass reweighted by the secants
-/// to each channel's prediction, their normalised mean (`shared_reweight`,
-/// [`normalized_mean`]) or each channel's own.
+/// (`shared_first`), or by each channel's own; then one pass per channel reweighted by
+/// the secants to its prediction.
 fn plain_perceptual_fit(
     design: &Design,
     images: &[ImageRgb],
     lambda: f64,
     shared_first: bool,
-    shared_reweight: bool,
 ) -> Vec<f64> {
     let (k, n) = (design.k, design.n);
     let pixels = images[0].width * images[0].height;
@@ -659,32 +657,21 @@ fn plain_perceptual_fit(
         let obs: Vec<Vec<f64>> = (0..3)
             .map(|c| images.iter().map(|im| im.data[3 * p + c] as f64).collect())
             .collect();
-        let secants: Vec<Vec<f64>> = (0..3)
-            .map(|c| {
-                let first: Vec<f64> = (0..n)
-                    .map(|j| match shared_first {
-                        true => (0..3).map(|c| perceptual_weight(obs[c][j])).sum::<f64>() / 3.0,
-                        false => perceptual_weight(obs[c][j]),
-                    })
-                    .collect();
-                let coef = solve(&first, &obs[c]);
-                (0..n)
-                    .map(|j| {
-                        let row = design.row(j);
-                        let pred: f64 = row.iter().zip(&coef).map(|(a, b)| a * b).sum();
-                        secant_weight(pred, obs[c][j])
-                    })
-                    .collect()
-            })
-            .collect();
-        let shared = normalized_mean(&secants);
         for c in 0..3 {
-            let weights = if shared_reweight {
-                &shared
-            } else {
-                &secants[c]
-            };
-            for (i, v) in solve(weights, &obs[c]).into_iter().enumerate() {
+            let first: Vec<f64> = (0..n)
+                .map(|j| match shared_first {
+                    true => (0..3).map(|c| perceptual_weight(obs[c][j])).sum::<f64>() / 3.0,
+                    false => perceptual_weight(obs[c][j]),
+                })
+                .collect();
+            let coef = solve(&first, &obs[c]);
+            let secant: Vec<f64> = (0..n)
+                .map(|j| {
+                    let pred: f64 = design.row(j).iter().zip(&coef).map(|(a, b)| a * b).sum();
+                    secant_weight(pred, obs[c][j])
+                })
+                .collect();
+            for (i, v) in solve(&secant, &obs[c]).into_iter().enumerate() {
                 out[(p * k + i) * 3 + c] = v;
             }
         }
@@ -693,7 +680,7 @@ fn plain_perceptual_fit(
 }
 
 #[test]
-fn the_perceptual_fit_shares_each_pass_s_weights_across_channels() {
+fn the_perceptual_fit_shares_its_first_weights_across_channels_and_reweights_each() {
     // Four bands of data fitted with three, so that the weights matter, in colours whose
     // channels differ by 20× in radiance, so that their sRGB weights differ too.
     let (w, h) = (6, 4);
@@ -732,15 +719,11 @@ fn the_perceptual_fit_shares_each_pass_s_weights_across_channels() {
         }
         worst
     };
-    let shared = error(&plain_perceptual_fit(&design, &images, lambda, true, true));
+    let shared = error(&plain_perceptual_fit(&design, &images, lambda, true));
+    let own = error(&plain_perceptual_fit(&design, &images, lambda, false));
     assert!(shared < 2e-5, "{shared}");
-    for (first, reweight) in [(false, true), (true, false)] {
-        let other = error(&plain_perceptual_fit(
-            &design, &images, lambda, first, reweight,
-        ));
-        assert!(
-            other > 10.0 * shared,
-            "shared first {first}, shared reweight {reweight}: {other}, both shared {shared}"
-        );
-    }
+    assert!(
+        own > 10.0 * shared,
+        "own first weights {own}, shared {shared}"
+    );
 }
