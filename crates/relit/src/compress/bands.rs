@@ -80,14 +80,15 @@ pub trait SectionSink {
     fn put(&mut self, section: usize, bytes: Vec<u8>) -> Result<()>;
 }
 
-/// Whether files of `settings` can be packed a band at a time: not with principal
-/// components a block unless the blocks lie inside the bands (the tile a multiple of the
-/// block), and not with what [`super::pack`] refuses (mip levels with blocks or a
-/// codebook; a codebook with blocks or the gain), which is left to it to say.
+/// Whether files of `settings` can be packed a band at a time: not with what
+/// [`super::pack`] refuses (mip levels with blocks or a codebook; a codebook with blocks
+/// or the gain), which is left to it to say. Blocks of principal components that cross
+/// tile rows are packed in bands too: their components are found first, from bands of
+/// whole block rows.
 pub fn packs_in_bands(settings: &Settings) -> bool {
     let blocks_fit = settings
         .pca_block
-        .is_none_or(|side| side > 0 && settings.tile.is_multiple_of(side) && !settings.mip_levels);
+        .is_none_or(|side| side > 0 && !settings.mip_levels);
     let codebook_fits = settings.codebook.is_none()
         || (!settings.mip_levels && !settings.gain && settings.pca_block.is_none());
     codebook_fits && blocks_fit
@@ -122,9 +123,8 @@ pub fn pack_in_bands(
 ) -> Result<Header> {
     if !packs_in_bands(settings) {
         return Err(Error::invalid(
-            "blocks of principal components must lie inside the tile rows (without mip \
-             levels), and a codebook takes neither mip levels, blocks nor the gain: such a \
-             file is packed whole",
+            "blocks of principal components take no mip levels, and a codebook takes \
+             neither mip levels, blocks nor the gain: such a file is packed whole",
         ));
     }
     let (width, height, k) = source.shape();
@@ -271,11 +271,38 @@ pub fn pack_in_bands(
             functions,
         }
     });
+    // Blocks that cross tile rows: every block's components first, from bands of whole
+    // block rows at least a tile high (a band then holds at most a tile and a block's
+    // rows); blocks inside the tile rows are found with their band below.
+    let crossing = settings
+        .pca_block
+        .filter(|&side| !settings.tile.is_multiple_of(side));
+    if let Some(side) = crossing {
+        let high = settings.tile.div_ceil(side) * side;
+        let block_bands: Vec<Range<usize>> = (0..height)
+            .step_by(high)
+            .map(|y| y..(y + high).min(height))
+            .collect();
+        progress.begin("finding each block's components", block_bands.len() as u64);
+        for rows in block_bands {
+            let band = band_of(source, rows.clone())?;
+            let band_divisor = divisor.as_deref().map(|d| &d[rows.start * width..]);
+            principals.extend(projection.blocks_of(
+                &band,
+                rows.start,
+                height,
+                &whole,
+                band_divisor,
+            )?);
+            progress.advance(1);
+        }
+        progress.end();
+    }
     progress.begin("measuring the planes", bands.len() as u64);
     for rows in &bands {
         let band = band_of(source, rows.clone())?;
         let band_divisor = divisor.as_deref().map(|d| &d[rows.start * width..]);
-        if projection.block.is_some() {
+        if projection.block.is_some() && crossing.is_none() {
             principals.extend(projection.blocks_of(
                 &band,
                 rows.start,

@@ -1457,6 +1457,38 @@ fn a_file_packed_band_by_band_is_the_file_packed_whole() {
                 ..Settings::default()
             },
         ),
+        // Blocks across tile rows: smaller than a tile, larger than one, and with the
+        // gain, whose decoded values divide the blocks' pixels.
+        (
+            &odd,
+            Settings {
+                tile: 32,
+                pca_block: Some(24),
+                ..Settings::default()
+            },
+        ),
+        (
+            &odd,
+            Settings {
+                layout: Layout::Lrgb,
+                components: Some(3),
+                tile: 16,
+                pca_block: Some(24),
+                ..Settings::default()
+            },
+        ),
+        (
+            &big,
+            Settings {
+                layout: Layout::Ycc,
+                codec: TileCodec::parse("jpeg:85").unwrap(),
+                components: Some(3),
+                tile: 128,
+                pca_block: Some(96),
+                gain: true,
+                ..Settings::default()
+            },
+        ),
         (
             &odd,
             Settings {
@@ -1534,12 +1566,7 @@ fn a_file_packed_band_by_band_is_the_file_packed_whole() {
             mip_levels: true,
             ..Settings::default()
         },
-        // Blocks across two tile rows, and blocks with mip levels.
-        Settings {
-            tile: 32,
-            pca_block: Some(24),
-            ..Settings::default()
-        },
+        // Blocks with mip levels.
         Settings {
             tile: 32,
             pca_block: Some(16),
