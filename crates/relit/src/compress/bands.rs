@@ -286,14 +286,8 @@ pub fn pack_in_bands(
         progress.begin("finding each block's components", block_bands.len() as u64);
         for rows in block_bands {
             let band = band_of(source, rows.clone())?;
-            let band_divisor = divisor.as_deref().map(|d| &d[rows.start * width..]);
-            principals.extend(projection.blocks_of(
-                &band,
-                rows.start,
-                height,
-                &whole,
-                band_divisor,
-            )?);
+            let found = projection.blocks_of(&band, rows.start, height, &whole, &divisor)?;
+            principals.extend(found);
             progress.advance(1);
         }
         progress.end();
@@ -303,13 +297,8 @@ pub fn pack_in_bands(
         let band = band_of(source, rows.clone())?;
         let band_divisor = divisor.as_deref().map(|d| &d[rows.start * width..]);
         if projection.block.is_some() && crossing.is_none() {
-            principals.extend(projection.blocks_of(
-                &band,
-                rows.start,
-                height,
-                &whole,
-                band_divisor,
-            )?);
+            let found = projection.blocks_of(&band, rows.start, height, &whole, &divisor)?;
+            principals.extend(found);
         }
         let projector = projection.with(&principals);
         // A few rows' projection at a time: the band is the only large thing held.
@@ -624,20 +613,21 @@ impl Projection<'_> {
     /// The principal components of each block whose rows begin in `band` (rows from
     /// `row0`, the whole width, of an image `height` rows high), block by block in the
     /// file's order: each group's from up to `BLOCK_PCA_PIXELS` of the block's pixels
-    /// (divided by `divisor` where there is one), turned like the file's (`whole`), as
-    /// `pack` finds them.
+    /// (divided by the image's `divisor` where there is one), turned like the file's
+    /// (`whole`), as `pack` finds them.
     fn blocks_of(
         &self,
         band: &RelightableImage,
         row0: usize,
         height: usize,
         whole: &[projection::Principal],
-        divisor: Option<&[f32]>,
+        divisor: &Option<Vec<f32>>,
     ) -> Result<Vec<Vec<projection::Principal>>> {
         let Some(side) = self.block else {
             return Ok(Vec::new());
         };
         let (width, k) = (band.width(), band.maps.k);
+        let divisor = divisor.as_deref().map(|d| &d[row0 * width..]);
         let first_row = row0.div_ceil(side);
         let last_row = (row0 + band.height())
             .div_ceil(side)
