@@ -900,6 +900,48 @@ mod tests {
     }
 
     #[test]
+    fn lane_entries_are_the_scalar_expressions_bit_for_bit() {
+        // Values over many decades and both signs, zeros, a subnormal, infinities and
+        // NaN, in every lane position, against the expressions written a lane at a time.
+        let specials = [
+            0.0,
+            -0.0,
+            1e-310,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NAN,
+        ];
+        let value = |i: usize| -> f64 {
+            match i % 11 {
+                0..=5 => specials[i % 6],
+                _ => (i as f64 * 0.7311).sin() * 10f64.powi((i % 23) as i32 - 11),
+            }
+        };
+        let same = |a: f64, b: f64| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
+        for t in 0..200 {
+            let wide: Lanes = std::array::from_fn(|l| value(t * 8 + l));
+            let scale: Lanes = std::array::from_fn(|l| value(t * 13 + 3 * l + 1));
+            let narrow: LanesF32 = std::array::from_fn(|l| value(t * 17 + 5 * l + 2) as f32);
+            let p = value(t * 7 + 4);
+            let got = widened_plus_scaled(&narrow, &scale, p);
+            let plus = plus_scaled(&wide, &scale, p);
+            let times = times_narrowed(&narrow, &wide);
+            for l in 0..LANES {
+                let want = narrow[l] as f64 + scale[l] * p;
+                assert!(same(got[l], want), "{t}/{l}: {} against {want}", got[l]);
+                let want = wide[l] + scale[l] * p;
+                assert!(same(plus[l], want), "{t}/{l}: {} against {want}", plus[l]);
+                let want = narrow[l] * wide[l] as f32;
+                assert!(
+                    same(times[l] as f64, want as f64),
+                    "{t}/{l}: {} against {want}",
+                    times[l]
+                );
+            }
+        }
+    }
+
+    #[test]
     fn lane_products_are_each_lanes_sums_in_order() {
         // Each output a chain over the rows in order from zero: fused where the CPU
         // fuses (the dispatched kernel), products then sums otherwise (the portable
