@@ -297,39 +297,34 @@ fn substitute(mut s: Lanes, terms: impl Iterator<Item = (Lanes, Lanes)>, d: Lane
 /// One single-precision value per lane.
 pub type LanesF32 = [f32; LANES];
 
-/// `m[l] as f64 + scale[l]·p` lane by lane: a lane group's regularised normal-matrix
-/// entry from its single-precision sum. The product, then the sum, as the scalar
-/// expression rounds them; two lanes an instruction, where LLVM compiled the plain loop
-/// one lane at a time (per lane a conversion, a product, a sum and a store: 8 % of a
-/// large perceptual fit's processor time, 2026-12-07).
+/// `m[l] as f64` lane by lane (exact), two lanes an instruction: with [`plus_scaled`], a
+/// lane group's regularised normal-matrix entry from its single-precision sum. LLVM
+/// compiled the plain loop one lane at a time (per lane a conversion, a product, a sum
+/// and a store: 8 % of a large perceptual fit's processor time, 2026-12-07).
 #[inline(always)]
-pub fn widened_plus_scaled(m: &LanesF32, scale: &Lanes, p: f64) -> Lanes {
+pub fn widened(m: &LanesF32) -> Lanes {
     #[cfg(target_arch = "x86_64")]
     {
         use std::arch::x86_64::*;
         let mut out = [0.0; LANES];
-        // SAFETY: SSE2 is part of x86_64; each pair of lanes is read and written inside
-        // its array of eight.
+        // SAFETY: SSE2 is part of x86_64; each quad of lanes is read, and each pair
+        // written, inside its array of eight.
         unsafe {
-            let p = _mm_set1_pd(p);
             for h in (0..LANES).step_by(4) {
                 let narrow = _mm_loadu_ps(m.as_ptr().add(h));
-                let low = _mm_cvtps_pd(narrow);
+                _mm_storeu_pd(out.as_mut_ptr().add(h), _mm_cvtps_pd(narrow));
                 let high = _mm_cvtps_pd(_mm_movehl_ps(narrow, narrow));
-                for (at, wide) in [(h, low), (h + 2, high)] {
-                    let s = _mm_mul_pd(_mm_loadu_pd(scale.as_ptr().add(at)), p);
-                    _mm_storeu_pd(out.as_mut_ptr().add(at), _mm_add_pd(wide, s));
-                }
+                _mm_storeu_pd(out.as_mut_ptr().add(h + 2), high);
             }
         }
         out
     }
     #[cfg(not(target_arch = "x86_64"))]
-    std::array::from_fn(|l| m[l] as f64 + scale[l] * p)
+    m.map(|v| v as f64)
 }
 
-/// `m[l] + scale[l]·p` lane by lane ([`widened_plus_scaled`] of a double-precision
-/// entry): the product, then the sum, two lanes an instruction.
+/// `m[l] + scale[l]·p` lane by lane: the product, then the sum, as the scalar expression
+/// rounds them, two lanes an instruction.
 #[inline(always)]
 pub fn plus_scaled(m: &Lanes, scale: &Lanes, p: f64) -> Lanes {
     #[cfg(target_arch = "x86_64")]
@@ -923,7 +918,7 @@ mod tests {
             let scale: Lanes = std::array::from_fn(|l| value(t * 13 + 3 * l + 1));
             let narrow: LanesF32 = std::array::from_fn(|l| value(t * 17 + 5 * l + 2) as f32);
             let p = value(t * 7 + 4);
-            let got = widened_plus_scaled(&narrow, &scale, p);
+            let got = plus_scaled(&widened(&narrow), &scale, p);
             let plus = plus_scaled(&wide, &scale, p);
             let times = times_narrowed(&narrow, &wide);
             for l in 0..LANES {

@@ -286,7 +286,8 @@ pub fn pack_in_bands(
         progress.begin("finding each block's components", block_bands.len() as u64);
         for rows in block_bands {
             let band = band_of(source, rows.clone())?;
-            let found = projection.blocks_of(&band, rows.start, height, &whole, &divisor)?;
+            let found =
+                projection.blocks_of(&band, rows.start, height, &whole, divisor.as_deref())?;
             principals.extend(found);
             progress.advance(1);
         }
@@ -297,7 +298,8 @@ pub fn pack_in_bands(
         let band = band_of(source, rows.clone())?;
         let band_divisor = divisor.as_deref().map(|d| &d[rows.start * width..]);
         if projection.block.is_some() && crossing.is_none() {
-            let found = projection.blocks_of(&band, rows.start, height, &whole, &divisor)?;
+            let found =
+                projection.blocks_of(&band, rows.start, height, &whole, divisor.as_deref())?;
             principals.extend(found);
         }
         let projector = projection.with(&principals);
@@ -621,13 +623,13 @@ impl Projection<'_> {
         row0: usize,
         height: usize,
         whole: &[projection::Principal],
-        divisor: &Option<Vec<f32>>,
+        divisor: Option<&[f32]>,
     ) -> Result<Vec<Vec<projection::Principal>>> {
         let Some(side) = self.block else {
             return Ok(Vec::new());
         };
         let (width, k) = (band.width(), band.maps.k);
-        let divisor = divisor.as_deref().map(|d| &d[row0 * width..]);
+        let divisor = divisor.map(|d| &d[row0 * width..]);
         let first_row = row0.div_ceil(side);
         let last_row = (row0 + band.height())
             .div_ceil(side)

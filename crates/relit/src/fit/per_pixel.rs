@@ -473,7 +473,7 @@ fn weighted_solve(tables: &Tables, len: usize, channels: std::ops::Range<usize>,
         // Unused lanes get the identity.
         let scaled: Lanes = std::array::from_fn(|l| total[l] * lambda);
         for ((&x, sums), &penalty) in lower.iter().zip(&s.sums).zip(packed_penalty) {
-            s.lane_m[x] = linalg::widened_plus_scaled(sums, &scaled, penalty);
+            s.lane_m[x] = linalg::plus_scaled(&linalg::widened(sums), &scaled, penalty);
         }
         for i in 0..k {
             for (m, &t_l) in s.lane_m[i * k + i].iter_mut().zip(&total) {
