@@ -22,6 +22,12 @@ const BROWSERS: [&str; 4] = [
     "google-chrome-stable",
 ];
 
+/// What to do about a JPEG decoder built without SIMD (`relit doctor`, `relit bench`).
+pub const JPEG_ADVICE: &str = "the JPEG decoder was built without its SIMD code (`nasm` \
+     was missing when mozjpeg-sys was built): fits of photographs take about a quarter longer \
+     (50 of 1024×768); install nasm (Debian/Ubuntu: `apt-get install nasm`), \
+     then `cargo clean --release -p mozjpeg-sys` and rebuild (scripts/test.sh does both)";
+
 pub fn run(args: Args) -> anyhow::Result<()> {
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     let cpu = json!({
@@ -29,6 +35,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "threads": threads,
         "engine_threads": rayon::current_num_threads(),
         "kernels": relit::engine::cpu_kernels(),
+        "jpeg_decoder_simd": relit::image::jpeg_decoder_simd(),
         "memory_bytes": proc_field("/proc/meminfo", "MemTotal")
             .and_then(|v| v.split_whitespace().next().and_then(|kb| kb.parse::<u64>().ok()))
             .map(|kb| kb * 1024),
@@ -56,6 +63,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
              loops, several times slower; nothing to install"
                 .to_string(),
         );
+    }
+    if !relit::image::jpeg_decoder_simd() {
+        advice.push(JPEG_ADVICE.to_string());
     }
     match &chosen {
         Err(_) => advice.push(
@@ -118,6 +128,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .as_u64()
             .map(|b| format!(", {:.1} GiB memory", b as f64 / (1u64 << 30) as f64))
             .unwrap_or_default()
+    );
+    println!(
+        "JPEG     libjpeg-turbo {}",
+        if relit::image::jpeg_decoder_simd() {
+            "with SIMD"
+        } else {
+            "in portable C (no SIMD)"
+        }
     );
     if adapters.is_empty() {
         println!("GPU      no adapter found");

@@ -152,6 +152,7 @@ pub fn run(capture: &Path, peer: Option<&Path>, peer_args: &str, json: bool) -> 
                     "stages": report["stages"],
                 },
                 "peer": peer,
+                "jpeg_decoder_simd": relit::image::jpeg_decoder_simd(),
                 "wall_ratio": wall_ratio,
                 "memory_ratio": memory_ratio,
             }))?
@@ -190,6 +191,9 @@ pub fn run(capture: &Path, peer: Option<&Path>, peer_args: &str, json: bool) -> 
             stage["name"].as_str().unwrap_or(""),
             stage["seconds"].as_f64().unwrap_or(0.0)
         );
+    }
+    if !relit::image::jpeg_decoder_simd() {
+        println!("note: {}", crate::cmd_doctor::JPEG_ADVICE);
     }
     Ok(())
 }
