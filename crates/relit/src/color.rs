@@ -160,6 +160,115 @@ unsafe fn encode_quads_avx2(table: &[f32], src: &[f64], dst: &mut [f64]) {
     }
 }
 
+/// The sRGB value where the decoding's linear segment meets its power law.
+const SRGB_DECODE_KNEE: f32 = 0.04045;
+
+/// Intervals of the table behind [`srgb_to_linear_tabulated`], over `[0, 1]`.
+const DECODE_INTERVALS: usize = 4096;
+
+/// The decoding at `i / DECODE_INTERVALS`, by the power law (continued below the knee,
+/// where the table is not read).
+fn decode_table() -> &'static [f32] {
+    static TABLE: OnceLock<Vec<f32>> = OnceLock::new();
+    TABLE.get_or_init(|| {
+        (0..=DECODE_INTERVALS)
+            .map(|i| {
+                let s = i as f64 / DECODE_INTERVALS as f64;
+                ((s + 0.055) / 1.055).powf(2.4) as f32
+            })
+            .collect()
+    })
+}
+
+/// [`srgb_to_linear`] by linear interpolation in a table over `[0, 1]`: within 8e-8
+/// of the exact decoding (relative: 3e-6 just above the knee, 5e-7 from 0.2 up) and
+/// several times faster than `powf`. For the basis choice, which decodes every
+/// prediction of display-referred maps to judge their brightness; values above 1 take
+/// the exact curve.
+#[inline]
+pub fn srgb_to_linear_tabulated(v: f32) -> f32 {
+    if v > SRGB_DECODE_KNEE && v <= 1.0 {
+        let table = decode_table();
+        let x = v as f64 * DECODE_INTERVALS as f64;
+        let i = (x as usize).min(DECODE_INTERVALS - 1);
+        let t = x - i as f64;
+        let (a, b) = (table[i] as f64, table[i + 1] as f64);
+        (a + t * (b - a)) as f32
+    } else if v > 1.0 {
+        srgb_to_linear(v)
+    } else {
+        v / 12.92 // the linear segment (and NaN, as the exact curve gives)
+    }
+}
+
+/// `dst[i] = srgb_to_linear_tabulated(src[i] as f32) as f64`, bit for bit, four values
+/// at a time where the CPU has AVX2.
+pub fn srgb_to_linear_tabulated_batch(src: &[f64], dst: &mut [f64]) {
+    assert_eq!(src.len(), dst.len());
+    #[cfg(target_arch = "x86_64")]
+    if is_x86_feature_detected!("avx2") {
+        let table = decode_table();
+        let whole = src.len() / 4 * 4;
+        // SAFETY: AVX2 is present (checked above); the quads lie inside both slices.
+        unsafe { decode_quads_avx2(table, &src[..whole], &mut dst[..whole]) };
+        for (d, &v) in dst[whole..].iter_mut().zip(&src[whole..]) {
+            *d = srgb_to_linear_tabulated(v as f32) as f64;
+        }
+        return;
+    }
+    for (d, &v) in dst.iter_mut().zip(src) {
+        *d = srgb_to_linear_tabulated(v as f32) as f64;
+    }
+}
+
+/// [`srgb_to_linear_tabulated_batch`] of whole quads, the same operations in the same
+/// order as the scalar curve (no fused multiply-adds); lanes above 1 take the exact
+/// curve afterwards.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn decode_quads_avx2(table: &[f32], src: &[f64], dst: &mut [f64]) {
+    use std::arch::x86_64::*;
+    debug_assert!(table.len() == DECODE_INTERVALS + 1 && src.len().is_multiple_of(4));
+    let one = _mm_set1_ps(1.0);
+    let knee = _mm_set1_ps(SRGB_DECODE_KNEE);
+    let slope = _mm_set1_ps(12.92);
+    let scale = _mm256_set1_pd(DECODE_INTERVALS as f64);
+    let last = _mm_set1_epi32(DECODE_INTERVALS as i32 - 1);
+    let izero = _mm_setzero_si128();
+    for (s, d) in src.chunks_exact(4).zip(dst.chunks_exact_mut(4)) {
+        // SAFETY: four f64 are read from `s` and written to `d`; the indices are
+        // clamped to the table's intervals, whose upper ends (i + 1) are in the table.
+        let v = _mm256_cvtpd_ps(unsafe { _mm256_loadu_pd(s.as_ptr()) });
+        // Lanes on the linear segment, above 1 or NaN read an entry that is not kept.
+        let x = _mm256_mul_pd(_mm256_cvtps_pd(_mm_min_ps(v, one)), scale);
+        let i = _mm_min_epi32(_mm_max_epi32(_mm256_cvttpd_epi32(x), izero), last);
+        let t = _mm256_sub_pd(x, _mm256_cvtepi32_pd(i));
+        // Each interval's two ends in one 8-byte load, regrouped into the lower and
+        // upper ends (as `encode_quads_avx2` reads its table).
+        let mut at = [0i32; 4];
+        unsafe { _mm_storeu_si128(at.as_mut_ptr().cast(), i) };
+        let ends = |l: usize| unsafe {
+            _mm_castsi128_ps(_mm_loadl_epi64(table.as_ptr().add(at[l] as usize).cast()))
+        };
+        let (low, high) = (
+            _mm_unpacklo_ps(ends(0), ends(1)),
+            _mm_unpacklo_ps(ends(2), ends(3)),
+        );
+        let (a, b) = (_mm_movelh_ps(low, high), _mm_movehl_ps(high, low));
+        let (a, b) = (_mm256_cvtps_pd(a), _mm256_cvtps_pd(b));
+        let curve = _mm256_cvtpd_ps(_mm256_add_pd(a, _mm256_mul_pd(t, _mm256_sub_pd(b, a))));
+        let decoded = _mm_blendv_ps(_mm_div_ps(v, slope), curve, _mm_cmpgt_ps(v, knee));
+        unsafe { _mm256_storeu_pd(d.as_mut_ptr(), _mm256_cvtps_pd(decoded)) };
+        if _mm_movemask_ps(_mm_cmpgt_ps(v, one)) != 0 {
+            for (d, &s) in d.iter_mut().zip(s) {
+                if s as f32 > 1.0 {
+                    *d = srgb_to_linear(s as f32) as f64;
+                }
+            }
+        }
+    }
+}
+
 /// [`srgb_slope`] from the tabulated encoding: above the knee the slope
 /// `(1.055/2.4)·v^{−7/12}` equals `(srgb(v) + 0.055) / (2.4·v)`. Relative error
 /// below 1e-6.
@@ -297,6 +406,72 @@ mod tests {
             assert!(
                 w.to_bits() == b.to_bits() || (w.is_nan() && b.is_nan()),
                 "batch {b}, scalar {w}"
+            );
+        }
+    }
+
+    #[test]
+    fn the_tabulated_decoding_follows_the_exact_one() {
+        let exact = |s: f64| {
+            if s <= 0.04045 {
+                s / 12.92
+            } else {
+                ((s + 0.055) / 1.055).powf(2.4)
+            }
+        };
+        let (mut worst, mut worst_relative, mut worst_above) = (0.0f64, 0.0f64, 0.0f64);
+        for i in 0..=400_000 {
+            let s = i as f64 / 400_000.0;
+            let want = exact(s as f32 as f64);
+            let got = srgb_to_linear_tabulated(s as f32) as f64;
+            let relative = (got - want).abs() / want.max(1e-30);
+            worst = worst.max((got - want).abs());
+            worst_relative = worst_relative.max(relative);
+            if s >= 0.2 {
+                worst_above = worst_above.max(relative);
+            }
+        }
+        assert!(worst < 1e-7, "decoding off by {worst}");
+        assert!(worst_relative < 3e-6, "off by {worst_relative} (relative)");
+        assert!(
+            worst_above < 5e-7,
+            "off by {worst_above} (relative) from 0.2 up"
+        );
+        // The linear segment exactly, and what lies outside the table by the exact curve.
+        for s in [0.0f32, 0.01, 0.04045, 1.5, 7.0, -0.5] {
+            assert_eq!(srgb_to_linear_tabulated(s), srgb_to_linear(s), "{s}");
+        }
+        assert_eq!(srgb_to_linear_tabulated(1.0), 1.0);
+        assert!(srgb_to_linear_tabulated(f32::NAN).is_nan());
+    }
+
+    #[test]
+    fn the_batch_decoding_is_the_scalar_one_bit_for_bit() {
+        let mut values: Vec<f64> = (0..=40_000)
+            .map(|i| i as f64 / 40_000.0 * 1.2 - 0.01)
+            .collect();
+        values.extend([
+            0.0,
+            -0.0,
+            1.0,
+            0.04045,
+            0.040_450_1,
+            1e-30,
+            -5.0,
+            7.0,
+            f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            0.999_999_9,
+            1.000_000_1,
+        ]);
+        let mut batch = vec![0.0; values.len()];
+        srgb_to_linear_tabulated_batch(&values, &mut batch);
+        for (&v, &b) in values.iter().zip(&batch) {
+            let scalar = srgb_to_linear_tabulated(v as f32) as f64;
+            assert!(
+                scalar.to_bits() == b.to_bits() || (scalar.is_nan() && b.is_nan()),
+                "{v}: batch {b}, scalar {scalar}"
             );
         }
     }

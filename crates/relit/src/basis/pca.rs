@@ -84,14 +84,16 @@ pub(super) fn forget() {
 
 /// The samples' values in `space`, as doubles.
 fn in_space(samples: &Samples, space: PcaSpace) -> Vec<f64> {
-    samples
-        .values
-        .iter()
-        .map(|&v| match space {
-            PcaSpace::Linear => v as f64,
-            PcaSpace::Srgb => crate::color::linear_to_srgb_tabulated(v.max(0.0)) as f64,
-        })
-        .collect()
+    let values: Vec<f64> = samples.values.iter().map(|&v| v as f64).collect();
+    match space {
+        PcaSpace::Linear => values,
+        // Negative radiance encodes as black, as the tabulated curve clamps it.
+        PcaSpace::Srgb => {
+            let mut encoded = vec![0.0; values.len()];
+            crate::color::linear_to_srgb_tabulated_batch(&values, &mut encoded);
+            encoded
+        }
+    }
 }
 
 /// The parameters of the `K` basis functions, `K × C` row-major: `T · U_k` for the

@@ -745,7 +745,7 @@ fn fold_errors(
                         let v = sub.values[(p * sub.n + j) * 3 + c];
                         match space {
                             MapSpace::Linear => (v as f64, srgb_on_screen(v as f64)),
-                            MapSpace::Srgb => (color::srgb_to_linear(v) as f64, v as f64),
+                            MapSpace::Srgb => (color::srgb_to_linear_tabulated(v) as f64, v as f64),
                         }
                     })
                 })
@@ -768,10 +768,10 @@ fn fold_errors(
                     // Display values are shown as they are; the linear error and the
                     // brightness judge their decoding.
                     MapSpace::Srgb => {
-                        for (s, p) in shown.iter_mut().zip(preds.iter_mut()) {
+                        for (s, p) in shown.iter_mut().zip(preds.iter()) {
                             *s = p.clamp(0.0, 1.0);
-                            *p = color::srgb_to_linear(*s as f32) as f64;
                         }
+                        color::srgb_to_linear_tabulated_batch(shown, preds);
                     }
                 }
                 for (l, b) in rows.enumerate() {
