@@ -84,16 +84,18 @@ pub(super) fn forget() {
 
 /// The samples' values in `space`, as doubles.
 fn in_space(samples: &Samples, space: PcaSpace) -> Vec<f64> {
-    let values: Vec<f64> = samples.values.iter().map(|&v| v as f64).collect();
-    match space {
-        PcaSpace::Linear => values,
-        // Negative radiance encodes as black, as the tabulated curve clamps it.
-        PcaSpace::Srgb => {
-            let mut encoded = vec![0.0; values.len()];
-            crate::color::linear_to_srgb_tabulated_batch(&values, &mut encoded);
-            encoded
+    let mut values: Vec<f64> = samples.values.iter().map(|&v| v as f64).collect();
+    if let PcaSpace::Srgb = space {
+        // Encoded in place through a small buffer, so that the samples are held once
+        // (negative radiance encodes as black: the tabulated curve clamps it).
+        let mut linear = [0.0; 1024];
+        for part in values.chunks_mut(linear.len()) {
+            let linear = &mut linear[..part.len()];
+            linear.copy_from_slice(part);
+            crate::color::linear_to_srgb_tabulated_batch(linear, part);
         }
     }
+    values
 }
 
 /// The parameters of the `K` basis functions, `K × C` row-major: `T · U_k` for the
