@@ -98,21 +98,76 @@ pub fn linear_to_srgb_tabulated(v: f32) -> f32 {
 /// the per-pixel fit encodes every observation and every prediction, and one at a time
 /// that was a fifth of its time).
 pub fn linear_to_srgb_tabulated_batch(src: &[f64], dst: &mut [f64]) {
+    tabulated_batch(Curve::Encode, src, dst);
+}
+
+/// The two tabulated curves, for the batch code they share.
+#[derive(Clone, Copy)]
+enum Curve {
+    Encode,
+    Decode,
+}
+
+impl Curve {
+    fn scalar(self, v: f32) -> f32 {
+        match self {
+            Curve::Encode => linear_to_srgb_tabulated(v),
+            Curve::Decode => srgb_to_linear_tabulated(v),
+        }
+    }
+}
+
+/// `dst[i] = curve(src[i] as f32) as f64`: whole quads by the curve's AVX2 kernel where
+/// the CPU has AVX2, the rest (or all) one at a time.
+fn tabulated_batch(curve: Curve, src: &[f64], dst: &mut [f64]) {
     assert_eq!(src.len(), dst.len());
+    #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))]
+    let mut done = 0;
     #[cfg(target_arch = "x86_64")]
     if is_x86_feature_detected!("avx2") {
-        let table = encode_table();
-        let whole = src.len() / 4 * 4;
+        done = src.len() / 4 * 4;
+        let (src, dst) = (&src[..done], &mut dst[..done]);
         // SAFETY: AVX2 is present (checked above); the quads lie inside both slices.
-        unsafe { encode_quads_avx2(table, &src[..whole], &mut dst[..whole]) };
-        for (d, &v) in dst[whole..].iter_mut().zip(&src[whole..]) {
-            *d = linear_to_srgb_tabulated(v as f32) as f64;
+        unsafe {
+            match curve {
+                Curve::Encode => encode_quads_avx2(encode_table(), src, dst),
+                Curve::Decode => decode_quads_avx2(decode_table(), src, dst),
+            }
         }
-        return;
     }
-    for (d, &v) in dst.iter_mut().zip(src) {
-        *d = linear_to_srgb_tabulated(v as f32) as f64;
+    for (d, &v) in dst[done..].iter_mut().zip(&src[done..]) {
+        *d = curve.scalar(v as f32) as f64;
     }
+}
+
+/// The table's curve at four points: entry `i` plus `t` of the way to entry `i + 1`
+/// (`i` within the table's intervals), interpolated in f64 and rounded to f32 as the
+/// scalar curves do.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn interpolated_quad(
+    table: &[f32],
+    i: std::arch::x86_64::__m128i,
+    t: std::arch::x86_64::__m256d,
+) -> std::arch::x86_64::__m128 {
+    use std::arch::x86_64::*;
+    // Each interval's two ends in one 8-byte load, four loads regrouped into the lower
+    // and upper ends (two gathers of four measured slower: 9 % of a perceptual fit's
+    // time on an AMD EPYC, where a gather is microcoded).
+    let mut at = [0i32; 4];
+    // SAFETY: the caller keeps every index below the table's last entry.
+    unsafe { _mm_storeu_si128(at.as_mut_ptr().cast(), i) };
+    let ends = |l: usize| unsafe {
+        _mm_castsi128_ps(_mm_loadl_epi64(table.as_ptr().add(at[l] as usize).cast()))
+    };
+    let (low, high) = (
+        _mm_unpacklo_ps(ends(0), ends(1)),
+        _mm_unpacklo_ps(ends(2), ends(3)),
+    );
+    let (a, b) = (_mm_movelh_ps(low, high), _mm_movehl_ps(high, low));
+    let (a, b) = (_mm256_cvtps_pd(a), _mm256_cvtps_pd(b));
+    _mm256_cvtpd_ps(_mm256_add_pd(a, _mm256_mul_pd(t, _mm256_sub_pd(b, a))))
 }
 
 /// [`linear_to_srgb_tabulated_batch`] of whole quads, the same operations in the same
@@ -140,21 +195,7 @@ unsafe fn encode_quads_avx2(table: &[f32], src: &[f64], dst: &mut [f64]) {
         // Lanes on the linear segment (or NaN) read entry 0 and are not kept.
         let i = _mm_min_epi32(_mm_max_epi32(_mm256_cvttpd_epi32(x), izero), last);
         let t = _mm256_sub_pd(x, _mm256_cvtepi32_pd(i));
-        // Each interval's two ends in one 8-byte load, four loads regrouped into the
-        // lower and upper ends (two gathers of four measured slower: 9 % of a
-        // perceptual fit's time on an AMD EPYC, where a gather is microcoded).
-        let mut at = [0i32; 4];
-        unsafe { _mm_storeu_si128(at.as_mut_ptr().cast(), i) };
-        let ends = |l: usize| unsafe {
-            _mm_castsi128_ps(_mm_loadl_epi64(table.as_ptr().add(at[l] as usize).cast()))
-        };
-        let (low, high) = (
-            _mm_unpacklo_ps(ends(0), ends(1)),
-            _mm_unpacklo_ps(ends(2), ends(3)),
-        );
-        let (a, b) = (_mm_movelh_ps(low, high), _mm_movehl_ps(high, low));
-        let (a, b) = (_mm256_cvtps_pd(a), _mm256_cvtps_pd(b));
-        let curve = _mm256_cvtpd_ps(_mm256_add_pd(a, _mm256_mul_pd(t, _mm256_sub_pd(b, a))));
+        let curve = unsafe { interpolated_quad(table, i, t) };
         let encoded = _mm_blendv_ps(_mm_mul_ps(v, slope), curve, above);
         unsafe { _mm256_storeu_pd(d.as_mut_ptr(), _mm256_cvtps_pd(encoded)) };
     }
@@ -204,21 +245,7 @@ pub fn srgb_to_linear_tabulated(v: f32) -> f32 {
 /// `dst[i] = srgb_to_linear_tabulated(src[i] as f32) as f64`, bit for bit, four values
 /// at a time where the CPU has AVX2.
 pub fn srgb_to_linear_tabulated_batch(src: &[f64], dst: &mut [f64]) {
-    assert_eq!(src.len(), dst.len());
-    #[cfg(target_arch = "x86_64")]
-    if is_x86_feature_detected!("avx2") {
-        let table = decode_table();
-        let whole = src.len() / 4 * 4;
-        // SAFETY: AVX2 is present (checked above); the quads lie inside both slices.
-        unsafe { decode_quads_avx2(table, &src[..whole], &mut dst[..whole]) };
-        for (d, &v) in dst[whole..].iter_mut().zip(&src[whole..]) {
-            *d = srgb_to_linear_tabulated(v as f32) as f64;
-        }
-        return;
-    }
-    for (d, &v) in dst.iter_mut().zip(src) {
-        *d = srgb_to_linear_tabulated(v as f32) as f64;
-    }
+    tabulated_batch(Curve::Decode, src, dst);
 }
 
 /// [`srgb_to_linear_tabulated_batch`] of whole quads, the same operations in the same
@@ -243,20 +270,7 @@ unsafe fn decode_quads_avx2(table: &[f32], src: &[f64], dst: &mut [f64]) {
         let x = _mm256_mul_pd(_mm256_cvtps_pd(_mm_min_ps(v, one)), scale);
         let i = _mm_min_epi32(_mm_max_epi32(_mm256_cvttpd_epi32(x), izero), last);
         let t = _mm256_sub_pd(x, _mm256_cvtepi32_pd(i));
-        // Each interval's two ends in one 8-byte load, regrouped into the lower and
-        // upper ends (as `encode_quads_avx2` reads its table).
-        let mut at = [0i32; 4];
-        unsafe { _mm_storeu_si128(at.as_mut_ptr().cast(), i) };
-        let ends = |l: usize| unsafe {
-            _mm_castsi128_ps(_mm_loadl_epi64(table.as_ptr().add(at[l] as usize).cast()))
-        };
-        let (low, high) = (
-            _mm_unpacklo_ps(ends(0), ends(1)),
-            _mm_unpacklo_ps(ends(2), ends(3)),
-        );
-        let (a, b) = (_mm_movelh_ps(low, high), _mm_movehl_ps(high, low));
-        let (a, b) = (_mm256_cvtps_pd(a), _mm256_cvtps_pd(b));
-        let curve = _mm256_cvtpd_ps(_mm256_add_pd(a, _mm256_mul_pd(t, _mm256_sub_pd(b, a))));
+        let curve = unsafe { interpolated_quad(table, i, t) };
         let decoded = _mm_blendv_ps(_mm_div_ps(v, slope), curve, _mm_cmpgt_ps(v, knee));
         unsafe { _mm256_storeu_pd(d.as_mut_ptr(), _mm256_cvtps_pd(decoded)) };
         if _mm_movemask_ps(_mm_cmpgt_ps(v, one)) != 0 {
@@ -355,33 +369,54 @@ mod tests {
         assert_eq!(srgb_slope_tabulated(0.0), 12.92);
     }
 
+    /// Both tabulated curves' batches against their scalar curves, over a dense sweep
+    /// (`spread` maps [0, 1] onto the values tried) and the edges: both knees, zeros,
+    /// values outside [0, 1], NaN and infinities.
     #[test]
-    fn the_batch_encoding_is_the_scalar_one_bit_for_bit() {
-        let mut values: Vec<f64> = (0..=40_000)
-            .map(|i| (i as f64 / 40_000.0).powi(3) * 1.2 - 0.01)
-            .collect();
-        values.extend([
-            0.0,
-            -0.0,
-            1.0,
-            0.003_130_8,
-            0.003_130_9,
-            1e-30,
-            -5.0,
-            7.0,
-            f64::NAN,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            0.999_999_9,
-        ]);
-        let mut batch = vec![0.0; values.len()];
-        linear_to_srgb_tabulated_batch(&values, &mut batch);
-        for (&v, &b) in values.iter().zip(&batch) {
-            let scalar = linear_to_srgb_tabulated(v as f32) as f64;
-            assert!(
-                scalar.to_bits() == b.to_bits() || (scalar.is_nan() && b.is_nan()),
-                "{v}: batch {b}, scalar {scalar}"
-            );
+    fn the_batch_curves_are_the_scalar_ones_bit_for_bit() {
+        type Batch = fn(&[f64], &mut [f64]);
+        let curves: [(Batch, fn(f32) -> f32, fn(f64) -> f64); 2] = [
+            (
+                linear_to_srgb_tabulated_batch,
+                linear_to_srgb_tabulated,
+                |x| x.powi(3),
+            ),
+            (
+                srgb_to_linear_tabulated_batch,
+                srgb_to_linear_tabulated,
+                |x| x,
+            ),
+        ];
+        for (batch, scalar, spread) in curves {
+            let mut values: Vec<f64> = (0..=40_000)
+                .map(|i| spread(i as f64 / 40_000.0) * 1.2 - 0.01)
+                .collect();
+            values.extend([
+                0.0,
+                -0.0,
+                1.0,
+                0.003_130_8,
+                0.003_130_9,
+                0.04045,
+                0.040_450_1,
+                1e-30,
+                -5.0,
+                7.0,
+                f64::NAN,
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+                0.999_999_9,
+                1.000_000_1,
+            ]);
+            let mut got = vec![0.0; values.len()];
+            batch(&values, &mut got);
+            for (&v, &b) in values.iter().zip(&got) {
+                let want = scalar(v as f32) as f64;
+                assert!(
+                    want.to_bits() == b.to_bits() || (want.is_nan() && b.is_nan()),
+                    "{v}: batch {b}, scalar {want}"
+                );
+            }
         }
     }
 
@@ -443,37 +478,6 @@ mod tests {
         }
         assert_eq!(srgb_to_linear_tabulated(1.0), 1.0);
         assert!(srgb_to_linear_tabulated(f32::NAN).is_nan());
-    }
-
-    #[test]
-    fn the_batch_decoding_is_the_scalar_one_bit_for_bit() {
-        let mut values: Vec<f64> = (0..=40_000)
-            .map(|i| i as f64 / 40_000.0 * 1.2 - 0.01)
-            .collect();
-        values.extend([
-            0.0,
-            -0.0,
-            1.0,
-            0.04045,
-            0.040_450_1,
-            1e-30,
-            -5.0,
-            7.0,
-            f64::NAN,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            0.999_999_9,
-            1.000_000_1,
-        ]);
-        let mut batch = vec![0.0; values.len()];
-        srgb_to_linear_tabulated_batch(&values, &mut batch);
-        for (&v, &b) in values.iter().zip(&batch) {
-            let scalar = srgb_to_linear_tabulated(v as f32) as f64;
-            assert!(
-                scalar.to_bits() == b.to_bits() || (scalar.is_nan() && b.is_nan()),
-                "{v}: batch {b}, scalar {scalar}"
-            );
-        }
     }
 
     #[test]
