@@ -375,7 +375,9 @@ mod tests {
     #[test]
     fn the_batch_curves_are_the_scalar_ones_bit_for_bit() {
         type Batch = fn(&[f64], &mut [f64]);
-        let curves: [(Batch, fn(f32) -> f32, fn(f64) -> f64); 2] = [
+        type Scalar = fn(f32) -> f32;
+        type Spread = fn(f64) -> f64;
+        let curves: [(Batch, Scalar, Spread); 2] = [
             (
                 linear_to_srgb_tabulated_batch,
                 linear_to_srgb_tabulated,
