@@ -5,13 +5,6 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-if ! command -v cargo >/dev/null 2>&1; then
-  echo "cargo not found: installing the Rust toolchain with rustup" >&2
-  curl -sSf https://sh.rustup.rs | sh -s -- -y --profile minimal
-  # shellcheck disable=SC1091
-  source "$HOME/.cargo/env"
-fi
-
 # Tests that cannot run here (no GPU adapter, no ../shared/data, no Node) say why in
 # this log (relit::skip); the list is printed at the end. In CI (CI=true, set by
 # .ci/run) a missing tool fails its test instead, and so does missing shared data
@@ -21,36 +14,21 @@ mkdir -p target && : >"$skip_log"
 export RELIT_SKIP_LOG="$skip_log"
 in_ci() { [ "${CI:-}" = "true" ] || [ "${CI:-}" = "1" ]; }
 
-# What the GPU and browser tests need, installed before any test runs: Mesa's software
-# Vulkan (lavapipe) for wgpu, Chromium, Node and npm (apt-get), and playwright-core
-# (npm, into the git-ignored target/viewer-node). Best effort: a test whose tool is
-# still missing skips with the reason (or fails in CI).
-sudo=""
-[ "$(id -u)" -ne 0 ] && sudo="sudo -n"
+# What the build needs (scripts/prepare.sh: the Rust toolchain, nasm for the JPEG
+# decoder's SIMD code) and what the GPU and browser tests need, installed before any
+# test runs: Mesa's software Vulkan (lavapipe) for wgpu, Chromium, Node and npm
+# (apt-get), and playwright-core (npm, into the git-ignored target/viewer-node). Best
+# effort: a test whose tool is still missing skips with the reason (or fails in CI).
 missing=()
 dpkg -s mesa-vulkan-drivers >/dev/null 2>&1 || missing+=(mesa-vulkan-drivers)
-# The assembler of libjpeg-turbo's SIMD decoder (photographs); without it the decoder
-# builds in portable C, slower but the same images.
-command -v nasm >/dev/null 2>&1 || missing+=(nasm)
 if [ "${RELIT_SKIP_VIEWER_TEST:-0}" != "1" ]; then
   command -v chromium >/dev/null 2>&1 || missing+=(chromium)
   command -v node >/dev/null 2>&1 || missing+=(nodejs)
   command -v npm >/dev/null 2>&1 || missing+=(npm)
 fi
-if [ ${#missing[@]} -gt 0 ] && command -v apt-get >/dev/null 2>&1; then
-  echo "installing ${missing[*]} (for the GPU and browser tests)" >&2
-  { $sudo apt-get update -qq && DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "${missing[@]}"; } >&2 ||
-    echo "apt-get could not install ${missing[*]}: the tests that need them will skip" >&2
-fi
-# mozjpeg-sys decides when it is built whether libjpeg-turbo gets its SIMD code (with
-# nasm) and is not rebuilt when nasm appears later, so a build made before nasm was
-# installed (`cargo run --release -- demo` on a fresh machine) would decode photographs
-# in portable C, about half as fast: rebuild it now that nasm is here.
-if command -v nasm >/dev/null 2>&1 &&
-  grep -qs "SIMD won't be enabled" target/release/build/mozjpeg-sys-*/output; then
-  echo "mozjpeg-sys was built without nasm: rebuilding it with libjpeg-turbo's SIMD" >&2
-  cargo clean --release -p mozjpeg-sys >&2
-fi
+# shellcheck source=scripts/prepare.sh
+source scripts/prepare.sh
+prepare_build "${missing[@]}"
 if command -v npm >/dev/null 2>&1 && [ ! -d target/viewer-node/node_modules/playwright-core ]; then
   mkdir -p target/viewer-node
   (cd target/viewer-node && { [ -f package.json ] || echo '{"private":true}' >package.json; } &&

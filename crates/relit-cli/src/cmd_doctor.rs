@@ -24,9 +24,10 @@ const BROWSERS: [&str; 4] = [
 
 /// What to do about a JPEG decoder built without SIMD (`relit doctor`, `relit bench`).
 pub const JPEG_ADVICE: &str = "the JPEG decoder was built without its SIMD code (`nasm` \
-     was missing when mozjpeg-sys was built): fits of photographs take about a quarter longer \
-     (50 of 1024×768); install nasm (Debian/Ubuntu: `apt-get install nasm`), \
-     then `cargo clean --release -p mozjpeg-sys` and rebuild (scripts/test.sh does both)";
+     was missing when mozjpeg-sys was built): fits of photographs take about a quarter \
+     longer (50 of 1024×768); install nasm (Debian/Ubuntu: `apt-get install nasm`), then \
+     `cargo clean --release -p mozjpeg-sys` and rebuild (scripts/demo.sh and \
+     scripts/test.sh do both)";
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());

@@ -31,7 +31,7 @@ pub(super) fn is_jpeg(path: &Path) -> bool {
 /// fit of 50 photographs of 1024×768. mozjpeg-sys assembles that code with `nasm` when
 /// the crate is built, and builds without it, silently apart from a build warning,
 /// where `nasm` is missing: a build made before `nasm` was installed stays portable
-/// until mozjpeg-sys is rebuilt (`scripts/test.sh` does that).
+/// until mozjpeg-sys is rebuilt (`scripts/prepare.sh` does that).
 pub fn decoder_simd() -> bool {
     extern "C" {
         // libjpeg-turbo's own check: jsimd.c asks the CPU; jsimd_none.c, compiled in
@@ -383,7 +383,7 @@ fn message(cinfo: &mut ffi::jpeg_common_struct) -> String {
 #[cfg(test)]
 mod tests {
     /// On x86-64 (where relit's users and CI run) the decoder is libjpeg-turbo's SIMD
-    /// build, as scripts/test.sh arranges by installing `nasm` and rebuilding a
+    /// build, as scripts/prepare.sh arranges by installing `nasm` and rebuilding a
     /// mozjpeg-sys built without it. A portable decoder is logged as a skip (a failure
     /// in CI): the fits are right, only slower.
     #[test]
