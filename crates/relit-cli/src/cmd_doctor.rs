@@ -22,21 +22,15 @@ const BROWSERS: [&str; 4] = [
     "google-chrome-stable",
 ];
 
-/// What to do about a JPEG decoder built without SIMD (`relit doctor`, `relit bench`).
-pub const JPEG_ADVICE: &str = "the JPEG decoder was built without its SIMD code (`nasm` \
-     was missing when mozjpeg-sys was built): fits of photographs take about a quarter \
-     longer (50 of 1024×768); install nasm (Debian/Ubuntu: `apt-get install nasm`), then \
-     `cargo clean --release -p mozjpeg-sys` and rebuild (scripts/demo.sh and \
-     scripts/test.sh do both)";
-
 pub fn run(args: Args) -> anyhow::Result<()> {
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let jpeg_simd = relit::image::jpeg_decoder_simd();
     let cpu = json!({
         "model": proc_field("/proc/cpuinfo", "model name"),
         "threads": threads,
         "engine_threads": rayon::current_num_threads(),
         "kernels": relit::engine::cpu_kernels(),
-        "jpeg_decoder_simd": relit::image::jpeg_decoder_simd(),
+        "jpeg_decoder_simd": jpeg_simd,
         "memory_bytes": proc_field("/proc/meminfo", "MemTotal")
             .and_then(|v| v.split_whitespace().next().and_then(|kb| kb.parse::<u64>().ok()))
             .map(|kb| kb * 1024),
@@ -65,8 +59,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 .to_string(),
         );
     }
-    if !relit::image::jpeg_decoder_simd() {
-        advice.push(JPEG_ADVICE.to_string());
+    if !jpeg_simd {
+        advice.push(relit::image::JPEG_DECODER_ADVICE.to_string());
     }
     match &chosen {
         Err(_) => advice.push(
@@ -132,7 +126,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     println!(
         "JPEG     libjpeg-turbo {}",
-        if relit::image::jpeg_decoder_simd() {
+        if jpeg_simd {
             "with SIMD"
         } else {
             "in portable C (no SIMD)"

@@ -193,7 +193,7 @@ pub fn run(capture: &Path, peer: Option<&Path>, peer_args: &str, json: bool) -> 
         );
     }
     if !relit::image::jpeg_decoder_simd() {
-        println!("note: {}", crate::cmd_doctor::JPEG_ADVICE);
+        println!("note: {}", relit::image::JPEG_DECODER_ADVICE);
     }
     Ok(())
 }

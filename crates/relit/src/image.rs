@@ -12,7 +12,7 @@ use std::cell::Cell;
 use std::path::Path;
 
 pub(crate) mod jpeg;
-pub use jpeg::decoder_simd as jpeg_decoder_simd;
+pub use jpeg::{decoder_simd as jpeg_decoder_simd, DECODER_ADVICE as JPEG_DECODER_ADVICE};
 #[cfg(test)]
 pub(crate) mod test_maps;
 

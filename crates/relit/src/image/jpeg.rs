@@ -42,6 +42,14 @@ pub fn decoder_simd() -> bool {
     unsafe { jsimd_can_idct_islow() != 0 }
 }
 
+/// What to do where [`decoder_simd`] is false (`relit doctor`, `relit bench --fit`, the
+/// tests' skip).
+pub const DECODER_ADVICE: &str = "the JPEG decoder was built without its SIMD code (`nasm` \
+     was missing when mozjpeg-sys was built): fits of photographs take about a quarter \
+     longer (50 of 1024×768); install nasm (Debian/Ubuntu: `apt-get install nasm`), then \
+     `cargo clean --release -p mozjpeg-sys` and rebuild (scripts/demo.sh and \
+     scripts/test.sh do both)";
+
 /// What [`stream_rows`] found: a JPEG libjpeg decodes to RGB, or one it leaves to the
 /// general decoder (CMYK and YCCK photographs, which libjpeg does not convert to RGB).
 pub(super) enum Streamed {
@@ -392,10 +400,7 @@ mod tests {
             return;
         }
         if !super::decoder_simd() {
-            crate::skip::skipping(
-                "the JPEG decoder was built without SIMD (nasm missing when mozjpeg-sys \
-                 was built): install nasm, `cargo clean --release -p mozjpeg-sys`",
-            );
+            crate::skip::skipping(super::DECODER_ADVICE);
         }
     }
 }
