@@ -88,3 +88,44 @@ fn the_default_fit_never_loses_to_a_linear_fit_on_a_real_capture() {
         );
     }
 }
+
+/// A fixed analytic basis chooses its maps' space on a real capture, as `auto` does:
+/// item6 (48 lights, 321×321) at `--basis hsh:9`, relight-cli's HSH-27, under the peer
+/// protocol. Until 2026-12-07 a fixed analytic basis kept linear maps (37.65 dB: the
+/// perceptual objective at the λ of its leave-one-out); its display-referred maps score
+/// 39.49 dB, above relight-cli's 39.44 dB with the same basis fitted in sRGB
+/// (shared/reference/peer_baseline.md).
+#[test]
+fn a_fixed_analytic_basis_chooses_its_maps_space_on_a_real_capture() {
+    let Some(lp) = shared_item("item6") else {
+        return;
+    };
+    let capture = Capture::open(&lp).unwrap();
+    let options = EvalOptions {
+        holdout: Holdout::Spread(5),
+        fit: relit::fit::FitOptions {
+            basis: relit::fit::BasisRequest::Fixed(
+                relit::basis::BasisChoice::parse("hsh:9").unwrap(),
+            ),
+            ..Default::default()
+        },
+        storage: relit::storage::Precision::F16,
+        joint: false,
+        mask: None,
+        compress: None,
+        budget: None,
+        budget_bases: 1,
+    };
+    let report = evaluate(&capture, &options, &relit::progress::Silent).unwrap();
+    assert_eq!(report.basis, "hsh:9");
+    assert!(
+        report.color_space.contains("srgb"),
+        "item6 hsh:9 maps: {}",
+        report.color_space
+    );
+    assert!(
+        report.psnr_srgb8_mean > 39.0,
+        "item6 hsh:9: {:.2} dB",
+        report.psnr_srgb8_mean
+    );
+}

@@ -761,9 +761,11 @@ fn choose_basis(
     sub_count: usize,
 ) -> Result<ChosenBasis> {
     let n = dirs.len();
+    // A fixed analytic basis is validated too where the maps' space is open: its
+    // objective, space and λ are then chosen together, as `auto` chooses them.
     let needs_validation = match request {
         BasisRequest::Auto => true,
-        BasisRequest::Fixed(choice) => choice.needs_samples(),
+        BasisRequest::Fixed(choice) => choice.needs_samples() || spaces.len() > 1,
     };
     let Some(sub) = sub.filter(|_| needs_validation) else {
         let BasisRequest::Fixed(choice) = request else {
