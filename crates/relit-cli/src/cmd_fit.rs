@@ -274,8 +274,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 relit::maps::MapSpace::Linear =>
                     format!("linear maps, {} objective", r.objective.name()),
             },
+            // What was chosen: the maps' space and objective, or (linear maps asked
+            // for) the objective alone.
             match (options.objective, options.color_space) {
-                (relit::fit::Objective::Auto, None) => chosen,
+                (relit::fit::Objective::Auto, None | Some(relit::maps::MapSpace::Linear)) => {
+                    chosen
+                }
                 _ => "",
             },
             r.lambda,

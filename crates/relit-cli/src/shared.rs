@@ -13,7 +13,9 @@ use std::sync::Mutex;
 /// What the fit minimises (see the library docs of `relit::fit`).
 #[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum ObjectiveArg {
-    /// Perceptual or linear, whichever predicts left-out images better on screen (leave-one-out).
+    /// Perceptual or linear, whichever predicts left-out images better on screen (validated
+    /// with the basis; by exact leave-one-out for a fixed analytic basis on radiance
+    /// captures).
     Auto,
     /// Squared residuals weighted by the sRGB curve's slope (display-space error).
     Perceptual,
@@ -106,7 +108,9 @@ pub struct FitArgs {
     /// Regulariser of the fit.
     #[arg(long, value_enum, default_value_t = RegularizerArg::Roughness)]
     pub regularizer: RegularizerArg,
-    /// Regularisation weight λ, or `auto` to choose it per capture by leave-one-out.
+    /// Regularisation weight λ, or `auto` to choose it per capture on its own lights
+    /// (validated with the basis; by exact leave-one-out for a fixed analytic basis on
+    /// radiance captures).
     #[arg(long, default_value = "auto")]
     pub lambda: String,
     /// Reweighting passes of the perceptual objective.

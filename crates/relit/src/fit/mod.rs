@@ -745,6 +745,22 @@ type ChosenBasis = (
     Vec<CandidateScore>,
 );
 
+/// Whether a fixed analytic basis is validated as `auto`'s finalists are, which chooses
+/// its maps' space, objective and λ together (those not given): for photographs, judged
+/// on display values, wherever one of them is open. Otherwise the exact leave-one-out
+/// chooses the objective and λ of linear maps. On display values the validation's λ
+/// held out better than the leave-one-out's, on every basis measured, and the fit is
+/// faster (docs/bases.md, "A fixed basis chooses its space too").
+fn validates_fixed(
+    criterion: Criterion,
+    objective: Objective,
+    spaces: &[MapSpace],
+    lambda: Lambda,
+) -> bool {
+    criterion == Criterion::Display
+        && (spaces.len() > 1 || objective == Objective::Auto || lambda == Lambda::Auto)
+}
+
 /// The basis `request` names for `capture`, built (data-driven families from the
 /// subsample `sub`), with the objective, the maps' space and λ its validation chose
 /// where it was validated. `sub` holds linear radiance where `spaces` offers more than
@@ -761,11 +777,11 @@ fn choose_basis(
     sub_count: usize,
 ) -> Result<ChosenBasis> {
     let n = dirs.len();
-    // A fixed analytic basis is validated too where the maps' space is open: its
-    // objective, space and λ are then chosen together, as `auto` chooses them.
     let needs_validation = match request {
         BasisRequest::Auto => true,
-        BasisRequest::Fixed(choice) => choice.needs_samples() || spaces.len() > 1,
+        BasisRequest::Fixed(choice) => {
+            choice.needs_samples() || validates_fixed(criterion, objective, spaces, options.lambda)
+        }
     };
     let Some(sub) = sub.filter(|_| needs_validation) else {
         let BasisRequest::Fixed(choice) = request else {
@@ -1428,7 +1444,10 @@ fn fit_into(
         && (objective == Objective::Auto
             || match &options.basis {
                 BasisRequest::Auto => true,
-                BasisRequest::Fixed(choice) => choice.needs_samples(),
+                BasisRequest::Fixed(choice) => {
+                    choice.needs_samples()
+                        || validates_fixed(criterion, objective, &spaces, options.lambda)
+                }
             });
     // A fit streamed to a sink always keeps the spill file, and takes the linear
     // objective's sums piece by piece from it too, so that no state the size of the maps
