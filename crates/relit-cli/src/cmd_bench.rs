@@ -177,6 +177,10 @@ pub struct Args {
     /// With --peer: the peer's options before the input folder and output path.
     #[arg(long, default_value = "-b hsh -p 27", allow_hyphen_values = true)]
     pub peer_args: String,
+    /// With --fit: `relit fit` options for the timed fit instead of the default one
+    /// (e.g. `--basis hsh:9`, relight-cli's HSH-27).
+    #[arg(long, default_value = "", allow_hyphen_values = true)]
+    pub fit_args: String,
 }
 
 /// One measured case; also the JSON form.
@@ -303,7 +307,13 @@ fn measure(args: Args) -> anyhow::Result<Option<Vec<Row>>> {
         args.cpu_storage.clone()
     };
     if let Some(capture) = &args.fit {
-        crate::fit_bench::run(capture, args.peer.as_deref(), &args.peer_args, args.json)?;
+        crate::fit_bench::run(
+            capture,
+            &args.fit_args,
+            args.peer.as_deref(),
+            &args.peer_args,
+            args.json,
+        )?;
         return Ok(None);
     }
     if !args.load.is_empty() {
@@ -1412,6 +1422,7 @@ mod tests {
             fit: None,
             peer: None,
             peer_args: String::new(),
+            fit_args: String::new(),
         };
         let rows = measure(args).unwrap().unwrap();
         // Three storages, the uniform cases again from a codebook, the basis alone.

@@ -1,4 +1,5 @@
-//! `relit bench --fit CAPTURE [--peer BIN]`: the default fit timed as a user meets it —
+//! `relit bench --fit CAPTURE [--fit-args ARGS] [--peer BIN]`: the default fit (or the
+//! fit `--fit-args` asks for) timed as a user meets it —
 //! a fresh process, from start to file written — with its peak memory and the time of
 //! each stage, beside another RTI fitter run on the same capture in the same run.
 //!
@@ -41,10 +42,21 @@ mod sys {
     }
 }
 
-/// Run `command` to its end: exit status, wall seconds and the child's peak RSS.
-fn run_measured(mut command: Command) -> anyhow::Result<(bool, f64, u64)> {
+/// What a child process wrote to stderr, for the error where it failed.
+fn stderr_of(child: &mut std::process::Child) -> String {
+    use std::io::Read;
+    let mut text = String::new();
+    if let Some(mut err) = child.stderr.take() {
+        let _ = err.read_to_string(&mut text);
+    }
+    text.trim().to_string()
+}
+
+/// Run `command` to its end: exit status (`Err` with its stderr where it failed), wall
+/// seconds and the child's peak RSS.
+fn run_measured(mut command: Command) -> anyhow::Result<(Result<(), String>, f64, u64)> {
     let start = Instant::now();
-    let child = command
+    let mut child = command
         .stdout(std::process::Stdio::null())
         .stderr(std::process::Stdio::piped())
         .spawn()
@@ -64,12 +76,22 @@ fn run_measured(mut command: Command) -> anyhow::Result<(bool, f64, u64)> {
         );
         let wall = start.elapsed().as_secs_f64();
         let ok = status & 0x7f == 0 && (status >> 8) & 0xff == 0;
-        Ok((ok, wall, usage.maxrss_kib.max(0) as u64 * 1024))
+        let outcome = if ok {
+            Ok(())
+        } else {
+            Err(stderr_of(&mut child))
+        };
+        Ok((outcome, wall, usage.maxrss_kib.max(0) as u64 * 1024))
     }
     #[cfg(not(target_os = "linux"))]
     {
         let output = child.wait_with_output()?;
-        Ok((output.status.success(), start.elapsed().as_secs_f64(), 0))
+        let outcome = if output.status.success() {
+            Ok(())
+        } else {
+            Err(String::from_utf8_lossy(&output.stderr).trim().to_string())
+        };
+        Ok((outcome, start.elapsed().as_secs_f64(), 0))
     }
 }
 
@@ -84,7 +106,15 @@ fn bytes_under(path: &Path) -> u64 {
     }
 }
 
-pub fn run(capture: &Path, peer: Option<&Path>, peer_args: &str, json: bool) -> anyhow::Result<()> {
+/// Time `relit fit CAPTURE FIT_ARGS` (the default fit where `fit_args` is empty) and,
+/// with `peer`, `PEER PEER_ARGS FOLDER OUT`, each in a fresh process.
+pub fn run(
+    capture: &Path,
+    fit_args: &str,
+    peer: Option<&Path>,
+    peer_args: &str,
+    json: bool,
+) -> anyhow::Result<()> {
     anyhow::ensure!(
         capture.is_file(),
         "{} is not a capture file",
@@ -96,19 +126,27 @@ pub fn run(capture: &Path, peer: Option<&Path>, peer_args: &str, json: bool) -> 
     let report_path = scratch.join("report.json");
     // The report goes to a file: the child's stdout is not read while it runs.
     let mut shell = Command::new("sh");
-    shell
-        .arg("-c")
-        .arg("exec \"$0\" fit \"$1\" -o \"$2\" --json -q > \"$3\"");
+    shell.arg("-c").arg(
+        "c=\"$1\" o=\"$2\" r=\"$3\"; shift 3; exec \"$0\" fit \"$c\" -o \"$o\" \"$@\" --json -q > \"$r\"",
+    );
     shell
         .arg(&exe)
         .arg(capture)
         .arg(&relit_out)
-        .arg(&report_path);
-    let (ok, wall, rss) = run_measured(shell)?;
-    anyhow::ensure!(ok, "relit fit {} failed", capture.display());
+        .arg(&report_path)
+        .args(fit_args.split_whitespace());
+    let (outcome, wall, rss) = run_measured(shell)?;
+    let extra = if fit_args.trim().is_empty() {
+        String::new()
+    } else {
+        format!(" {}", fit_args.trim())
+    };
+    if let Err(stderr) = outcome {
+        anyhow::bail!("relit fit {}{extra} failed: {stderr}", capture.display());
+    }
     let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&report_path)?)?;
     let relit = Measured {
-        command: format!("relit fit {} -o OUT.exr", capture.display()),
+        command: format!("relit fit {} -o OUT.exr{extra}", capture.display()),
         wall_seconds: wall,
         peak_rss_bytes: rss,
         output_bytes: bytes_under(&relit_out),
@@ -126,8 +164,10 @@ pub fn run(capture: &Path, peer: Option<&Path>, peer_args: &str, json: bool) -> 
                 .arg(folder)
                 .arg(&out);
             let description = format!("{} {peer_args} {} OUT", bin.display(), folder.display());
-            let (ok, wall, rss) = run_measured(command)?;
-            anyhow::ensure!(ok, "the peer failed: {description}");
+            let (outcome, wall, rss) = run_measured(command)?;
+            if let Err(stderr) = outcome {
+                anyhow::bail!("the peer failed: {description}: {stderr}");
+            }
             Some(Measured {
                 command: description,
                 wall_seconds: wall,

@@ -68,6 +68,43 @@ fn bench_fit_times_relit_and_a_peer_as_processes() {
     assert!(json["wall_ratio"].as_f64().is_some() && json["memory_ratio"].as_f64().is_some());
 }
 
+/// `relit bench --fit … --fit-args ARGS` times the fit those options ask for, and a fit
+/// that fails says why (the child's own error), not only that it failed.
+#[test]
+fn bench_fit_times_the_fit_its_arguments_ask_for() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    common::capture_and_fit(d); // cap/: 24×16, 12 lights
+    let bench = |fit_args: &str| {
+        Command::new(env!("CARGO_BIN_EXE_relit"))
+            .current_dir(d)
+            .args([
+                "bench",
+                "--fit",
+                "cap/dirs.lp",
+                "--json",
+                "--fit-args",
+                fit_args,
+            ])
+            .output()
+            .unwrap()
+    };
+    let out = bench("--basis sh:4 --lambda 1e-3");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(json["relit_fit"]["basis"], "sh:4", "{json}");
+    let command = json["relit"]["command"].as_str().unwrap();
+    assert!(command.ends_with("--basis sh:4 --lambda 1e-3"), "{command}");
+    let failed = bench("--basis nope:3");
+    assert!(!failed.status.success());
+    let stderr = String::from_utf8_lossy(&failed.stderr);
+    assert!(stderr.contains("unknown basis `nope`"), "{stderr}");
+}
+
 /// `relit bench --write-capture`: a capture repeated (mirrored, jittered) over a larger
 /// size, with an `.lp` of the same lights, that fits; the source folder is refused as
 /// the output.
