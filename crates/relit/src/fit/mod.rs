@@ -745,20 +745,27 @@ type ChosenBasis = (
     Vec<CandidateScore>,
 );
 
-/// Whether a fixed analytic basis is validated as `auto`'s finalists are, which chooses
-/// its maps' space, objective and λ together (those not given): for photographs, judged
-/// on display values, wherever one of them is open. Otherwise the exact leave-one-out
-/// chooses the objective and λ of linear maps. On display values the validation's λ
-/// held out better than the leave-one-out's, on every basis measured, and the fit is
-/// faster (docs/bases.md, "A fixed basis chooses its space too").
-fn validates_fixed(
+/// Whether the basis `request` names is validated on the subsample, which chooses the
+/// maps' space, objective and λ with it (those not given): `auto` and the data-driven
+/// families always; a fixed analytic basis for photographs, judged on display values,
+/// wherever its space, objective or λ is open. Otherwise the exact leave-one-out chooses
+/// the objective and λ of linear maps. On display values the validation's λ held out
+/// better than the leave-one-out's on every basis measured, and the fit is faster
+/// (docs/bases.md, "A fixed basis chooses its space too").
+fn is_validated(
+    request: &BasisRequest,
     criterion: Criterion,
     objective: Objective,
     spaces: &[MapSpace],
     lambda: Lambda,
 ) -> bool {
-    criterion == Criterion::Display
-        && (spaces.len() > 1 || objective == Objective::Auto || lambda == Lambda::Auto)
+    match request {
+        BasisRequest::Auto => true,
+        BasisRequest::Fixed(choice) => {
+            let open = spaces.len() > 1 || objective == Objective::Auto || lambda == Lambda::Auto;
+            choice.needs_samples() || (criterion == Criterion::Display && open)
+        }
+    }
 }
 
 /// The basis `request` names for `capture`, built (data-driven families from the
@@ -777,12 +784,7 @@ fn choose_basis(
     sub_count: usize,
 ) -> Result<ChosenBasis> {
     let n = dirs.len();
-    let needs_validation = match request {
-        BasisRequest::Auto => true,
-        BasisRequest::Fixed(choice) => {
-            choice.needs_samples() || validates_fixed(criterion, objective, spaces, options.lambda)
-        }
-    };
+    let needs_validation = is_validated(request, criterion, objective, spaces, options.lambda);
     let Some(sub) = sub.filter(|_| needs_validation) else {
         let BasisRequest::Fixed(choice) = request else {
             unreachable!("auto always has samples")
@@ -1442,13 +1444,13 @@ fn fit_into(
     // read, so that the first pass keeps only the chosen objective's state.
     let early = options.plan.is_none()
         && (objective == Objective::Auto
-            || match &options.basis {
-                BasisRequest::Auto => true,
-                BasisRequest::Fixed(choice) => {
-                    choice.needs_samples()
-                        || validates_fixed(criterion, objective, &spaces, options.lambda)
-                }
-            });
+            || is_validated(
+                &options.basis,
+                criterion,
+                objective,
+                &spaces,
+                options.lambda,
+            ));
     // A fit streamed to a sink always keeps the spill file, and takes the linear
     // objective's sums piece by piece from it too, so that no state the size of the maps
     // is held.
