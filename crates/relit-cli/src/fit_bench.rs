@@ -42,16 +42,6 @@ mod sys {
     }
 }
 
-/// What a child process wrote to stderr, for the error where it failed.
-fn stderr_of(child: &mut std::process::Child) -> String {
-    use std::io::Read;
-    let mut text = String::new();
-    if let Some(mut err) = child.stderr.take() {
-        let _ = err.read_to_string(&mut text);
-    }
-    text.trim().to_string()
-}
-
 /// Run `command` to its end: exit status (`Err` with its stderr where it failed), wall
 /// seconds and the child's peak RSS.
 fn run_measured(mut command: Command) -> anyhow::Result<(Result<(), String>, f64, u64)> {
@@ -64,7 +54,15 @@ fn run_measured(mut command: Command) -> anyhow::Result<(Result<(), String>, f64
     #[cfg(target_os = "linux")]
     {
         let pid = child.id() as i32;
-        // The child's stderr is read only after it ends: these fitters write little.
+        // Drained while the child runs, so that a child writing more than a pipe holds
+        // does not wait on us while we wait on it; shown where it fails.
+        let stderr = child.stderr.take().map(|mut err| {
+            std::thread::spawn(move || {
+                let mut text = String::new();
+                let _ = std::io::Read::read_to_string(&mut err, &mut text);
+                text
+            })
+        });
         let mut status = 0i32;
         let mut usage: sys::Rusage = unsafe { std::mem::zeroed() };
         // SAFETY: `pid` is our own unreaped child; status and usage are valid pointers.
@@ -76,10 +74,13 @@ fn run_measured(mut command: Command) -> anyhow::Result<(Result<(), String>, f64
         );
         let wall = start.elapsed().as_secs_f64();
         let ok = status & 0x7f == 0 && (status >> 8) & 0xff == 0;
+        let stderr = stderr
+            .and_then(|reader| reader.join().ok())
+            .unwrap_or_default();
         let outcome = if ok {
             Ok(())
         } else {
-            Err(stderr_of(&mut child))
+            Err(stderr.trim().to_string())
         };
         Ok((outcome, wall, usage.maxrss_kib.max(0) as u64 * 1024))
     }
