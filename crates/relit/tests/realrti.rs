@@ -23,6 +23,24 @@ fn peer_protocol(fit: relit::fit::FitOptions, joint: bool) -> EvalOptions {
     }
 }
 
+/// `item` evaluated under the peer protocol, one fit per hold-out, at the fixed basis
+/// `basis` and the maps' space `space` (`None`: chosen); `None` where the shared data
+/// is absent.
+fn fixed_basis_eval(
+    item: &str,
+    basis: &str,
+    space: Option<relit::maps::MapSpace>,
+) -> Option<relit::eval::EvalReport> {
+    let capture = Capture::open(&shared_item(item)?).unwrap();
+    let fit = relit::fit::FitOptions {
+        basis: relit::fit::BasisRequest::Fixed(relit::basis::BasisChoice::parse(basis).unwrap()),
+        color_space: space,
+        ..Default::default()
+    };
+    let options = peer_protocol(fit, false);
+    Some(evaluate(&capture, &options, &relit::progress::Silent).unwrap())
+}
+
 /// item1 (60 lights, 487×439, a painted wooden door) under the peer protocol: five
 /// hold-outs at round(i·(N−1)/4), one fit each on the other 59, the default fit
 /// (`--basis auto`, ≤ 25 coefficients), 8-bit sRGB PSNR over the whole frame.
@@ -95,17 +113,9 @@ fn the_default_fit_never_loses_to_a_linear_fit_on_a_real_capture() {
 /// (shared/reference/peer_baseline.md).
 #[test]
 fn a_fixed_analytic_basis_chooses_its_maps_space_on_a_real_capture() {
-    let Some(lp) = shared_item("item6") else {
+    let Some(report) = fixed_basis_eval("item6", "hsh:9", None) else {
         return;
     };
-    let capture = Capture::open(&lp).unwrap();
-    let hsh9 = relit::basis::BasisChoice::parse("hsh:9").unwrap();
-    let fit = relit::fit::FitOptions {
-        basis: relit::fit::BasisRequest::Fixed(hsh9),
-        ..Default::default()
-    };
-    let options = peer_protocol(fit, false);
-    let report = evaluate(&capture, &options, &relit::progress::Silent).unwrap();
     assert_eq!(report.basis, "hsh:9");
     assert!(
         report.color_space.contains("srgb"),
@@ -125,22 +135,9 @@ fn a_fixed_analytic_basis_chooses_its_maps_space_on_a_real_capture() {
 /// 1e-3 gives 24.74 (relight-cli's best on this item: 24.20, RBF-27).
 #[test]
 fn display_referred_maps_of_a_fixed_basis_take_the_validations_lambda() {
-    let Some(lp) = shared_item("item9") else {
+    let Some(report) = fixed_basis_eval("item9", "sh:25", Some(relit::maps::MapSpace::Srgb)) else {
         return;
     };
-    let capture = Capture::open(&lp).unwrap();
-    let sh25 = relit::basis::BasisChoice::parse("sh:25").unwrap();
-    let fit = relit::fit::FitOptions {
-        basis: relit::fit::BasisRequest::Fixed(sh25),
-        color_space: Some(relit::maps::MapSpace::Srgb),
-        ..Default::default()
-    };
-    let report = evaluate(
-        &capture,
-        &peer_protocol(fit, false),
-        &relit::progress::Silent,
-    )
-    .unwrap();
     assert!(
         report.psnr_srgb8_mean > 23.5,
         "item9 sh:25 display-referred: {:.2} dB",
