@@ -21,8 +21,10 @@
 //!   of the sRGB curve at the sample's radiance `v`, so a linear-space residual counts
 //!   as much as the display-space error it causes. `v` is the observation first, then
 //!   the prediction (iteratively reweighted, [`FitOptions::reweights`] times), which keeps
-//!   a highlight the basis cannot follow from dominating the fit. Weights differ per
-//!   pixel, so every pixel gets its own normal equations. The images are first
+//!   a highlight the basis cannot follow from dominating the fit. A pixel's three
+//!   channels share their weights (the mean over the channels, each channel's secant
+//!   weights first normalised over the lights), so one normal matrix serves all three.
+//!   Weights differ per pixel, so every pixel gets its own normal equations. The images are first
 //!   rebinned into a piece-major spill file on disk (the seed's rebinning); each piece
 //!   (a strip of rows, or part of a tile) of all images is then read at once and solved pixel by pixel with
 //!   matrix products (`W · vec(B_j B_jᵀ)`) and a Cholesky factorisation per pixel.
@@ -1237,6 +1239,25 @@ fn secant_weight_encoded(pred: f64, obs: f64, pred_encoded: f64, obs_encoded: f6
     s * s
 }
 
+/// The reweighted pass's weight of each light from a pixel's channels' secant weights
+/// (one slice per channel, per light): each channel's divided by its mean over the
+/// lights, then the mean over the channels (`per_pixel::add_normalized`, lane by lane).
+/// A channel whose weights are all zero adds nothing.
+fn normalized_mean(channels: &[Vec<f64>]) -> Vec<f64> {
+    let n = channels.first().map_or(0, Vec::len);
+    let mut out = vec![0.0; n];
+    for weights in channels {
+        let sum: f64 = weights.iter().sum();
+        if sum > 0.0 {
+            let scale = n as f64 / (channels.len() as f64 * sum);
+            for (o, &w) in out.iter_mut().zip(weights) {
+                *o += w * scale;
+            }
+        }
+    }
+    out
+}
+
 /// [`srgb_extended`] of every value of `src`, bit for bit, the curve a batch at a time.
 fn srgb_extended_batch(src: &[f64], dst: &mut [f64]) {
     color::linear_to_srgb_tabulated_batch(src, dst);
@@ -2320,15 +2341,18 @@ fn loo_scores(
         return loo_scores_shared(design, sub, count, ladder, relevance);
     }
     let (k, n) = (design.k, design.n);
-    let normal_equations = |w: &[f64], obs: &[f64], m: &mut [f64], b: &mut [f64]| {
-        m.iter_mut().for_each(|v| *v = 0.0);
-        b.iter_mut().for_each(|v| *v = 0.0);
-        for j in 0..n {
+    let reweights = match objective {
+        LooObjective::Linear => 0,
+        LooObjective::Perceptual { reweights } => reweights,
+    };
+    // The normal matrix of weights `w` (both triangles) and the weights' total.
+    let normal = |w: &[f64]| -> (Vec<f64>, f64) {
+        let mut m = vec![0.0; k * k];
+        for (j, &wj) in w.iter().enumerate() {
             let row = design.row(j);
             for r in 0..k {
-                b[r] += w[j] * row[r] * obs[j];
                 for cc in r..k {
-                    m[r * k + cc] += w[j] * row[r] * row[cc];
+                    m[r * k + cc] += wj * row[r] * row[cc];
                 }
             }
         }
@@ -2337,95 +2361,118 @@ fn loo_scores(
                 m[r * k + cc] = m[cc * k + r];
             }
         }
-        w.iter().sum::<f64>()
+        (m, w.iter().sum())
     };
-    let totals: Vec<[f64; 8]> = (0..count * 3)
+    // The factor of a normal matrix regularised at λ, if positive definite.
+    let factor = |(m, total): &(Vec<f64>, f64), lambda: f64| -> Option<Vec<f64>> {
+        let mut f = m.clone();
+        design.regularize(&mut f, lambda, *total);
+        linalg::cholesky(&mut f, k).then_some(f)
+    };
+    let solve = |f: &[f64], w: &[f64], obs: &[f64]| -> Vec<f64> {
+        let mut b = vec![0.0; k];
+        for (j, (&wj, &o)) in w.iter().zip(obs).enumerate() {
+            for (b, &a) in b.iter_mut().zip(design.row(j)) {
+                *b += wj * a * o;
+            }
+        }
+        linalg::cholesky_solve(f, k, &mut b);
+        b
+    };
+    let predict = |j: usize, coef: &[f64]| -> f64 {
+        design.row(j).iter().zip(coef).map(|(a, b)| a * b).sum()
+    };
+    let totals: Vec<[f64; 8]> = (0..count)
         .into_par_iter()
         .fold(
             || vec![[0.0f64; 8]; ladder.len()],
-            |mut acc, item| {
-                let (s, c) = (item / 3, item % 3);
-                let obs: Vec<f64> = (0..n).map(|j| sub[(s * n + j) * 3 + c] as f64).collect();
-                // The first weights as the fit's first pass has them (`solve_chunk`):
-                // the sample's own, or the mean over the pixel's channels when they
-                // will be reweighted.
-                let first: Vec<f64> = obs
-                    .iter()
-                    .enumerate()
-                    .map(|(j, &v)| match objective {
-                        LooObjective::Linear => design.q[j],
-                        LooObjective::Perceptual { reweights: 0 } => {
-                            design.q[j] * perceptual_weight(v)
-                        }
-                        LooObjective::Perceptual { .. } => {
-                            let pixel = &sub[(s * n + j) * 3..(s * n + j) * 3 + 3];
-                            let mean = pixel
-                                .iter()
-                                .map(|&v| perceptual_weight(v as f64))
-                                .sum::<f64>()
-                                / 3.0;
+            |mut acc, s| {
+                let obs: [Vec<f64>; 3] = std::array::from_fn(|c| {
+                    (0..n).map(|j| sub[(s * n + j) * 3 + c] as f64).collect()
+                });
+                // The first weights as the fit's first pass has them
+                // (`per_pixel::solve_chunk`): each channel its own, or, where they will
+                // be reweighted, one set for the three, the mean of theirs. Each set of
+                // weights with the channels it weighs.
+                let first: Vec<(Vec<f64>, std::ops::Range<usize>)> = if reweights == 0 {
+                    (0..3)
+                        .map(|c| {
+                            let w = (0..n)
+                                .map(|j| match objective {
+                                    LooObjective::Linear => design.q[j],
+                                    _ => design.q[j] * perceptual_weight(obs[c][j]),
+                                })
+                                .collect();
+                            (w, c..c + 1)
+                        })
+                        .collect()
+                } else {
+                    let w = (0..n)
+                        .map(|j| {
+                            let mean =
+                                obs.iter().map(|o| perceptual_weight(o[j])).sum::<f64>() / 3.0;
                             design.q[j] * mean
-                        }
-                    })
-                    .collect();
-                let mut m0 = vec![0.0; k * k];
-                let mut b0 = vec![0.0; k];
-                let total0 = normal_equations(&first, &obs, &mut m0, &mut b0);
+                        })
+                        .collect();
+                    vec![(w, 0..3)]
+                };
+                let first_normal: Vec<(Vec<f64>, f64)> =
+                    first.iter().map(|(w, _)| normal(w)).collect();
                 let mut z = vec![0.0; k];
-                let (mut w, mut mw, mut bw) = (first.clone(), m0.clone(), b0.clone());
+                let mut leverage = vec![0.0f64; n];
                 for (li, &lambda) in ladder.iter().enumerate() {
-                    // The fit's own weights at this λ: the observation's, then reweighted.
-                    w.copy_from_slice(&first);
-                    mw.copy_from_slice(&m0);
-                    bw.copy_from_slice(&b0);
-                    let mut total = total0;
-                    let reweights = match objective {
-                        LooObjective::Linear => 0,
-                        LooObjective::Perceptual { reweights } => reweights,
-                    };
+                    // The fit's own weights at this λ: the first ones, then reweighted
+                    // (the three channels together, as the fit's reweighted passes).
+                    let mut sets = first.clone();
+                    let mut normals = first_normal.clone();
                     let mut singular = false;
                     for _ in 0..reweights {
-                        let mut m = mw.clone();
-                        design.regularize(&mut m, lambda, total);
-                        if !linalg::cholesky(&mut m, k) {
+                        let Some(f) = factor(&normals[0], lambda) else {
                             singular = true;
                             break;
-                        }
-                        let mut coef = bw.clone();
-                        linalg::cholesky_solve(&m, k, &mut coef);
-                        for j in 0..n {
-                            let pred: f64 =
-                                design.row(j).iter().zip(&coef).map(|(a, b)| a * b).sum();
-                            w[j] = design.q[j] * secant_weight(pred, obs[j]);
-                        }
-                        total = normal_equations(&w, &obs, &mut mw, &mut bw);
+                        };
+                        let w = &sets[0].0;
+                        let secants: Vec<Vec<f64>> = obs
+                            .iter()
+                            .map(|o| {
+                                let coef = solve(&f, w, o);
+                                (0..n)
+                                    .map(|j| design.q[j] * secant_weight(predict(j, &coef), o[j]))
+                                    .collect()
+                            })
+                            .collect();
+                        sets[0].0 = normalized_mean(&secants);
+                        normals[0] = normal(&sets[0].0);
                     }
-                    let mut m = mw.clone();
-                    design.regularize(&mut m, lambda, total);
-                    if singular || !linalg::cholesky(&mut m, k) {
-                        acc[li][0] += f64::INFINITY;
-                        acc[li][2] += f64::INFINITY;
-                        continue;
-                    }
-                    let mut coef = bw.clone();
-                    linalg::cholesky_solve(&m, k, &mut coef);
-                    for j in 0..n {
-                        let row = design.row(j);
-                        z.copy_from_slice(row);
-                        linalg::forward_solve(&m, k, &mut z);
-                        let leverage = w[j] * z.iter().map(|v| v * v).sum::<f64>();
-                        let pred: f64 = row.iter().zip(&coef).map(|(a, b)| a * b).sum();
-                        let e = (obs[j] - pred) / (1.0 - leverage).max(1e-6);
-                        let shown = srgb_shown(obs[j]) - srgb_shown(obs[j] - e);
-                        acc[li][0] += w[j] * e * e;
-                        acc[li][1] += w[j];
-                        let seen = design.q[j] * relevance[j];
-                        acc[li][2] += seen * shown * shown;
-                        acc[li][3] += seen;
-                        acc[li][4] += seen * srgb_on_screen(obs[j] - e);
-                        acc[li][5] += seen * srgb_on_screen(obs[j]);
-                        acc[li][6] += seen * (obs[j] - e);
-                        acc[li][7] += seen * obs[j];
+                    for ((w, channels), normal) in sets.iter().zip(&normals) {
+                        let f = factor(normal, lambda).filter(|_| !singular);
+                        let Some(f) = f else {
+                            acc[li][0] += f64::INFINITY;
+                            acc[li][2] += f64::INFINITY;
+                            continue;
+                        };
+                        for (j, leverage) in leverage.iter_mut().enumerate() {
+                            z.copy_from_slice(design.row(j));
+                            linalg::forward_solve(&f, k, &mut z);
+                            *leverage = w[j] * z.iter().map(|v| v * v).sum::<f64>();
+                        }
+                        for obs in &obs[channels.clone()] {
+                            let coef = solve(&f, w, obs);
+                            for j in 0..n {
+                                let pred = predict(j, &coef);
+                                let e = (obs[j] - pred) / (1.0 - leverage[j]).max(1e-6);
+                                let shown = srgb_shown(obs[j]) - srgb_shown(obs[j] - e);
+                                acc[li][0] += w[j] * e * e;
+                                acc[li][1] += w[j];
+                                let seen = design.q[j] * relevance[j];
+                                acc[li][2] += seen * shown * shown;
+                                acc[li][3] += seen;
+                                acc[li][4] += seen * srgb_on_screen(obs[j] - e);
+                                acc[li][5] += seen * srgb_on_screen(obs[j]);
+                                acc[li][6] += seen * (obs[j] - e);
+                                acc[li][7] += seen * obs[j];
+                            }
+                        }
                     }
                 }
                 acc

@@ -32,6 +32,9 @@ struct Scratch {
     slopes: Vec<Lanes>,
     /// Each sample's weight: per group, per light, the lanes (one channel's block).
     weights: Vec<LanesF32>,
+    /// The reweighted pass's weights as they are summed over the channels, laid out as
+    /// `weights`.
+    shared: Vec<Lanes>,
     /// A lane group's weighted observations, light by light.
     weighted_obs: Vec<LanesF32>,
     /// A lane group's normal matrix sums (the packed pairs, padded to a tile).
@@ -62,6 +65,7 @@ impl Scratch {
             encoded: vec![[0.0; LANES]; 3 * groups * n],
             slopes: vec![[0.0; LANES]; 3 * groups * n],
             weights: vec![[0.0; LANES]; groups * n],
+            shared: vec![[0.0; LANES]; groups * n],
             weighted_obs: vec![[0.0; LANES]; n],
             sums: vec![[0.0; LANES]; linalg::tiled(t)],
             rhs: [
@@ -327,12 +331,18 @@ struct Tables<'a> {
 /// Iteratively reweighted solve of `len` pixels' observations in `scratch.obs` into
 /// `scratch.coef` (both laid out in lane groups: [`Scratch`]).
 ///
-/// Each channel's last solve is weighted by its own samples. The first prediction, which
-/// only sets the reweighted passes' weights, comes from one solve per pixel whose
-/// weights are the mean over the channels of their observation weights: the three
-/// channels then share one normal matrix and one factorisation (a third of the work of
-/// that pass), and the held-out PSNR on the eight shared RTI items moved by at most
-/// 0.01 dB (scripts/realrti_table.py, 2026-12-05).
+/// A pixel's three channels share one normal matrix and one factorisation in every
+/// pass. The first pass weighs each light by the mean over the channels of their
+/// observation weights; each reweighted pass by the mean over the channels of their
+/// secant weights, each channel's first divided by its mean over the lights
+/// ([`add_normalized`]), so that the darkest channel, whose sRGB slopes are the
+/// steepest, does not alone decide the shape. Against each channel reweighted by its
+/// own secants (a normal matrix and a factorisation per channel) this took 6–20 % off
+/// the fit where the perceptual objective is fitted, and moved the held-out PSNR of the
+/// eight shared RTI items by −0.09 … +0.05 dB (docs/bases.md, "The reweighted pass
+/// shared too").
+///
+/// `reweights == 0` keeps each channel's own observation weights (a solve per channel).
 ///
 /// `looked_up`: `scratch.encoded` and `scratch.slopes` already hold each observation's
 /// encoding and perceptual weight ([`CodeTables::look_up`]); otherwise they are
@@ -372,8 +382,9 @@ fn solve_chunk(tables: &Tables, reweights: usize, len: usize, s: &mut Scratch, l
     });
     weighted_solve(tables, len, 0..3, s);
     let n_cols = tables.a_t.len() / k;
-    for c in 0..3 {
-        for _ in 0..reweights {
+    for _ in 0..reweights {
+        s.shared[..block].fill([0.0; LANES]);
+        for c in 0..3 {
             for g in 0..groups {
                 let coef = &s.coef[(c * groups + g) * k..(c * groups + g + 1) * k];
                 linalg::lane_products_f64(coef, tables.a_t, n_cols, &mut s.pred_tile);
@@ -391,7 +402,38 @@ fn solve_chunk(tables: &Tables, reweights: usize, len: usize, s: &mut Scratch, l
                 [&s.pred[..block], obs],
                 [&s.pred_encoded[..block], obs_encoded],
             );
-            weighted_solve(tables, len, c..c + 1, s);
+            add_normalized(&mut s.shared[..block], &s.weights[..block], n);
+        }
+        for (w, shared) in s.weights[..block].iter_mut().zip(&s.shared[..block]) {
+            *w = shared.map(|v| v as f32);
+        }
+        weighted_solve(tables, len, 0..3, s);
+    }
+}
+
+/// Add one channel's weights `weights` (lane groups of `n` lights) to `shared`, each lane
+/// divided by its mean over the lights and by the three channels: summed over the
+/// channels, a lane's weights average one. A lane whose weights are all zero adds
+/// nothing.
+fn add_normalized(shared: &mut [Lanes], weights: &[LanesF32], n: usize) {
+    for (shared, weights) in shared.chunks_exact_mut(n).zip(weights.chunks_exact(n)) {
+        let mut sum = [0.0f64; LANES];
+        for w in weights {
+            for l in 0..LANES {
+                sum[l] += w[l] as f64;
+            }
+        }
+        let scale: Lanes = std::array::from_fn(|l| {
+            if sum[l] > 0.0 {
+                n as f64 / (3.0 * sum[l])
+            } else {
+                0.0
+            }
+        });
+        for (dst, w) in shared.iter_mut().zip(weights) {
+            for l in 0..LANES {
+                dst[l] += w[l] as f64 * scale[l];
+            }
         }
     }
 }

@@ -481,6 +481,100 @@ fn shared_leave_one_out_equals_the_per_pixel_one() {
     }
 }
 
+/// The reweighted perceptual leave-one-out, against refitting without each light in
+/// turn: the pixel's weights as the fit makes them (the channels' mean observation
+/// weights, then one pass of their normalised secant weights, shared), then held fixed
+/// while each light is left out, the regularisation's total kept.
+#[test]
+fn the_reweighted_leave_one_out_is_each_light_refitted_without_it() {
+    let dirs = hemisphere_fibonacci(24);
+    let (n, k) = (dirs.len(), 9);
+    let sh = crate::basis::BasisChoice::parse("sh:9").unwrap();
+    let design = Design::new(&dirs, sh.build(&[], None).unwrap(), Regularizer::Roughness);
+    let count = 3;
+    // Channels of different brightness, well inside the curved part of the sRGB curve.
+    let sub: Vec<f32> = (0..count * n * 3)
+        .map(|i| (0.02 + 0.5 * ((i * 37 % 101) as f32 / 101.0)) * [1.0, 0.4, 0.1][i % 3])
+        .collect();
+    let relevance = vec![1.0; n];
+    let lambda = 1e-3;
+    let got = loo_scores(
+        &design,
+        &sub,
+        count,
+        LooObjective::Perceptual { reweights: 1 },
+        &[lambda],
+        &relevance,
+    )[0];
+    let solve = |w: &[f64], obs: &[f64], skip: Option<usize>, total: f64| -> Vec<f64> {
+        let (mut m, mut b) = (vec![0.0; k * k], vec![0.0; k]);
+        for j in (0..n).filter(|&j| Some(j) != skip) {
+            let row = design.row(j);
+            for r in 0..k {
+                b[r] += w[j] * row[r] * obs[j];
+                for c in 0..k {
+                    m[r * k + c] += w[j] * row[r] * row[c];
+                }
+            }
+        }
+        design.regularize(&mut m, lambda, total);
+        assert!(linalg::cholesky(&mut m, k));
+        linalg::cholesky_solve(&m, k, &mut b);
+        b
+    };
+    let predict = |j: usize, coef: &[f64]| -> f64 {
+        design.row(j).iter().zip(coef).map(|(a, b)| a * b).sum()
+    };
+    let (mut weighted, mut weights, mut shown, mut seen) = (0.0, 0.0, 0.0, 0.0);
+    for p in 0..count {
+        let obs: Vec<Vec<f64>> = (0..3)
+            .map(|c| (0..n).map(|j| sub[(p * n + j) * 3 + c] as f64).collect())
+            .collect();
+        let first: Vec<f64> = (0..n)
+            .map(|j| design.q[j] * (0..3).map(|c| perceptual_weight(obs[c][j])).sum::<f64>() / 3.0)
+            .collect();
+        let total: f64 = first.iter().sum();
+        let secants: Vec<Vec<f64>> = obs
+            .iter()
+            .map(|o| {
+                let coef = solve(&first, o, None, total);
+                (0..n)
+                    .map(|j| design.q[j] * secant_weight(predict(j, &coef), o[j]))
+                    .collect()
+            })
+            .collect();
+        let w: Vec<f64> = (0..n)
+            .map(|j| {
+                secants
+                    .iter()
+                    .map(|s| s[j] / (s.iter().sum::<f64>() / n as f64))
+                    .sum::<f64>()
+                    / 3.0
+            })
+            .collect();
+        let total: f64 = w.iter().sum();
+        for o in &obs {
+            for j in 0..n {
+                let e = o[j] - predict(j, &solve(&w, o, Some(j), total));
+                weighted += w[j] * e * e;
+                weights += w[j];
+                let d = srgb_shown(o[j]) - srgb_shown(o[j] - e);
+                shown += design.q[j] * d * d;
+                seen += design.q[j];
+            }
+        }
+    }
+    let (weighted, display) = (weighted / weights, shown / seen);
+    assert!(
+        (got.weighted - weighted).abs() <= 1e-9 * weighted,
+        "{got:?}: refitted {weighted}"
+    );
+    assert!(
+        (got.display - display).abs() <= 1e-9 * display,
+        "{got:?}: refitted {display}"
+    );
+}
+
 #[test]
 fn the_basis_choice_judges_radiance_captures_in_linear_and_photographs_on_screen() {
     let plane = crate::synth::BumpyPlane {
@@ -626,13 +720,16 @@ fn the_choice_screens_every_candidate_and_validates_only_its_finalists_in_full()
 
 /// The perceptual fit's passes, written out plainly for one pixel at a time: the first
 /// solve weighted by the mean over the channels of their observation weights
-/// (`shared_first`), or by each channel's own; then one pass per channel reweighted by
-/// the secants to its prediction.
+/// (`shared_first`), or by each channel's own; then one pass weighted by the mean over
+/// the channels of the secants to each channel's prediction, each channel's secants
+/// first divided by their mean over the lights (`shared_reweight`), or each channel by
+/// its own secants.
 fn plain_perceptual_fit(
     design: &Design,
     images: &[ImageRgb],
     lambda: f64,
     shared_first: bool,
+    shared_reweight: bool,
 ) -> Vec<f64> {
     let (k, n) = (design.k, design.n);
     let pixels = images[0].width * images[0].height;
@@ -657,21 +754,39 @@ fn plain_perceptual_fit(
         let obs: Vec<Vec<f64>> = (0..3)
             .map(|c| images.iter().map(|im| im.data[3 * p + c] as f64).collect())
             .collect();
+        let secants: Vec<Vec<f64>> = (0..3)
+            .map(|c| {
+                let first: Vec<f64> = (0..n)
+                    .map(|j| match shared_first {
+                        true => (0..3).map(|c| perceptual_weight(obs[c][j])).sum::<f64>() / 3.0,
+                        false => perceptual_weight(obs[c][j]),
+                    })
+                    .collect();
+                let coef = solve(&first, &obs[c]);
+                (0..n)
+                    .map(|j| {
+                        let pred: f64 = design.row(j).iter().zip(&coef).map(|(a, b)| a * b).sum();
+                        secant_weight(pred, obs[c][j])
+                    })
+                    .collect()
+            })
+            .collect();
+        let mean_over_lights = |w: &[f64]| w.iter().sum::<f64>() / n as f64;
+        let shared: Vec<f64> = (0..n)
+            .map(|j| {
+                (0..3)
+                    .map(|c| secants[c][j] / mean_over_lights(&secants[c]))
+                    .sum::<f64>()
+                    / 3.0
+            })
+            .collect();
         for c in 0..3 {
-            let first: Vec<f64> = (0..n)
-                .map(|j| match shared_first {
-                    true => (0..3).map(|c| perceptual_weight(obs[c][j])).sum::<f64>() / 3.0,
-                    false => perceptual_weight(obs[c][j]),
-                })
-                .collect();
-            let coef = solve(&first, &obs[c]);
-            let secant: Vec<f64> = (0..n)
-                .map(|j| {
-                    let pred: f64 = design.row(j).iter().zip(&coef).map(|(a, b)| a * b).sum();
-                    secant_weight(pred, obs[c][j])
-                })
-                .collect();
-            for (i, v) in solve(&secant, &obs[c]).into_iter().enumerate() {
+            let weights = if shared_reweight {
+                &shared
+            } else {
+                &secants[c]
+            };
+            for (i, v) in solve(weights, &obs[c]).into_iter().enumerate() {
                 out[(p * k + i) * 3 + c] = v;
             }
         }
@@ -680,7 +795,7 @@ fn plain_perceptual_fit(
 }
 
 #[test]
-fn the_perceptual_fit_shares_its_first_weights_across_channels_and_reweights_each() {
+fn the_perceptual_fit_weighs_a_pixels_channels_alike_in_every_pass() {
     // Four bands of data fitted with three, so that the weights matter, in colours whose
     // channels differ by 20× in radiance, so that their sRGB weights differ too.
     let (w, h) = (6, 4);
@@ -719,11 +834,16 @@ fn the_perceptual_fit_shares_its_first_weights_across_channels_and_reweights_eac
         }
         worst
     };
-    let shared = error(&plain_perceptual_fit(&design, &images, lambda, true));
-    let own = error(&plain_perceptual_fit(&design, &images, lambda, false));
+    let shared = error(&plain_perceptual_fit(&design, &images, lambda, true, true));
     assert!(shared < 2e-5, "{shared}");
-    assert!(
-        own > 10.0 * shared,
-        "own first weights {own}, shared {shared}"
-    );
+    // Either pass weighted per channel instead is far from the fit.
+    for (first, reweight) in [(false, true), (true, false)] {
+        let other = error(&plain_perceptual_fit(
+            &design, &images, lambda, first, reweight,
+        ));
+        assert!(
+            other > 10.0 * shared,
+            "shared first pass {first}, shared reweight {reweight}: {other} against {shared}"
+        );
+    }
 }
