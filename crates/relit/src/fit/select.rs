@@ -393,6 +393,15 @@ pub(super) fn validate(
                 light_relevance(&radiance, sub.count, n)
             }
         };
+        // An analytic basis' perceptual systems summed over every light once, each
+        // fold's then the sums less its held-out lights.
+        let perceptual = grouped.iter().any(|(o, _)| *o == Objective::Perceptual);
+        let full = (perceptual && space == MapSpace::Linear && !largest.needs_samples())
+            .then(|| -> Result<FullSums> {
+                let basis = largest.build(dirs, None)?;
+                Ok(FullSums::new(basis.as_ref(), dirs, q, sub))
+            })
+            .transpose()?;
         // Folds in parallel too: a fold's basis is built on one thread, and two folds
         // keep both cores of a small machine busy where one fold's blocks would not.
         let fold_results = (0..folds)
@@ -410,6 +419,7 @@ pub(super) fn validate(
                     folds,
                     fold,
                     penalties,
+                    full.as_ref(),
                 )
             })
             .collect::<Result<Vec<_>>>()?;
@@ -459,6 +469,7 @@ fn fold_result(
     folds: usize,
     fold: usize,
     penalties: &Penalties,
+    full: Option<&FullSums>,
 ) -> Result<FoldErrors> {
     let n = sub.n;
     let series = sub.count * 3;
@@ -481,6 +492,18 @@ fn fold_result(
     let held_dirs: Vec<Vec3> = held.iter().map(|&j| dirs[j]).collect();
     let q_train: Vec<f64> = train.iter().map(|&j| q[j]).collect();
     let penalty = penalties.of(basis.as_ref(), regularizer, choice.needs_samples());
+    let lights = FoldLights {
+        train: &train,
+        held: &held,
+        train_dirs: &train_dirs,
+        held_dirs: &held_dirs,
+        q_train: &q_train,
+        q,
+    };
+    // The sums over every light serve this fold where its basis is theirs (an analytic
+    // basis built on the fold's lights is the one built on all of them, save where the
+    // fold's lights change its domain).
+    let full = full.filter(|f| f.spec == basis.spec());
     let errors = objectives
         .iter()
         .map(|(objective, ladder)| {
@@ -491,16 +514,154 @@ fn fold_result(
                 *objective,
                 ladder,
                 &penalty,
-                &train_dirs,
-                &held_dirs,
-                &q_train,
+                &lights,
                 &values,
-                &held,
                 sub,
+                full,
             )
         })
         .collect();
     Ok((held, errors))
+}
+
+/// One fold's lights: those it trains on and those it holds out, with their directions
+/// and quadrature weights.
+#[derive(Clone, Copy)]
+struct FoldLights<'a> {
+    train: &'a [usize],
+    held: &'a [usize],
+    train_dirs: &'a [Vec3],
+    held_dirs: &'a [Vec3],
+    /// The training lights' quadrature weights.
+    q_train: &'a [f64],
+    /// Every captured light's.
+    q: &'a [f64],
+}
+
+/// A perceptual validation's normal equations over every captured light, per lane group
+/// of the subsample's pixels, for an analytic basis: the same basis in every fold, so a
+/// fold's own are these less its held-out lights' terms (the held-out tenth summed
+/// instead of the training nine tenths).
+pub(super) struct FullSums {
+    /// The basis they were summed for: a fold whose basis differs sums its own.
+    spec: BasisSpec,
+    groups: Vec<GroupSums>,
+}
+
+/// [`FullSums`] of one lane group of pixels.
+struct GroupSums {
+    /// The weighted outer products' sums (packed upper triangle, tiled).
+    sums: Vec<Lanes>,
+    /// Each channel's weighted observations times the rows (tiled).
+    rhs: [Vec<Lanes>; 3],
+    /// The weights' sums.
+    total: Lanes,
+}
+
+impl FullSums {
+    /// The sums over every light of `dirs` for `basis` on the pixels of `sub`, weighted
+    /// as [`fold_errors`] weighs them ([`mean_channel_weights`]).
+    fn new(basis: &dyn Basis, dirs: &[Vec3], q: &[f64], sub: &Subsample) -> FullSums {
+        let (n, k) = (sub.n, basis.len());
+        let a: Vec<f64> = dirs.iter().flat_map(|d| basis.values(*d)).collect();
+        let pairs = super::packed_pairs(k);
+        let outer = outer_table(&a, k, &pairs);
+        let (t_cols, k_cols) = (linalg::tiled(pairs.len()), linalg::tiled(k));
+        let a_tiled = padded_columns(&a, k);
+        let every: Vec<usize> = (0..n).collect();
+        let groups = (0..sub.count.div_ceil(LANES))
+            .into_par_iter()
+            .map(|g| {
+                let first = g * LANES;
+                let used = LANES.min(sub.count - first);
+                let weights = mean_channel_weights(sub, first..first + used, &every, q);
+                let mut lanes = vec![[0.0; LANES]; n];
+                series_lanes(&mut lanes, 0, used, |x| weights[x]);
+                let mut sums = vec![[0.0; LANES]; t_cols];
+                linalg::lane_products_f64(&lanes, &outer, t_cols, &mut sums);
+                let rhs = std::array::from_fn(|c| {
+                    let weighted: Vec<Lanes> = lanes
+                        .iter()
+                        .enumerate()
+                        .map(|(j, w)| {
+                            std::array::from_fn(|l| {
+                                if l < used {
+                                    w[l] * sub.values[((first + l) * n + j) * 3 + c] as f64
+                                } else {
+                                    0.0
+                                }
+                            })
+                        })
+                        .collect();
+                    let mut rhs = vec![[0.0; LANES]; k_cols];
+                    linalg::lane_products_f64(&weighted, &a_tiled, k_cols, &mut rhs);
+                    rhs
+                });
+                let total = std::array::from_fn(|l| {
+                    if l < used {
+                        weights[l * n..(l + 1) * n].iter().sum()
+                    } else {
+                        0.0
+                    }
+                });
+                GroupSums { sums, rhs, total }
+            })
+            .collect();
+        FullSums {
+            spec: basis.spec(),
+            groups,
+        }
+    }
+}
+
+/// The outer products of the rows of `a` (`k` values each), one row of packed pairs
+/// per row of `a`, padded with zeros to whole tiles of [`linalg::lane_products_f64`].
+fn outer_table(a: &[f64], k: usize, pairs: &[(usize, usize)]) -> Vec<f64> {
+    let t_cols = linalg::tiled(pairs.len());
+    a.chunks_exact(k.max(1))
+        .flat_map(|row| {
+            let products = pairs.iter().map(move |&(r, c)| row[r] * row[c]);
+            products.chain(std::iter::repeat_n(0.0, t_cols - pairs.len()))
+        })
+        .collect()
+}
+
+/// The perceptual validation's weight of each of `lights` for each pixel of `pixels`
+/// (pixel-major): the mean over the pixel's channels of `q_j · s(v)²` at the
+/// observation (as the fit's first pass weighs them), the block's encodings a batch at
+/// a time.
+fn mean_channel_weights(
+    sub: &Subsample,
+    pixels: Range<usize>,
+    lights: &[usize],
+    q: &[f64],
+) -> Vec<f64> {
+    let (n, nl) = (sub.n, lights.len());
+    // Pixel, channel, light.
+    let values: Vec<f64> = pixels
+        .flat_map(|p| {
+            (0..3).flat_map(move |c| {
+                lights
+                    .iter()
+                    .map(move |&j| sub.values[(p * n + j) * 3 + c] as f64)
+            })
+        })
+        .collect();
+    let mut encoded = vec![0.0; values.len()];
+    color::linear_to_srgb_tabulated_batch(&values, &mut encoded);
+    let each: Vec<f64> = values
+        .iter()
+        .zip(&encoded)
+        .zip(lights.iter().cycle())
+        .map(|((&v, &e), &j)| q[j] * perceptual_weight_encoded(v, e))
+        .collect();
+    each.chunks_exact(3 * nl)
+        .flat_map(|p| {
+            let (r, rest) = p.split_at(nl);
+            let (g, b) = rest.split_at(nl);
+            r.iter().zip(g).zip(b).map(|((r, g), b)| (r + g + b) / 3.0)
+        })
+        .collect()
 }
 
 /// The score of a candidate from its errors per held-out light.
@@ -620,13 +781,22 @@ fn fold_errors(
     objective: Objective,
     ladders: &[Range<usize>],
     penalty: &[f64],
-    train_dirs: &[Vec3],
-    held_dirs: &[Vec3],
-    q_train: &[f64],
+    lights: &FoldLights,
     train_values: &[f32],
-    held: &[usize],
     sub: &Subsample,
+    full: Option<&FullSums>,
 ) -> Vec<Vec<[f64; SLOTS]>> {
+    let FoldLights {
+        train,
+        held,
+        train_dirs,
+        held_dirs,
+        q_train,
+        q,
+    } = *lights;
+    // Perceptual systems downdated from the sums over every light: the held-out lights'
+    // terms taken away rather than the training lights' added up (a tenth of the work).
+    let full = full.filter(|_| objective == Objective::Perceptual);
     let k = basis.len();
     debug_assert!(sizes.last() == Some(&k) && sizes.windows(2).all(|w| w[0] < w[1]));
     debug_assert_eq!(ladders.len(), sizes.len());
@@ -637,7 +807,7 @@ fn fold_errors(
     debug_assert!(ladders
         .iter()
         .all(|l| l.is_empty() || (l.start.is_multiple_of(2) && l.end.is_multiple_of(2))));
-    let nt = train_dirs.len();
+    let (n, nt) = (sub.n, train_dirs.len());
     let a_train: Vec<f64> = train_dirs.iter().flat_map(|d| basis.values(*d)).collect();
     let a_held: Vec<f64> = held_dirs.iter().flat_map(|d| basis.values(*d)).collect();
     let normal = |w: &[f64]| -> (Vec<f64>, f64) {
@@ -706,20 +876,20 @@ fn fold_errors(
     // upper triangle, padded to whole tiles) by `linalg::lane_products_f64`.
     let pairs = super::packed_pairs(k);
     let t_cols = linalg::tiled(pairs.len());
-    let outer: Vec<f64> = if shared.is_none() {
-        (0..nt)
-            .flat_map(|j| {
-                let row = &a_train[j * k..(j + 1) * k];
-                let products = pairs.iter().map(move |&(r, c)| row[r] * row[c]);
-                products.chain(std::iter::repeat_n(0.0, t_cols - pairs.len()))
-            })
-            .collect()
+    // The lights whose terms the perceptual systems sum: the training lights, or the
+    // held-out ones taken away from the sums over every light.
+    let (summed, a_summed) = match full {
+        Some(_) => (held, &a_held),
+        None => (train, &a_train),
+    };
+    let outer = if shared.is_none() {
+        outer_table(a_summed, k, &pairs)
     } else {
         Vec::new()
     };
     let k_cols = linalg::tiled(k);
-    let a_train_tiled = if shared.is_none() {
-        padded_columns(&a_train, k)
+    let a_summed_tiled = if shared.is_none() {
+        padded_columns(a_summed, k)
     } else {
         Vec::new()
     };
@@ -842,30 +1012,10 @@ fn fold_errors(
             // scripts/realrti_table.py, 2026-12-07).
             debug_assert!(first.is_multiple_of(3) && len.is_multiple_of(3));
             let pixels = len / 3;
-            // Each observation's perceptual weight (a batch of the block's encodings at
-            // a time), then each pixel's mean over its channels.
-            let weights: Vec<f64> = {
-                let values: Vec<f64> = train_values[first * nt..(first + len) * nt]
-                    .iter()
-                    .map(|&v| v as f64)
-                    .collect();
-                let mut encoded = vec![0.0; values.len()];
-                color::linear_to_srgb_tabulated_batch(&values, &mut encoded);
-                let each: Vec<f64> = values
-                    .iter()
-                    .zip(&encoded)
-                    .zip(q_train.iter().cycle())
-                    .map(|((&v, &e), &q)| q * perceptual_weight_encoded(v, e))
-                    .collect();
-                each.chunks_exact(3 * nt)
-                    .flat_map(|p| {
-                        let (r, rest) = p.split_at(nt);
-                        let (g, b) = rest.split_at(nt);
-                        r.iter().zip(g).zip(b).map(|((r, g), b)| (r + g + b) / 3.0)
-                    })
-                    .collect()
-            };
-            let mut weight_lanes = vec![[0.0; LANES]; nt];
+            let pixel0 = first / 3;
+            let ns = summed.len();
+            let weights = mean_channel_weights(sub, pixel0..pixel0 + pixels, summed, q);
+            let mut weight_lanes = vec![[0.0; LANES]; ns];
             let mut sums = vec![[0.0; LANES]; t_cols];
             let mut m = vec![[0.0; LANES]; k * k];
             let mut f = vec![[0.0; LANES]; k * k];
@@ -873,7 +1023,7 @@ fn fold_errors(
             let mut coef = vec![[0.0; LANES]; k];
             let mut coef2 = vec![[0.0; LANES]; k];
             let mut rhs = vec![vec![[0.0; LANES]; k_cols]; 3];
-            let mut weighted = vec![[0.0; LANES]; nt];
+            let mut weighted = vec![[0.0; LANES]; ns];
             let mut ok = vec![false; 3 * LANES];
             let mut pair_preds = [vec![0.0; 3 * LANES * lights], vec![0.0; 3 * LANES * lights]];
             for g in (0..pixels).step_by(LANES) {
@@ -882,26 +1032,44 @@ fn fold_errors(
                 series_lanes(&mut weight_lanes, g, used, |x| weights[x]);
                 for (l, total) in total.iter_mut().enumerate().take(used) {
                     let b = g + l;
-                    *total = weights[b * nt..(b + 1) * nt].iter().sum();
+                    *total = weights[b * ns..(b + 1) * ns].iter().sum();
                 }
                 linalg::lane_products_f64(&weight_lanes, &outer, t_cols, &mut sums);
-                for (&(r, col), sum) in pairs.iter().zip(&sums) {
-                    m[col * k + r] = *sum;
-                }
                 // Each channel's right-hand sides, every lane at once: the weighted
-                // observations times the training rows (each lane's sums in the order of
-                // its own lights; unused lanes add zeros).
+                // observations times the summed lights' rows (each lane's sums in the
+                // order of its own lights; unused lanes add zeros).
                 for (c, rhs) in rhs.iter_mut().enumerate() {
                     for (j, (wv, w)) in weighted.iter_mut().zip(&weight_lanes).enumerate() {
+                        let light = summed[j];
                         *wv = std::array::from_fn(|l| {
                             if l < used {
-                                w[l] * train_values[(first + 3 * (g + l) + c) * nt + j] as f64
+                                w[l] * sub.values[((pixel0 + g + l) * n + light) * 3 + c] as f64
                             } else {
                                 0.0
                             }
                         });
                     }
-                    linalg::lane_products_f64(&weighted, &a_train_tiled, k_cols, rhs);
+                    linalg::lane_products_f64(&weighted, &a_summed_tiled, k_cols, rhs);
+                }
+                if let Some(full) = full {
+                    let whole = &full.groups[(pixel0 + g) / LANES];
+                    let minus = |whole: &Lanes, part: &Lanes| -> Lanes {
+                        std::array::from_fn(|l| whole[l] - part[l])
+                    };
+                    for (s, w) in sums.iter_mut().zip(&whole.sums) {
+                        *s = minus(w, s);
+                    }
+                    for (rhs, whole) in rhs.iter_mut().zip(&whole.rhs) {
+                        for (r, w) in rhs.iter_mut().zip(whole) {
+                            *r = minus(w, r);
+                        }
+                    }
+                    for (t, w) in total.iter_mut().zip(&whole.total).take(used) {
+                        *t = w - *t;
+                    }
+                }
+                for (&(r, col), sum) in pairs.iter().zip(&sums) {
+                    m[col * k + r] = *sum;
                 }
                 // The block's series of these pixels, in order.
                 let rows = 3 * g..3 * (g + used);
@@ -1118,81 +1286,93 @@ mod tests {
         let choice = BasisChoice::parse("sh:9").unwrap();
         let (folds, fold) = (5, 2);
         let ladder = 2..4;
-        let (held, errors) = fold_result(
-            &choice,
-            &[9],
-            MapSpace::Linear,
-            &[(Objective::Perceptual, vec![ladder.clone()])],
-            Regularizer::Roughness,
-            &dirs,
-            &q,
-            &sub,
-            folds,
-            fold,
-            &Penalties::default(),
-        )
-        .unwrap();
-        let got = &errors[0][0];
-        let train: Vec<usize> = (0..n).filter(|j| j % folds != fold).collect();
-        let train_dirs: Vec<Vec3> = train.iter().map(|&j| dirs[j]).collect();
-        let basis = choice.build(&train_dirs, None).unwrap();
-        let k = basis.len();
-        let penalty = Regularizer::Roughness.matrix(basis.as_ref());
-        let encode = |v: f64| color::linear_to_srgb_tabulated(v as f32) as f64;
-        for li in ladder {
-            let lambda = VALIDATION_LADDER[li];
-            let mut want = vec![0.0; held.len()];
-            for p in 0..count {
-                let v = |j: usize, c: usize| values[(p * n + j) * 3 + c] as f64;
-                let w: Vec<f64> = train
-                    .iter()
-                    .map(|&j| {
-                        let each =
-                            |c: usize| q[j] * perceptual_weight_encoded(v(j, c), encode(v(j, c)));
-                        (each(0) + each(1) + each(2)) / 3.0
-                    })
-                    .collect();
-                let total: f64 = w.iter().sum();
-                let mut m = vec![0.0; k * k];
-                for (t, &j) in train.iter().enumerate() {
-                    let a = basis.values(dirs[j]);
-                    for r in 0..k {
-                        for c in 0..k {
-                            m[r * k + c] += w[t] * a[r] * a[c];
-                        }
-                    }
-                }
-                for (x, pen) in m.iter_mut().zip(&penalty) {
-                    *x += total * lambda * pen;
-                }
-                (0..k).for_each(|i| m[i * k + i] += total * super::super::DEFINITENESS);
-                assert!(linalg::cholesky(&mut m, k));
-                for c in 0..3 {
-                    let mut coef = vec![0.0; k];
+        // The fold's systems summed from its training lights, and taken from the sums
+        // over every light less its held-out ones.
+        let full = FullSums::new(choice.build(&dirs, None).unwrap().as_ref(), &dirs, &q, &sub);
+        let train_dirs: Vec<Vec3> = (0..n)
+            .filter(|j| j % folds != fold)
+            .map(|j| dirs[j])
+            .collect();
+        assert!(full.spec == choice.build(&train_dirs, None).unwrap().spec());
+        for full in [None, Some(&full)] {
+            let (held, errors) = fold_result(
+                &choice,
+                &[9],
+                MapSpace::Linear,
+                &[(Objective::Perceptual, vec![ladder.clone()])],
+                Regularizer::Roughness,
+                &dirs,
+                &q,
+                &sub,
+                folds,
+                fold,
+                &Penalties::default(),
+                full,
+            )
+            .unwrap();
+            let got = &errors[0][0];
+            let train: Vec<usize> = (0..n).filter(|j| j % folds != fold).collect();
+            let train_dirs: Vec<Vec3> = train.iter().map(|&j| dirs[j]).collect();
+            let basis = choice.build(&train_dirs, None).unwrap();
+            let k = basis.len();
+            let penalty = Regularizer::Roughness.matrix(basis.as_ref());
+            let encode = |v: f64| color::linear_to_srgb_tabulated(v as f32) as f64;
+            for li in ladder.clone() {
+                let lambda = VALIDATION_LADDER[li];
+                let mut want = vec![0.0; held.len()];
+                for p in 0..count {
+                    let v = |j: usize, c: usize| values[(p * n + j) * 3 + c] as f64;
+                    let w: Vec<f64> = train
+                        .iter()
+                        .map(|&j| {
+                            let each = |c: usize| {
+                                q[j] * perceptual_weight_encoded(v(j, c), encode(v(j, c)))
+                            };
+                            (each(0) + each(1) + each(2)) / 3.0
+                        })
+                        .collect();
+                    let total: f64 = w.iter().sum();
+                    let mut m = vec![0.0; k * k];
                     for (t, &j) in train.iter().enumerate() {
-                        for (x, a) in coef.iter_mut().zip(basis.values(dirs[j])) {
-                            *x += w[t] * v(j, c) * a;
+                        let a = basis.values(dirs[j]);
+                        for r in 0..k {
+                            for c in 0..k {
+                                m[r * k + c] += w[t] * a[r] * a[c];
+                            }
                         }
                     }
-                    linalg::cholesky_solve(&m, k, &mut coef);
-                    for (h, &j) in held.iter().enumerate() {
-                        let pred: f64 = basis
-                            .values(dirs[j])
-                            .iter()
-                            .zip(&coef)
-                            .map(|(a, c)| a * c)
-                            .sum();
-                        let d = srgb_on_screen(pred) - srgb_on_screen(v(j, c));
-                        want[h] += d * d;
+                    for (x, pen) in m.iter_mut().zip(&penalty) {
+                        *x += total * lambda * pen;
+                    }
+                    (0..k).for_each(|i| m[i * k + i] += total * super::super::DEFINITENESS);
+                    assert!(linalg::cholesky(&mut m, k));
+                    for c in 0..3 {
+                        let mut coef = vec![0.0; k];
+                        for (t, &j) in train.iter().enumerate() {
+                            for (x, a) in coef.iter_mut().zip(basis.values(dirs[j])) {
+                                *x += w[t] * v(j, c) * a;
+                            }
+                        }
+                        linalg::cholesky_solve(&m, k, &mut coef);
+                        for (h, &j) in held.iter().enumerate() {
+                            let pred: f64 = basis
+                                .values(dirs[j])
+                                .iter()
+                                .zip(&coef)
+                                .map(|(a, c)| a * c)
+                                .sum();
+                            let d = srgb_on_screen(pred) - srgb_on_screen(v(j, c));
+                            want[h] += d * d;
+                        }
                     }
                 }
-            }
-            for (h, want) in want.iter().enumerate() {
-                let err = got[h][li];
-                assert!(
-                    (err - want).abs() <= 1e-9 * want.max(1e-12),
-                    "λ {lambda}, held-out light {h}: {err} against {want}"
-                );
+                for (h, want) in want.iter().enumerate() {
+                    let err = got[h][li];
+                    assert!(
+                        (err - want).abs() <= 1e-9 * want.max(1e-12),
+                        "λ {lambda}, held-out light {h}: {err} against {want}"
+                    );
+                }
             }
         }
     }
