@@ -1878,6 +1878,10 @@ mod tests {
             basis: crate::fit::BasisRequest::parse(basis).unwrap(),
             color_space: Some(space),
             lambda: crate::fit::Lambda::Fixed(1e-3),
+            // The codec's figures below are of the plain least-squares maps; the
+            // automatic objective's choice on this capture is a close call (its
+            // leave-one-out display errors differ by 4 %) that these tests do not judge.
+            objective: crate::fit::Objective::Linear,
             ..Default::default()
         };
         crate::fit::fit(&plane.capture(&dirs), &options, &crate::progress::Silent)
