@@ -334,6 +334,10 @@ fn openlime_shows_what_relit_relights_for_each_type_relit_writes() {
             basis: relit::fit::BasisRequest::parse(basis).unwrap(),
             color_space: Some(space),
             lambda: relit::fit::Lambda::Fixed(1e-3),
+            // The floors against the exported file were measured on plain least-squares
+            // maps; the automatic objective's choice on this capture is a close call
+            // that this test does not judge.
+            objective: relit::fit::Objective::Linear,
             ..Default::default()
         };
         let fitted = relit::fit::fit(capture, &options, &relit::progress::Silent).unwrap();
