@@ -337,7 +337,7 @@ struct Tables<'a> {
 /// secant weights, each channel's first divided by its mean over the lights
 /// ([`add_normalized`]), so that the darkest channel, whose sRGB slopes are the
 /// steepest, does not alone decide the shape. Against each channel reweighted by its
-/// own secants (a normal matrix and a factorisation per channel) this took 6–20 % off
+/// own secants (a normal matrix and a factorisation per channel) this took 9–19 % off
 /// the fit where the perceptual objective is fitted, and moved the held-out PSNR of the
 /// eight shared RTI items by −0.09 … +0.05 dB (docs/bases.md, "The reweighted pass
 /// shared too").
