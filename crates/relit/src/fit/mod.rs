@@ -2398,10 +2398,7 @@ fn loo_scores(
                     (0..3)
                         .map(|c| {
                             let w = (0..n)
-                                .map(|j| match objective {
-                                    LooObjective::Linear => design.q[j],
-                                    _ => design.q[j] * perceptual_weight(obs[c][j]),
-                                })
+                                .map(|j| design.q[j] * perceptual_weight(obs[c][j]))
                                 .collect();
                             (w, c..c + 1)
                         })

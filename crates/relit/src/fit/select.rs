@@ -558,6 +558,78 @@ struct GroupSums {
     total: Lanes,
 }
 
+impl GroupSums {
+    fn zeros(t_cols: usize, k_cols: usize) -> GroupSums {
+        GroupSums {
+            sums: vec![[0.0; LANES]; t_cols],
+            rhs: std::array::from_fn(|_| vec![[0.0; LANES]; k_cols]),
+            total: [0.0; LANES],
+        }
+    }
+
+    /// The sums over `lights` of the `used` pixels from `first`, weighted by `weights`
+    /// (pixel-major, `lights.len()` a pixel): `tables` are the lights' outer products
+    /// ([`outer_table`]) and rows ([`padded_columns`]); `lanes` and `weighted` are
+    /// scratch of `lights.len()`. Lanes past `used` sum nothing. Each lane's sums run
+    /// over its lights in order.
+    #[allow(clippy::too_many_arguments)]
+    fn sum(
+        &mut self,
+        sub: &Subsample,
+        first: usize,
+        used: usize,
+        lights: &[usize],
+        weights: &[f64],
+        (outer, rows): (&[f64], &[f64]),
+        lanes: &mut [Lanes],
+        weighted: &mut [Lanes],
+    ) {
+        let (n, nl) = (sub.n, lights.len());
+        series_lanes(lanes, 0, used, |x| weights[x]);
+        self.total = std::array::from_fn(|l| {
+            if l < used {
+                weights[l * nl..(l + 1) * nl].iter().sum()
+            } else {
+                0.0
+            }
+        });
+        linalg::lane_products_f64(lanes, outer, self.sums.len(), &mut self.sums);
+        // Each channel's right-hand sides, every lane at once: the weighted observations
+        // times the lights' rows.
+        for (c, rhs) in self.rhs.iter_mut().enumerate() {
+            for ((wv, w), &light) in weighted.iter_mut().zip(&*lanes).zip(lights) {
+                *wv = std::array::from_fn(|l| {
+                    if l < used {
+                        w[l] * sub.values[((first + l) * n + light) * 3 + c] as f64
+                    } else {
+                        0.0
+                    }
+                });
+            }
+            linalg::lane_products_f64(weighted, rows, rhs.len(), rhs);
+        }
+    }
+
+    /// `whole` less these sums, in place: a fold's sums from the sums over every light
+    /// and its held-out lights' (lanes past `used` keep a zero total).
+    fn taken_from(&mut self, whole: &GroupSums, used: usize) {
+        let minus = |whole: &Lanes, part: &mut Lanes| {
+            *part = std::array::from_fn(|l| whole[l] - part[l]);
+        };
+        for (part, whole) in self.sums.iter_mut().zip(&whole.sums) {
+            minus(whole, part);
+        }
+        for (rhs, whole) in self.rhs.iter_mut().zip(&whole.rhs) {
+            for (part, whole) in rhs.iter_mut().zip(whole) {
+                minus(whole, part);
+            }
+        }
+        for (t, w) in self.total.iter_mut().zip(&whole.total).take(used) {
+            *t = w - *t;
+        }
+    }
+}
+
 impl FullSums {
     /// The sums over every light of `dirs` for `basis` on the pixels of `sub`, weighted
     /// as [`fold_errors`] weighs them ([`mean_channel_weights`]).
@@ -575,36 +647,20 @@ impl FullSums {
                 let first = g * LANES;
                 let used = LANES.min(sub.count - first);
                 let weights = mean_channel_weights(sub, first..first + used, &every, q);
-                let mut lanes = vec![[0.0; LANES]; n];
-                series_lanes(&mut lanes, 0, used, |x| weights[x]);
-                let mut sums = vec![[0.0; LANES]; t_cols];
-                linalg::lane_products_f64(&lanes, &outer, t_cols, &mut sums);
-                let rhs = std::array::from_fn(|c| {
-                    let weighted: Vec<Lanes> = lanes
-                        .iter()
-                        .enumerate()
-                        .map(|(j, w)| {
-                            std::array::from_fn(|l| {
-                                if l < used {
-                                    w[l] * sub.values[((first + l) * n + j) * 3 + c] as f64
-                                } else {
-                                    0.0
-                                }
-                            })
-                        })
-                        .collect();
-                    let mut rhs = vec![[0.0; LANES]; k_cols];
-                    linalg::lane_products_f64(&weighted, &a_tiled, k_cols, &mut rhs);
-                    rhs
-                });
-                let total = std::array::from_fn(|l| {
-                    if l < used {
-                        weights[l * n..(l + 1) * n].iter().sum()
-                    } else {
-                        0.0
-                    }
-                });
-                GroupSums { sums, rhs, total }
+                let mut group = GroupSums::zeros(t_cols, k_cols);
+                let mut scratch = vec![[0.0; LANES]; 2 * n];
+                let (lanes, weighted) = scratch.split_at_mut(n);
+                group.sum(
+                    sub,
+                    first,
+                    used,
+                    &every,
+                    &weights,
+                    (&outer, &a_tiled),
+                    lanes,
+                    weighted,
+                );
+                group
             })
             .collect();
         FullSums {
@@ -807,7 +863,7 @@ fn fold_errors(
     debug_assert!(ladders
         .iter()
         .all(|l| l.is_empty() || (l.start.is_multiple_of(2) && l.end.is_multiple_of(2))));
-    let (n, nt) = (sub.n, train_dirs.len());
+    let nt = train_dirs.len();
     let a_train: Vec<f64> = train_dirs.iter().flat_map(|d| basis.values(*d)).collect();
     let a_held: Vec<f64> = held_dirs.iter().flat_map(|d| basis.values(*d)).collect();
     let normal = |w: &[f64]| -> (Vec<f64>, f64) {
@@ -1015,60 +1071,33 @@ fn fold_errors(
             let pixel0 = first / 3;
             let ns = summed.len();
             let weights = mean_channel_weights(sub, pixel0..pixel0 + pixels, summed, q);
-            let mut weight_lanes = vec![[0.0; LANES]; ns];
-            let mut sums = vec![[0.0; LANES]; t_cols];
+            let mut group = GroupSums::zeros(t_cols, k_cols);
+            let mut scratch = vec![[0.0; LANES]; 2 * ns];
+            let (weight_lanes, weighted) = scratch.split_at_mut(ns);
             let mut m = vec![[0.0; LANES]; k * k];
             let mut f = vec![[0.0; LANES]; k * k];
             let mut f2 = vec![[0.0; LANES]; k * k];
             let mut coef = vec![[0.0; LANES]; k];
             let mut coef2 = vec![[0.0; LANES]; k];
-            let mut rhs = vec![vec![[0.0; LANES]; k_cols]; 3];
-            let mut weighted = vec![[0.0; LANES]; ns];
             let mut ok = vec![false; 3 * LANES];
             let mut pair_preds = [vec![0.0; 3 * LANES * lights], vec![0.0; 3 * LANES * lights]];
             for g in (0..pixels).step_by(LANES) {
                 let used = LANES.min(pixels - g);
-                let mut total = [0.0; LANES];
-                series_lanes(&mut weight_lanes, g, used, |x| weights[x]);
-                for (l, total) in total.iter_mut().enumerate().take(used) {
-                    let b = g + l;
-                    *total = weights[b * ns..(b + 1) * ns].iter().sum();
-                }
-                linalg::lane_products_f64(&weight_lanes, &outer, t_cols, &mut sums);
-                // Each channel's right-hand sides, every lane at once: the weighted
-                // observations times the summed lights' rows (each lane's sums in the
-                // order of its own lights; unused lanes add zeros).
-                for (c, rhs) in rhs.iter_mut().enumerate() {
-                    for (j, (wv, w)) in weighted.iter_mut().zip(&weight_lanes).enumerate() {
-                        let light = summed[j];
-                        *wv = std::array::from_fn(|l| {
-                            if l < used {
-                                w[l] * sub.values[((pixel0 + g + l) * n + light) * 3 + c] as f64
-                            } else {
-                                0.0
-                            }
-                        });
-                    }
-                    linalg::lane_products_f64(&weighted, &a_summed_tiled, k_cols, rhs);
-                }
+                group.sum(
+                    sub,
+                    pixel0 + g,
+                    used,
+                    summed,
+                    &weights[g * ns..],
+                    (&outer, &a_summed_tiled),
+                    weight_lanes,
+                    weighted,
+                );
                 if let Some(full) = full {
-                    let whole = &full.groups[(pixel0 + g) / LANES];
-                    let minus = |whole: &Lanes, part: &Lanes| -> Lanes {
-                        std::array::from_fn(|l| whole[l] - part[l])
-                    };
-                    for (s, w) in sums.iter_mut().zip(&whole.sums) {
-                        *s = minus(w, s);
-                    }
-                    for (rhs, whole) in rhs.iter_mut().zip(&whole.rhs) {
-                        for (r, w) in rhs.iter_mut().zip(whole) {
-                            *r = minus(w, r);
-                        }
-                    }
-                    for (t, w) in total.iter_mut().zip(&whole.total).take(used) {
-                        *t = w - *t;
-                    }
+                    group.taken_from(&full.groups[(pixel0 + g) / LANES], used);
                 }
-                for (&(r, col), sum) in pairs.iter().zip(&sums) {
+                let (total, rhs) = (group.total, &group.rhs);
+                for (&(r, col), sum) in pairs.iter().zip(&group.sums) {
                     m[col * k + r] = *sum;
                 }
                 // The block's series of these pixels, in order.
